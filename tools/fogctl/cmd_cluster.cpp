@@ -1,0 +1,149 @@
+// fogctl cluster / fogctl bench clustering: the core pipeline on one scan.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <vector>
+
+#include "common/cloud_io.hpp"
+#include "common/clustering.hpp"
+#include "common/preprocess.hpp"
+#include "tools/fogctl/args.hpp"
+#include "tools/fogctl/commands.hpp"
+
+namespace fogmap::cli {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double millisSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+int fail(const Error& e) {
+  std::cerr << "fogctl: " << e.message << "\n";
+  return e.code == ErrorCode::kInvalidArgument ? 2 : 1;
+}
+
+Expected<ClusteringParams> clusteringParams(const Args& args) {
+  ClusteringParams p;
+  const auto eps = args.getDouble("eps", p.eps_m);
+  if (!eps) return eps.error();
+  const auto min_points = args.getInt("min-points", static_cast<long>(p.min_points));
+  if (!min_points) return min_points.error();
+  if (!(*eps > 0.0)) return invalidArgument("--eps must be positive");
+  if (*min_points < 1) return invalidArgument("--min-points must be at least 1");
+  p.eps_m = *eps;
+  p.min_points = static_cast<std::size_t>(*min_points);
+  return p;
+}
+
+Expected<Cloud> loadScan(const Args& args) {
+  if (!args.has("input")) return invalidArgument("--input SCAN is required");
+  auto loaded = readCloud(args.get("input"));
+  if (!loaded) return loaded.error();
+  if (loaded->dropped_non_finite > 0) {
+    std::cerr << "fogctl: dropped " << loaded->dropped_non_finite << " non-finite points\n";
+  }
+  if (!args.has("remove-ground")) return std::move(loaded->points);
+  auto ground = removeGround(loaded->points, GroundParams{});
+  if (!ground) return ground.error();
+  return std::move(ground->non_ground);
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+int benchClustering(int argc, char** argv) {
+  const auto args = Args::parse(argc, argv, 3, {"input", "eps", "min-points", "repeat"}, {"remove-ground", "json"});
+  if (!args) return fail(args.error());
+  const auto params = clusteringParams(*args);
+  if (!params) return fail(params.error());
+  const auto cloud = loadScan(*args);
+  if (!cloud) return fail(cloud.error());
+  const auto repeat = args->getInt("repeat", 5);
+  if (!repeat || *repeat < 1) return fail(invalidArgument("--repeat expects a positive integer"));
+
+  auto timed = [&](ClusteringMethod method, long runs, Clustering* out) {
+    std::vector<double> ms;
+    for (long r = 0; r < runs; ++r) {
+      const auto start = Clock::now();
+      *out = clusterPoints(*cloud, *params, method);
+      ms.push_back(millisSince(start));
+    }
+    return median(ms);
+  };
+  Clustering pcl_sorted;
+  Clustering pcl_unsorted;
+  Clustering ours;
+  const double pcl_sorted_ms = timed(ClusteringMethod::kPcl, *repeat, &pcl_sorted);
+  const double pcl_unsorted_ms = timed(ClusteringMethod::kPclUnsorted, *repeat, &pcl_unsorted);
+  const double ours_ms = timed(ClusteringMethod::kFogmap, *repeat * 4, &ours);
+  const bool sorted_faster = pcl_sorted_ms <= pcl_unsorted_ms;
+  const double pcl_ms = sorted_faster ? pcl_sorted_ms : pcl_unsorted_ms;
+  const Clustering& reference = sorted_faster ? pcl_sorted : pcl_unsorted;
+  const bool identical = ours.labels == reference.labels;
+  const bool identical_both = ours.labels == pcl_sorted.labels && ours.labels == pcl_unsorted.labels;
+  const double speedup = pcl_ms / ours_ms;
+
+  if (args->has("json")) {
+    std::printf(
+        "{\"input\": \"%s\", \"points\": %zu, \"eps\": %.4g, \"min_points\": %zu, \"remove_ground\": %s, "
+        "\"clusters\": %d, \"pcl_sorted_ms\": %.3f, \"pcl_unsorted_ms\": %.3f, \"pcl_ms\": %.3f, "
+        "\"fogmap_ms\": %.3f, \"speedup\": %.2f, \"identical\": %s, \"identical_to_both_pcl\": %s}\n",
+        args->get("input").c_str(), cloud->size(), params->eps_m, params->min_points,
+        args->has("remove-ground") ? "true" : "false", ours.cluster_count, pcl_sorted_ms, pcl_unsorted_ms, pcl_ms,
+        ours_ms, speedup, identical ? "true" : "false", identical_both ? "true" : "false");
+  } else {
+    std::printf("points            %zu%s\n", cloud->size(), args->has("remove-ground") ? " (ground removed)" : "");
+    std::printf("clusters          %d (eps %.3g m, min %zu points)\n", ours.cluster_count, params->eps_m, params->min_points);
+    std::printf("pcl sorted        %9.2f ms (median of %ld)\n", pcl_sorted_ms, *repeat);
+    std::printf("pcl unsorted      %9.2f ms (median of %ld)\n", pcl_unsorted_ms, *repeat);
+    std::printf("fogmap            %9.2f ms (median of %ld)\n", ours_ms, *repeat * 4);
+    std::printf("speed-up          %9.1fx against the faster PCL setting\n", speedup);
+    std::printf("identical         %s\n", identical ? "yes (same partition as PCL)" : "NO");
+  }
+  return identical ? 0 : 1;
+}
+
+}  // namespace
+
+int runCluster(int argc, char** argv) {
+  const auto args = Args::parse(argc, argv, 2, {"input", "eps", "min-points", "labels", "method"}, {"remove-ground"});
+  if (!args) return fail(args.error());
+  const auto params = clusteringParams(*args);
+  if (!params) return fail(params.error());
+  const std::string method_name = args->get("method", "fogmap");
+  ClusteringMethod method = ClusteringMethod::kFogmap;
+  if (method_name == "pcl") {
+    method = ClusteringMethod::kPcl;
+  } else if (method_name != "fogmap") {
+    return fail(invalidArgument("--method must be fogmap or pcl, got '" + method_name + "'"));
+  }
+  const auto cloud = loadScan(*args);
+  if (!cloud) return fail(cloud.error());
+  const auto start = Clock::now();
+  const Clustering clustering = clusterPoints(*cloud, *params, method);
+  const double ms = millisSince(start);
+  if (args->has("labels")) {
+    std::ofstream out(args->get("labels"));
+    if (!out) return fail(ioError("cannot write labels to " + args->get("labels")));
+    for (const auto l : clustering.labels) out << l << '\n';
+    if (!out) return fail(ioError("writing labels to " + args->get("labels") + " failed"));
+  }
+  std::printf("%zu points, %d clusters, %.2f ms (%s)\n", cloud->size(), clustering.cluster_count, ms, method_name.c_str());
+  return 0;
+}
+
+int runBench(int argc, char** argv) {
+  if (argc < 3 || std::string(argv[2]) != "clustering") {
+    std::cerr << "usage: fogctl bench clustering --input SCAN [--eps 0.35 --min-points 10] [--remove-ground] [--json]\n";
+    return 2;
+  }
+  return benchClustering(argc, argv);
+}
+
+}  // namespace fogmap::cli

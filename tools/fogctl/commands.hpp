@@ -1,0 +1,8 @@
+#pragma once
+// fogctl subcommands; each returns the process exit code (0 ok, 1 failure, 2 usage error).
+namespace fogmap::cli {
+
+int runCluster(int argc, char** argv);
+int runBench(int argc, char** argv);
+
+}  // namespace fogmap::cli
