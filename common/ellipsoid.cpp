@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -137,30 +138,37 @@ bool ellipsoidsIntersect(const Eigen::Vector3d& center_a, const Eigen::Matrix3d&
   const double rsum = std::sqrt(ra2) + std::sqrt(rb2);
   if (dist2 > rsum * rsum * (1.0 + 1e-12)) return false;
 
-  // Congruence transform making the better-conditioned shape the unit sphere. LLT fails on
-  // singular (flat) shapes; at least one of the two must be positive definite.
-  const Eigen::Matrix3d* a = &shape_a;
-  const Eigen::Matrix3d* b = &shape_b;
-  Eigen::LLT<Eigen::Matrix3d> llt(*a);
-  if (llt.info() != Eigen::Success || llt.matrixLLT().diagonal().minCoeff() <= 0.0) {
-    std::swap(a, b);
-    llt.compute(*a);
-    if (llt.info() != Eigen::Success || llt.matrixLLT().diagonal().minCoeff() <= 0.0) {
-      // Both flat: regularise both by a negligible relative amount.
-      const double eps = 1e-12 * std::max(ra2, rb2);
-      return ellipsoidsIntersect(center_a, shape_a + eps * Eigen::Matrix3d::Identity(), center_b,
-                                 shape_b + eps * Eigen::Matrix3d::Identity());
-    }
+  // Congruence transform making one shape the unit sphere. Use the better-conditioned shape:
+  // transforming by a nearly flat one amplifies rounding. LLT fails on singular (flat) shapes; at
+  // least one of the two must be positive definite.
+  auto conditioning = [](const Eigen::LLT<Eigen::Matrix3d>& f) {
+    if (f.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
+    const Eigen::Vector3d diag = f.matrixLLT().diagonal();
+    if (!(diag.minCoeff() > 0.0)) return std::numeric_limits<double>::infinity();
+    return diag.maxCoeff() / diag.minCoeff();
+  };
+  Eigen::LLT<Eigen::Matrix3d> llt_a(shape_a);
+  Eigen::LLT<Eigen::Matrix3d> llt_b(shape_b);
+  const double cond_a = conditioning(llt_a);
+  const double cond_b = conditioning(llt_b);
+  if (std::isinf(cond_a) && std::isinf(cond_b)) {
+    // Both flat: regularise both by a negligible relative amount.
+    const double eps = 1e-12 * std::max(ra2, rb2);
+    return ellipsoidsIntersect(center_a, shape_a + eps * Eigen::Matrix3d::Identity(), center_b,
+                               shape_b + eps * Eigen::Matrix3d::Identity());
   }
+  const bool a_is_base = cond_a <= cond_b;
+  const Eigen::LLT<Eigen::Matrix3d>& llt = a_is_base ? llt_a : llt_b;
+  const Eigen::Matrix3d* b = a_is_base ? &shape_b : &shape_a;
   const auto l = llt.matrixL();
   // C = L^-1 B L^-T, w = L^-1 d.
   Eigen::Matrix3d c = l.solve(*b);
   c = l.solve(c.transpose()).eval();
   c = 0.5 * (c + c.transpose());
-  const Eigen::Vector3d w = l.solve(d);
+  const Eigen::Vector3d w = l.solve(a_is_base ? d : Eigen::Vector3d(-d));
   if (w.squaredNorm() <= 1.0) return true;  // centre of the other inside the unit sphere
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver;
-  solver.computeDirect(c);
+  solver.compute(c);  // the closed-form 3x3 solver loses small eigenvalues of thin shapes
   const Eigen::Vector3d lambda = solver.eigenvalues().cwiseMax(0.0);
   const Eigen::Vector3d v = solver.eigenvectors().transpose() * w;
   return !separatingMaximumExceedsOne(v.cwiseAbs2(), lambda);

@@ -53,7 +53,8 @@ Status validateGeofence(const Geofence& fence) {
     // the half-width into 0 or infinity.
     if (!std::isnormal(h.normal.squaredNorm())) {
       return invalidArgument(fenceLabel(fence) + ": half-space " + std::to_string(i) +
-                             " has a normal too short or too long to use; rescale it with the offset");
+                             " has a normal too short or too long to square; rescale it and the "
+                             "offset");
     }
     if (!std::isfinite(h.offset)) {
       return invalidArgument(fenceLabel(fence) + ": half-space " + std::to_string(i) +

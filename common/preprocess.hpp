@@ -26,18 +26,26 @@ Cloud cropCloud(std::span<const Point> points, const CropBox& box);
 Expected<Cloud> voxelDownsample(std::span<const Point> points, double leaf_m);
 
 struct GroundParams {
-  double distance_threshold_m = 0.20;  // points at most this far above the ground plane (or below it) are ground
-  double max_tilt_deg = 15.0;          // the ground plane's normal is within this angle of +z
-  int max_iterations = 200;            // RANSAC iterations
+  double distance_threshold_m = 0.20;  // points at most this far above the local ground (or below it) are ground;
+                                       // also the inlier distance of the prior plane's RANSAC fit
+  double max_tilt_deg = 15.0;          // the prior plane's normal is within this angle of +z
+  int max_iterations = 200;            // RANSAC iterations for the prior plane
+  double cell_m = 2.0;                 // edge of the square x-y cells of the local ground grid
+  int neighbourhood_cells = 2;         // a cell's ground is the lowest estimate within this many cells (2: 5 x 5)
+  double max_below_prior_m = 1.5;      // points further below the prior plane are spurious: always ground, never estimates
+  double max_above_prior_m = 0.5;      // points further above the prior plane (roofs, canopies) are never estimates
 };
 
 struct GroundRemoval {
-  Cloud non_ground;
-  Eigen::Vector4d plane{0.0, 0.0, 1.0, 0.0};  // a x + b y + c z + d = 0, unit normal pointing up (c > 0)
-  std::size_t ground_points = 0;
+  Cloud non_ground;                           // the input order is kept
+  Eigen::Vector4d plane{0.0, 0.0, 1.0, 0.0};  // prior plane a x + b y + c z + d = 0, unit normal up (c > 0)
+  std::size_t ground_points = 0;              // removed points, non-finite ones included
 };
-// Fits the dominant near-horizontal plane (RANSAC) and removes it and everything below it.
-// Errors when the cloud has fewer than 3 points or no plane is found.
+// Removes the ground and everything below it: a global near-horizontal RANSAC plane (the prior),
+// refined per x-y cell to the lowest point within [-max_below, +max_above] of the prior found in the
+// cell's neighbourhood (the prior where the neighbourhood has none). Non-finite points are removed.
+// Errors on invalid parameters, fewer than 3 finite points, no prior plane, or a grid over the
+// points of more than 2^24 cells (crop the cloud first).
 Expected<GroundRemoval> removeGround(std::span<const Point> points, const GroundParams& params);
 
 struct PreprocessConfig {

@@ -37,8 +37,8 @@ std::uint64_t sumOfPairs(const Map& counts) {
 
 Expected<RandScores> randScores(std::span<const std::int64_t> a, std::span<const std::int64_t> b) {
   if (a.size() != b.size()) {
-    return invalidArgument("rand index: label vectors differ in length (" + std::to_string(a.size()) +
-                           " vs " + std::to_string(b.size()) + ")");
+    return invalidArgument("rand index: label vectors differ in length (" +
+                           std::to_string(a.size()) + " vs " + std::to_string(b.size()) + ")");
   }
   const std::uint64_t n = a.size();
   if (n < 2) return RandScores{1.0, 1.0};

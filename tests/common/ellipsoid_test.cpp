@@ -115,7 +115,7 @@ std::vector<Eigen::Vector3d> randomCluster(std::mt19937_64& rng, const Eigen::Ve
   return points;
 }
 
-TEST(ClusterSummary, EmptyAndSinglePoint) {
+TEST(EllipsoidClusterSummary, EmptyAndSinglePoint) {
   ClusterSummary empty;
   EXPECT_EQ(empty.count(), 0U);
   ClusterSummary one;
@@ -125,7 +125,7 @@ TEST(ClusterSummary, EmptyAndSinglePoint) {
   EXPECT_EQ(one.covariance(), Eigen::Matrix3d::Zero());
 }
 
-TEST(ClusterSummary, MatchesTwoPassFarFromTheOrigin) {
+TEST(EllipsoidClusterSummary, MatchesTwoPassFarFromTheOrigin) {
   std::mt19937_64 rng(1);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   for (double offset : {0.0, 1e3, 1e5, 1e6}) {
@@ -146,7 +146,7 @@ TEST(ClusterSummary, MatchesTwoPassFarFromTheOrigin) {
   }
 }
 
-TEST(ClusterSummary, AddingFloatPointsUsesTheirCoordinates) {
+TEST(EllipsoidClusterSummary, AddingFloatPointsUsesTheirCoordinates) {
   ClusterSummary from_points;
   ClusterSummary from_vectors;
   const std::vector<Point> points = {{1.5F, 2.0F, -3.0F, 0.1F}, {2.5F, 2.0F, -1.0F, 0.9F}};
@@ -159,7 +159,7 @@ TEST(ClusterSummary, AddingFloatPointsUsesTheirCoordinates) {
   EXPECT_EQ(from_points.mean(), Eigen::Vector3d(2.0, 2.0, -2.0));
 }
 
-TEST(ClusterSummary, AbsorbEqualsAddingAllPoints) {
+TEST(EllipsoidClusterSummary, AbsorbEqualsAddingAllPoints) {
   std::mt19937_64 rng(2);
   std::uniform_int_distribution<std::size_t> cut(0, 600);
   for (int trial = 0; trial < 50; ++trial) {
@@ -188,7 +188,7 @@ TEST(ClusterSummary, AbsorbEqualsAddingAllPoints) {
   }
 }
 
-TEST(ClusterSummary, AbsorbingEmptyChangesNothing) {
+TEST(EllipsoidClusterSummary, AbsorbingEmptyChangesNothing) {
   ClusterSummary s;
   s.add(Eigen::Vector3d(1, 2, 3));
   s.add(Eigen::Vector3d(2, 2, 5));
@@ -214,7 +214,7 @@ Eigen::Matrix3d grownShape(const Eigen::Matrix3d& rotation, const Eigen::Vector3
   return shapeOf(rotation, semi_axes.array() + delta);
 }
 
-TEST(WithAura, GrowsEverySemiAxisByDelta) {
+TEST(EllipsoidWithAura, GrowsEverySemiAxisByDelta) {
   std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> axis(0.01, 5.0);
   std::uniform_real_distribution<double> delta(0.0, 1.0);
@@ -233,7 +233,7 @@ TEST(WithAura, GrowsEverySemiAxisByDelta) {
   }
 }
 
-TEST(WithAura, RepairsFlatAndDegenerateShapes) {
+TEST(EllipsoidWithAura, RepairsFlatAndDegenerateShapes) {
   std::mt19937_64 rng(4);
   const double d = 0.175;
   for (int trial = 0; trial < 100; ++trial) {
@@ -262,7 +262,7 @@ TEST(WithAura, RepairsFlatAndDegenerateShapes) {
             1e-12);
 }
 
-TEST(WithAura, ZeroDeltaKeepsTheShape) {
+TEST(EllipsoidWithAura, ZeroDeltaKeepsTheShape) {
   std::mt19937_64 rng(5);
   for (int trial = 0; trial < 50; ++trial) {
     const Eigen::Matrix3d shape = randomShape(rng, 0.1, 3.0);
@@ -307,14 +307,14 @@ TEST(EllipsoidFromSummary, SinglePointGivesABallOfTheAura) {
 // ---------------------------------------------------------------------------------------------
 // (4) delimitingBox.
 
-TEST(DelimitingBox, HalfExtentIsSqrtOfDiagonal) {
+TEST(EllipsoidDelimitingBox, HalfExtentIsSqrtOfDiagonal) {
   const Ellipsoid e = ellipsoidAt({1, 2, 3}, Eigen::Vector3d(4.0, 9.0, 0.25).asDiagonal());
   const Box box = delimitingBox(e);
   EXPECT_EQ(box.min, Eigen::Vector3d(-1.0, -1.0, 2.5));
   EXPECT_EQ(box.max, Eigen::Vector3d(3.0, 5.0, 3.5));
 }
 
-TEST(DelimitingBox, ContainsSampledSurfaceAndIsTight) {
+TEST(EllipsoidDelimitingBox, ContainsSampledSurfaceAndIsTight) {
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<double> position(-100.0, 100.0);
   for (int trial = 0; trial < 20; ++trial) {
@@ -346,7 +346,7 @@ TEST(DelimitingBox, ContainsSampledSurfaceAndIsTight) {
   }
 }
 
-TEST(Box, OverlapIsClosedAndExtendIsUnion) {
+TEST(EllipsoidBox, OverlapIsClosedAndExtendIsUnion) {
   const Box a{{0, 0, 0}, {1, 1, 1}};
   const Box touching{{1, 0.5, 0.5}, {2, 2, 2}};
   const Box apart{{1.0 + 1e-12, 0, 0}, {2, 1, 1}};
@@ -406,7 +406,8 @@ Bounds minMahalanobis(const Ellipsoid& a, const Ellipsoid& b, bool sample = true
 
   Eigen::Vector3d best = Eigen::Vector3d::Zero();
   double best_value = f(best);
-  for (const Eigen::Vector3d& u : sample ? unitBallSamples() : std::vector<Eigen::Vector3d>{}) {
+  static const std::vector<Eigen::Vector3d> kNoSamples;
+  for (const Eigen::Vector3d& u : sample ? unitBallSamples() : kNoSamples) {
     const double value = f(u);
     if (value < best_value) {
       best_value = value;
@@ -707,7 +708,8 @@ TEST(EllipsoidsIntersect, ThinDiscsRotatedAndTranslated) {
                                           r * cases[i].other.shape * r.transpose());
       EXPECT_EQ(intersects(moved, other), cases[i].expected) << "case " << i << " trial " << trial
                                                              << "\n" << describe(moved, other);
-      EXPECT_EQ(intersects(other, moved), cases[i].expected) << "case " << i << " trial " << trial;
+      EXPECT_EQ(intersects(other, moved), cases[i].expected)
+          << "case " << i << " trial " << trial << " (arguments swapped)\n" << describe(moved, other);
     }
   }
 }
@@ -769,7 +771,8 @@ TEST(EllipsoidsIntersect, NeedlesRotatedAndTranslated) {
                                           r * cases[i].other.shape * r.transpose());
       EXPECT_EQ(intersects(moved, other), cases[i].expected) << "case " << i << " trial " << trial
                                                              << "\n" << describe(moved, other);
-      EXPECT_EQ(intersects(other, moved), cases[i].expected) << "case " << i << " trial " << trial;
+      EXPECT_EQ(intersects(other, moved), cases[i].expected)
+          << "case " << i << " trial " << trial << " (arguments swapped)\n" << describe(moved, other);
     }
   }
 }
@@ -777,7 +780,7 @@ TEST(EllipsoidsIntersect, NeedlesRotatedAndTranslated) {
 // ---------------------------------------------------------------------------------------------
 // (7) contains.
 
-TEST(Contains, CentreSurfaceAndOutside) {
+TEST(EllipsoidContains, CentreSurfaceAndOutside) {
   std::mt19937_64 rng(12);
   std::uniform_real_distribution<double> position(-1e3, 1e3);
   for (int trial = 0; trial < 200; ++trial) {
@@ -795,7 +798,7 @@ TEST(Contains, CentreSurfaceAndOutside) {
   }
 }
 
-TEST(Contains, SurfacePointsOfAxisAlignedEllipsoid) {
+TEST(EllipsoidContains, SurfacePointsOfAxisAlignedEllipsoid) {
   const Ellipsoid e = axisAligned({1, 2, 3}, {3, 2, 1});
   EXPECT_TRUE(contains(e, {4, 2, 3}));
   EXPECT_TRUE(contains(e, {1, 0, 3}));
@@ -805,7 +808,7 @@ TEST(Contains, SurfacePointsOfAxisAlignedEllipsoid) {
   EXPECT_TRUE(contains(e, {1 + 3 * std::sqrt(0.5) * 0.999, 2 + 2 * std::sqrt(0.5) * 0.999, 3}));
 }
 
-TEST(Contains, ThinDisc) {
+TEST(EllipsoidContains, ThinDisc) {
   const Ellipsoid disc = axisAligned({0, 0, 0}, {1, 1, 1e-6});
   EXPECT_TRUE(contains(disc, {0.5, 0.5, 0}));
   EXPECT_TRUE(contains(disc, {0, 0, 0.9e-6}));

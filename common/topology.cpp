@@ -1,0 +1,462 @@
+#include "common/topology.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <set>
+#include <sstream>
+
+#include <yaml-cpp/yaml.h>
+
+namespace fogmap {
+
+const NodeConfig* TopologyConfig::find(const std::string& node_name) const {
+  for (const auto& n : nodes) {
+    if (n.name == node_name) return &n;
+  }
+  return nullptr;
+}
+
+const NodeConfig* TopologyConfig::find(std::uint32_t id) const {
+  for (const auto& n : nodes) {
+    if (n.id == id) return &n;
+  }
+  return nullptr;
+}
+
+const NodeConfig* TopologyConfig::root() const {
+  for (const auto& n : nodes) {
+    if (n.parent.empty()) return &n;
+  }
+  return nullptr;
+}
+
+std::vector<const NodeConfig*> TopologyConfig::children(const std::string& node_name) const {
+  std::vector<const NodeConfig*> out;
+  for (const auto& n : nodes) {
+    if (n.parent == node_name) out.push_back(&n);
+  }
+  return out;
+}
+
+std::vector<std::uint32_t> TopologyConfig::sensorsBelow(const std::string& node_name) const {
+  std::vector<std::uint32_t> out;
+  std::function<void(const std::string&, int)> walk = [&](const std::string& at, int depth) {
+    const NodeConfig* n = find(at);
+    if (n == nullptr || depth > static_cast<int>(nodes.size())) return;  // cycles are rejected at parse time
+    if (n->role == Role::kEdge) out.push_back(n->id);
+    for (const auto* c : children(at)) walk(c->name, depth + 1);
+  };
+  walk(node_name, 0);
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+namespace {
+
+// Errors name the place in the file: "topology: nodes[3].sensor.rate_hz: must be positive".
+Error bad(const std::string& where, const std::string& what) { return invalidArgument("topology: " + where + ": " + what); }
+
+template <class T>
+Expected<T> scalar(const YAML::Node& node, const std::string& key, const std::string& where, T fallback) {
+  const YAML::Node v = node[key];
+  if (!v) return fallback;
+  try {
+    return v.as<T>();
+  } catch (const YAML::Exception&) {
+    return bad(where + "." + key, "cannot read '" + YAML::Dump(v) + "' as the expected type");
+  }
+}
+
+Expected<Eigen::Vector3d> vec3(const YAML::Node& node, const std::string& key, const std::string& where,
+                               const Eigen::Vector3d& fallback) {
+  const YAML::Node v = node[key];
+  if (!v) return fallback;
+  if (!v.IsSequence() || v.size() != 3) return bad(where + "." + key, "expected a list of 3 numbers");
+  Eigen::Vector3d out;
+  for (std::size_t i = 0; i < 3; ++i) {
+    try {
+      out[static_cast<Eigen::Index>(i)] = v[i].as<double>();
+    } catch (const YAML::Exception&) {
+      return bad(where + "." + key, "expected a list of 3 numbers");
+    }
+  }
+  if (!out.allFinite()) return bad(where + "." + key, "values must be finite");
+  return out;
+}
+
+Expected<Mode> parseMode(const std::string& s) {
+  if (s == "madc") return Mode::kMadc;
+  if (s == "baseline") return Mode::kBaseline;
+  if (s == "ext") return Mode::kExt;
+  return bad("mode", "must be madc, baseline or ext, got '" + s + "'");
+}
+
+Expected<Eigen::Isometry3d> parsePose(const YAML::Node& node, const std::string& where) {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  if (!node) return pose;
+  const auto t = vec3(node, "translation_m", where, Eigen::Vector3d::Zero());
+  if (!t) return t.error();
+  const auto rpy = vec3(node, "rpy_deg", where, Eigen::Vector3d::Zero());
+  if (!rpy) return rpy.error();
+  const Eigen::Vector3d r = *rpy * (M_PI / 180.0);
+  pose.linear() = (Eigen::AngleAxisd(r.z(), Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(r.y(), Eigen::Vector3d::UnitY()) *
+                   Eigen::AngleAxisd(r.x(), Eigen::Vector3d::UnitX()))
+                      .toRotationMatrix();
+  pose.translation() = *t;
+  return pose;
+}
+
+Expected<SensorConfig> parseSensor(const YAML::Node& node, const std::string& where, const std::filesystem::path& base_dir) {
+  SensorConfig s;
+  const auto source = scalar<std::string>(node, "source", where, "");
+  if (!source) return source.error();
+  if (source->empty()) return bad(where + ".source", "is required (a directory of scans or one scan file)");
+  s.source = std::filesystem::path(*source).is_absolute() ? std::filesystem::path(*source) : base_dir / *source;
+  const auto rate = scalar<double>(node, "rate_hz", where, s.rate_hz);
+  if (!rate) return rate.error();
+  if (!(*rate > 0.0 && *rate <= 1000.0)) return bad(where + ".rate_hz", "must be in (0, 1000]");
+  s.rate_hz = *rate;
+  const auto loop = scalar<bool>(node, "loop", where, s.loop);
+  if (!loop) return loop.error();
+  s.loop = *loop;
+  if (node["frames"]) {
+    const auto frames = scalar<long long>(node, "frames", where, 0);
+    if (!frames) return frames.error();
+    if (*frames <= 0) return bad(where + ".frames", "must be positive");
+    s.frames = static_cast<std::uint64_t>(*frames);
+  }
+  if (const YAML::Node split = node["split"]) {
+    SectorSplit sp;
+    const auto views = scalar<int>(split, "views", where + ".split", sp.views);
+    const auto index = scalar<int>(split, "index", where + ".split", sp.index);
+    const auto overlap = scalar<double>(split, "overlap_deg", where + ".split", sp.overlap_deg);
+    if (!views) return views.error();
+    if (!index) return index.error();
+    if (!overlap) return overlap.error();
+    if (*views < 1 || *views > 64) return bad(where + ".split.views", "must be in [1, 64]");
+    if (*index < 0 || *index >= *views) return bad(where + ".split.index", "must be in [0, views)");
+    if (!(*overlap >= 0.0 && *overlap < 360.0 / *views)) return bad(where + ".split.overlap_deg", "must be in [0, 360 / views)");
+    sp.views = *views;
+    sp.index = *index;
+    sp.overlap_deg = *overlap;
+    s.split = sp;
+  }
+  const auto pose = parsePose(node["pose"], where + ".pose");
+  if (!pose) return pose.error();
+  s.pose = *pose;
+  return s;
+}
+
+Status validate(const TopologyConfig& t) {
+  if (t.nodes.empty()) return bad("nodes", "at least one node is required");
+  std::set<std::string> names;
+  std::set<std::uint32_t> ids;
+  std::set<std::pair<std::string, std::uint16_t>> ports;
+  int roots = 0;
+  for (std::size_t i = 0; i < t.nodes.size(); ++i) {
+    const auto& n = t.nodes[i];
+    const std::string where = "nodes[" + std::to_string(i) + "] (" + n.name + ")";
+    if (!names.insert(n.name).second) return bad(where, "duplicate node name");
+    if (!ids.insert(n.id).second) return bad(where, "duplicate node id " + std::to_string(n.id));
+    for (const auto p : {n.port, n.metrics_port}) {
+      if (p != 0 && !ports.insert({n.host, p}).second) return bad(where, "port " + std::to_string(p) + " used twice on " + n.host);
+    }
+    if (n.metrics_port == 0) return bad(where, "metrics_port is required");
+    if (n.role == Role::kAggregator && n.port == 0) return bad(where, "an aggregator needs a port");
+    if (n.role == Role::kEdge && !n.sensor) return bad(where, "an edge needs a sensor");
+    if (n.role == Role::kEdge && n.parent.empty()) return bad(where, "an edge needs a parent aggregator");
+    if (n.parent.empty()) {
+      ++roots;
+      continue;
+    }
+    const NodeConfig* parent = t.find(n.parent);
+    if (parent == nullptr) return bad(where + ".parent", "no node named '" + n.parent + "'");
+    if (parent->role != Role::kAggregator) return bad(where + ".parent", "'" + n.parent + "' is not an aggregator");
+  }
+  if (roots != 1) return bad("nodes", "exactly one node (the root aggregator) must have no parent, found " + std::to_string(roots));
+  for (const auto& n : t.nodes) {  // every chain of parents must reach the root
+    const NodeConfig* at = &n;
+    std::size_t steps = 0;
+    while (!at->parent.empty()) {
+      at = t.find(at->parent);
+      if (++steps > t.nodes.size()) return bad("nodes", "the parents of '" + n.name + "' form a cycle");
+    }
+  }
+  return {};
+}
+
+}  // namespace
+
+Expected<TopologyConfig> parseTopology(const std::string& yaml_text, const std::filesystem::path& base_dir) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::Exception& e) {
+    return invalidArgument(std::string("topology: not valid YAML: ") + e.what());
+  }
+  if (!root.IsMap()) return invalidArgument("topology: the document must be a mapping with 'nodes'");
+  TopologyConfig t;
+  const auto name = scalar<std::string>(root, "name", "", "topology");
+  if (!name) return name.error();
+  t.name = *name;
+  const auto mode = scalar<std::string>(root, "mode", "", "madc");
+  if (!mode) return mode.error();
+  const auto parsed_mode = parseMode(*mode);
+  if (!parsed_mode) return parsed_mode.error();
+  t.mode = *parsed_mode;
+  const auto deadline = scalar<double>(root, "deadline_ms", "", t.deadline_ms);
+  if (!deadline) return deadline.error();
+  if (!(*deadline > 0.0 && *deadline <= 60000.0)) return bad("deadline_ms", "must be in (0, 60000]");
+  t.deadline_ms = *deadline;
+  const auto period = scalar<double>(root, "period_ms", "", t.period_ms);
+  if (!period) return period.error();
+  if (!(*period > 0.0)) return bad("period_ms", "must be positive");
+  t.period_ms = *period;
+  const auto max_bytes = scalar<long long>(root, "max_message_bytes", "", static_cast<long long>(t.max_message_bytes));
+  if (!max_bytes) return max_bytes.error();
+  if (*max_bytes < (1 << 20) || *max_bytes > (1LL << 30)) return bad("max_message_bytes", "must be in [1 MiB, 1 GiB]");
+  t.max_message_bytes = static_cast<std::size_t>(*max_bytes);
+
+  if (const YAML::Node m = root["madc"]) {
+    const auto eps = scalar<double>(m, "eps_m", "madc", t.madc.clustering.eps_m);
+    const auto min_points = scalar<long long>(m, "min_points", "madc", static_cast<long long>(t.madc.clustering.min_points));
+    const auto alpha = scalar<double>(m, "alpha", "madc", t.madc.alpha);
+    if (!eps) return eps.error();
+    if (!min_points) return min_points.error();
+    if (!alpha) return alpha.error();
+    if (!(*eps > 0.0 && *eps < 100.0)) return bad("madc.eps_m", "must be in (0, 100)");
+    if (*min_points < 1) return bad("madc.min_points", "must be at least 1");
+    if (!(*alpha > 0.0 && *alpha < 10.0)) return bad("madc.alpha", "must be in (0, 10)");
+    t.madc.clustering.eps_m = *eps;
+    t.madc.clustering.min_points = static_cast<std::size_t>(*min_points);
+    t.madc.alpha = *alpha;
+  }
+  if (const YAML::Node p = root["preprocess"]) {
+    if (const YAML::Node crop = p["crop"]) {
+      CropBox box;
+      const auto lo = vec3(crop, "min_m", "preprocess.crop", box.min_m);
+      const auto hi = vec3(crop, "max_m", "preprocess.crop", box.max_m);
+      if (!lo) return lo.error();
+      if (!hi) return hi.error();
+      if (((*lo).array() >= (*hi).array()).any()) return bad("preprocess.crop", "min_m must be below max_m on every axis");
+      box.min_m = *lo;
+      box.max_m = *hi;
+      t.preprocess.crop = box;
+    }
+    if (p["voxel_leaf_m"]) {
+      const auto leaf = scalar<double>(p, "voxel_leaf_m", "preprocess", 0.0);
+      if (!leaf) return leaf.error();
+      if (!(*leaf > 0.0)) return bad("preprocess.voxel_leaf_m", "must be positive");
+      t.preprocess.voxel_leaf_m = *leaf;
+    }
+    if (const YAML::Node g = p["ground"]) {
+      GroundParams ground;
+      const auto threshold = scalar<double>(g, "distance_threshold_m", "preprocess.ground", ground.distance_threshold_m);
+      const auto tilt = scalar<double>(g, "max_tilt_deg", "preprocess.ground", ground.max_tilt_deg);
+      if (!threshold) return threshold.error();
+      if (!tilt) return tilt.error();
+      if (!(*threshold > 0.0 && *threshold < 5.0)) return bad("preprocess.ground.distance_threshold_m", "must be in (0, 5)");
+      if (!(*tilt > 0.0 && *tilt < 90.0)) return bad("preprocess.ground.max_tilt_deg", "must be in (0, 90)");
+      ground.distance_threshold_m = *threshold;
+      ground.max_tilt_deg = *tilt;
+      t.preprocess.ground = ground;
+    }
+  }
+
+  const YAML::Node nodes = root["nodes"];
+  if (!nodes || !nodes.IsSequence()) return bad("nodes", "a list of nodes is required");
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    const YAML::Node n = nodes[i];
+    const std::string where = "nodes[" + std::to_string(i) + "]";
+    if (!n.IsMap()) return bad(where, "each node must be a mapping");
+    NodeConfig node;
+    const auto node_name = scalar<std::string>(n, "name", where, "");
+    if (!node_name) return node_name.error();
+    if (node_name->empty()) return bad(where + ".name", "is required");
+    node.name = *node_name;
+    const auto id = scalar<long long>(n, "id", where, -1);
+    if (!id) return id.error();
+    if (*id < 0 || *id > 0xFFFFFFFFLL) return bad(where + ".id", "a node id in [0, 2^32) is required");
+    node.id = static_cast<std::uint32_t>(*id);
+    const auto role = scalar<std::string>(n, "role", where, "");
+    if (!role) return role.error();
+    if (*role == "edge") {
+      node.role = Role::kEdge;
+    } else if (*role == "aggregator") {
+      node.role = Role::kAggregator;
+    } else {
+      return bad(where + ".role", "must be edge or aggregator, got '" + *role + "'");
+    }
+    const auto parent = scalar<std::string>(n, "parent", where, "");
+    const auto host = scalar<std::string>(n, "host", where, node.host);
+    const auto port = scalar<long long>(n, "port", where, 0);
+    const auto metrics_port = scalar<long long>(n, "metrics_port", where, 0);
+    if (!parent) return parent.error();
+    if (!host) return host.error();
+    if (!port) return port.error();
+    if (!metrics_port) return metrics_port.error();
+    if (*port < 0 || *port > 65535) return bad(where + ".port", "must be a TCP port");
+    if (*metrics_port < 0 || *metrics_port > 65535) return bad(where + ".metrics_port", "must be a TCP port");
+    node.parent = *parent;
+    node.host = *host;
+    node.port = static_cast<std::uint16_t>(*port);
+    node.metrics_port = static_cast<std::uint16_t>(*metrics_port);
+    if (const YAML::Node sensor = n["sensor"]) {
+      auto s = parseSensor(sensor, where + ".sensor", base_dir);
+      if (!s) return s.error();
+      node.sensor = std::move(*s);
+    }
+    t.nodes.push_back(std::move(node));
+  }
+  if (const Status s = validate(t); !s) return s.error();
+  return t;
+}
+
+Expected<TopologyConfig> loadTopology(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) return notFound("topology: cannot open " + path.string());
+  std::stringstream text;
+  text << in.rdbuf();
+  auto t = parseTopology(text.str(), path.parent_path());
+  if (!t) return Error{t.error().code, path.string() + ": " + t.error().message};
+  return t;
+}
+
+namespace {
+
+TopologyConfig baseTopology(const std::string& name) {
+  TopologyConfig t;
+  t.name = name;
+  t.preprocess.crop = CropBox{{-40.0, -40.0, -3.0}, {40.0, 40.0, 3.0}};
+  t.preprocess.ground = GroundParams{};
+  return t;
+}
+
+NodeConfig edgeNode(int index, int edges, const std::filesystem::path& source, const std::string& parent, int base_port) {
+  NodeConfig n;
+  n.id = static_cast<std::uint32_t>(index + 1);
+  n.name = "edge-" + std::to_string(index + 1);
+  n.role = Role::kEdge;
+  n.parent = parent;
+  n.metrics_port = static_cast<std::uint16_t>(base_port + 100 + index + 1);
+  SensorConfig s;
+  s.source = source;
+  s.split = SectorSplit{edges, index, 10.0};
+  n.sensor = s;
+  return n;
+}
+
+NodeConfig aggregatorNode(int index, const std::string& name, const std::string& parent, int base_port) {
+  NodeConfig n;
+  n.id = static_cast<std::uint32_t>(100 + index);
+  n.name = name;
+  n.role = Role::kAggregator;
+  n.parent = parent;
+  n.port = static_cast<std::uint16_t>(base_port + index);
+  n.metrics_port = static_cast<std::uint16_t>(base_port + 200 + index);
+  return n;
+}
+
+}  // namespace
+
+TopologyConfig makeStarTopology(int edges, const std::filesystem::path& source, int base_port) {
+  TopologyConfig t = baseTopology("star-" + std::to_string(edges));
+  t.nodes.push_back(aggregatorNode(0, "sink", "", base_port));
+  for (int i = 0; i < edges; ++i) t.nodes.push_back(edgeNode(i, edges, source, "sink", base_port));
+  return t;
+}
+
+TopologyConfig makeTreeTopology(int edges, const std::filesystem::path& source, int base_port) {
+  TopologyConfig t = baseTopology("tree-" + std::to_string(edges));
+  int aggregators = 0;
+  // A balanced binary tree: an aggregator over at most two subtrees; a subtree of one edge is the edge.
+  std::function<void(int, int, const std::string&)> build = [&](int first, int count, const std::string& parent) {
+    if (count == 1) {
+      t.nodes.push_back(edgeNode(first, edges, source, parent, base_port));
+      return;
+    }
+    const int index = aggregators++;
+    const std::string name = index == 0 ? "sink" : "agg-" + std::to_string(index);
+    t.nodes.push_back(aggregatorNode(index, name, parent, base_port));
+    const int left = (count + 1) / 2;
+    build(first, left, name);
+    build(first + left, count - left, name);
+  };
+  build(0, std::max(edges, 1), "");
+  if (edges == 1) {  // a lone edge still needs a sink
+    t.nodes.clear();
+    return makeStarTopology(1, source, base_port);
+  }
+  return t;
+}
+
+std::string toYaml(const TopologyConfig& t) {
+  YAML::Emitter out;
+  out << YAML::BeginMap;
+  out << YAML::Key << "name" << YAML::Value << t.name;
+  out << YAML::Key << "mode" << YAML::Value << modeName(t.mode);
+  out << YAML::Key << "deadline_ms" << YAML::Value << t.deadline_ms;
+  out << YAML::Key << "period_ms" << YAML::Value << t.period_ms;
+  out << YAML::Key << "max_message_bytes" << YAML::Value << t.max_message_bytes;
+  out << YAML::Key << "madc" << YAML::Value << YAML::BeginMap << YAML::Key << "eps_m" << YAML::Value << t.madc.clustering.eps_m
+      << YAML::Key << "min_points" << YAML::Value << t.madc.clustering.min_points << YAML::Key << "alpha" << YAML::Value
+      << t.madc.alpha << YAML::EndMap;
+  out << YAML::Key << "preprocess" << YAML::Value << YAML::BeginMap;
+  auto list3 = [&](const Eigen::Vector3d& v) {
+    out << YAML::Flow << YAML::BeginSeq << v.x() << v.y() << v.z() << YAML::EndSeq;
+  };
+  if (t.preprocess.crop) {
+    out << YAML::Key << "crop" << YAML::Value << YAML::BeginMap << YAML::Key << "min_m" << YAML::Value;
+    list3(t.preprocess.crop->min_m);
+    out << YAML::Key << "max_m" << YAML::Value;
+    list3(t.preprocess.crop->max_m);
+    out << YAML::EndMap;
+  }
+  if (t.preprocess.voxel_leaf_m) out << YAML::Key << "voxel_leaf_m" << YAML::Value << *t.preprocess.voxel_leaf_m;
+  if (t.preprocess.ground) {
+    out << YAML::Key << "ground" << YAML::Value << YAML::BeginMap << YAML::Key << "distance_threshold_m" << YAML::Value
+        << t.preprocess.ground->distance_threshold_m << YAML::Key << "max_tilt_deg" << YAML::Value
+        << t.preprocess.ground->max_tilt_deg << YAML::EndMap;
+  }
+  out << YAML::EndMap;
+  out << YAML::Key << "nodes" << YAML::Value << YAML::BeginSeq;
+  for (const auto& n : t.nodes) {
+    out << YAML::BeginMap;
+    out << YAML::Key << "name" << YAML::Value << n.name;
+    out << YAML::Key << "id" << YAML::Value << n.id;
+    out << YAML::Key << "role" << YAML::Value << (n.role == Role::kEdge ? "edge" : "aggregator");
+    if (!n.parent.empty()) out << YAML::Key << "parent" << YAML::Value << n.parent;
+    out << YAML::Key << "host" << YAML::Value << n.host;
+    if (n.port != 0) out << YAML::Key << "port" << YAML::Value << n.port;
+    out << YAML::Key << "metrics_port" << YAML::Value << n.metrics_port;
+    if (n.sensor) {
+      const auto& s = *n.sensor;
+      out << YAML::Key << "sensor" << YAML::Value << YAML::BeginMap;
+      out << YAML::Key << "source" << YAML::Value << s.source.string();
+      out << YAML::Key << "rate_hz" << YAML::Value << s.rate_hz;
+      out << YAML::Key << "loop" << YAML::Value << s.loop;
+      if (s.frames) out << YAML::Key << "frames" << YAML::Value << *s.frames;
+      if (s.split) {
+        out << YAML::Key << "split" << YAML::Value << YAML::Flow << YAML::BeginMap << YAML::Key << "views" << YAML::Value
+            << s.split->views << YAML::Key << "index" << YAML::Value << s.split->index << YAML::Key << "overlap_deg"
+            << YAML::Value << s.split->overlap_deg << YAML::EndMap;
+      }
+      if (!s.pose.isApprox(Eigen::Isometry3d::Identity())) {
+        const Eigen::Vector3d ypr = s.pose.rotation().eulerAngles(2, 1, 0) * (180.0 / M_PI);
+        out << YAML::Key << "pose" << YAML::Value << YAML::BeginMap << YAML::Key << "translation_m" << YAML::Value;
+        list3(s.pose.translation());
+        out << YAML::Key << "rpy_deg" << YAML::Value;
+        list3(Eigen::Vector3d(ypr[2], ypr[1], ypr[0]));
+        out << YAML::EndMap;
+      }
+      out << YAML::EndMap;
+    }
+    out << YAML::EndMap;
+  }
+  out << YAML::EndSeq << YAML::EndMap;
+  return std::string(out.c_str()) + "\n";
+}
+
+}  // namespace fogmap

@@ -1,0 +1,77 @@
+#pragma once
+// The topology file (YAML): nodes, roles, parents, sensors, ports and the cluster mode. One file
+// starts the local processes (fogctl up) and names each service's own settings.
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "common/madc.hpp"
+#include "common/messages.hpp"
+#include "common/preprocess.hpp"
+#include "common/status.hpp"
+
+namespace fogmap {
+
+enum class Role { kEdge, kAggregator };
+
+// A virtual LiDAR cut from a real scan: azimuth sector `index` of `views`, widened by overlap.
+struct SectorSplit {
+  int views = 1;
+  int index = 0;
+  double overlap_deg = 10.0;
+};
+
+struct SensorConfig {
+  std::filesystem::path source;         // a directory of scans (replayed in name order) or one file
+  double rate_hz = 10.0;                // replay rate
+  bool loop = true;                     // start again after the last scan
+  std::optional<std::uint64_t> frames;  // stop after this many frames (default: endless when looping)
+  std::optional<SectorSplit> split;     // virtual LiDAR; its pose is the sector's rotation
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // sensor -> common frame (after the split)
+};
+
+struct NodeConfig {
+  std::uint32_t id = 0;
+  std::string name;
+  Role role = Role::kEdge;
+  std::string parent;                  // empty for the root
+  std::string host = "127.0.0.1";      // where the node listens / is reached
+  std::uint16_t port = 0;              // gRPC port (aggregators)
+  std::uint16_t metrics_port = 0;      // Prometheus /metrics
+  std::optional<SensorConfig> sensor;  // edges only
+};
+
+struct TopologyConfig {
+  std::string name;
+  Mode mode = Mode::kMadc;
+  MadcParams madc;                     // eps, min points, alpha
+  PreprocessConfig preprocess;         // crop and ground (the pose comes from each sensor)
+  double deadline_ms = 80.0;           // an aggregator emits an epoch this long after its first map
+  double period_ms = 100.0;            // sensor period
+  std::size_t max_message_bytes = 64U << 20;
+  std::vector<NodeConfig> nodes;
+
+  const NodeConfig* find(const std::string& name) const;
+  const NodeConfig* find(std::uint32_t id) const;
+  const NodeConfig* root() const;
+  std::vector<const NodeConfig*> children(const std::string& name) const;
+  // Sensor (edge) node ids in the subtree of `name` (itself if it is an edge), sorted.
+  std::vector<std::uint32_t> sensorsBelow(const std::string& name) const;
+};
+
+// Parses and validates (unique names, ids and ports; exactly one root; parents exist and are
+// aggregators; no cycles; edges have sensors). Relative sensor paths resolve against `base_dir`.
+Expected<TopologyConfig> parseTopology(const std::string& yaml_text, const std::filesystem::path& base_dir);
+Expected<TopologyConfig> loadTopology(const std::filesystem::path& path);
+
+// Ready-made topologies (the repository's topologies/ files are generated from these).
+// Star: one sink, `edges` edges. Tree: a balanced binary tree of aggregators over the edges.
+TopologyConfig makeStarTopology(int edges, const std::filesystem::path& source, int base_port);
+TopologyConfig makeTreeTopology(int edges, const std::filesystem::path& source, int base_port);
+std::string toYaml(const TopologyConfig& topology);
+
+}  // namespace fogmap

@@ -1,0 +1,61 @@
+#include "services/common/grpc_options.hpp"
+
+#include <algorithm>
+#include <climits>
+
+namespace fogmap {
+namespace {
+
+constexpr int kKeepaliveTimeoutMs = 5000;
+constexpr int kMinPingIntervalMs = 5000;  // the fastest client ping a server accepts
+constexpr int kReconnectBackoffMinMs = 50;
+constexpr int kReconnectBackoffMaxMs = 2000;
+
+// gRPC takes sizes as int; anything larger means "no practical limit".
+int clampToInt(std::size_t bytes) { return static_cast<int>(std::min<std::size_t>(bytes, INT_MAX)); }
+int clampToInt(std::chrono::milliseconds ms) {
+  return static_cast<int>(std::clamp<std::chrono::milliseconds::rep>(ms.count(), 1, INT_MAX));
+}
+
+}  // namespace
+
+grpc::ChannelArguments channelArguments(std::size_t max_message_bytes, std::chrono::milliseconds keepalive) {
+  grpc::ChannelArguments args;
+  args.SetMaxSendMessageSize(clampToInt(max_message_bytes));
+  args.SetMaxReceiveMessageSize(clampToInt(max_message_bytes));
+  args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, clampToInt(keepalive));
+  args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, kKeepaliveTimeoutMs);
+  args.SetInt(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
+  // Without this the client stops pinging after two pings with no data in between, and an idle
+  // upload stream to a vanished parent would go unnoticed.
+  args.SetInt(GRPC_ARG_HTTP2_MAX_PINGS_WITHOUT_DATA, 0);
+  args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, kReconnectBackoffMinMs);
+  args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, kReconnectBackoffMinMs);
+  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, kReconnectBackoffMaxMs);
+  return args;
+}
+
+std::shared_ptr<grpc::Channel> makeChannel(const std::string& target, std::size_t max_message_bytes,
+                                           std::chrono::milliseconds keepalive) {
+  return grpc::CreateCustomChannel(target, grpc::InsecureChannelCredentials(),
+                                   channelArguments(max_message_bytes, keepalive));
+}
+
+void configureServer(grpc::ServerBuilder& builder, std::size_t max_message_bytes) {
+  builder.SetMaxReceiveMessageSize(clampToInt(max_message_bytes));
+  builder.SetMaxSendMessageSize(clampToInt(max_message_bytes));
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, kMinPingIntervalMs);
+}
+
+grpc::Status toGrpcStatus(const Error& error) {
+  switch (error.code) {
+    case ErrorCode::kInvalidArgument: return {grpc::StatusCode::INVALID_ARGUMENT, error.message};
+    case ErrorCode::kNotFound: return {grpc::StatusCode::NOT_FOUND, error.message};
+    case ErrorCode::kIo: return {grpc::StatusCode::UNAVAILABLE, error.message};
+    case ErrorCode::kInternal: return {grpc::StatusCode::INTERNAL, error.message};
+  }
+  return {grpc::StatusCode::INTERNAL, error.message};
+}
+
+}  // namespace fogmap

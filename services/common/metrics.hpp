@@ -1,0 +1,66 @@
+#pragma once
+// Prometheus metrics shared by the services (prometheus-cpp, pull model on /metrics). Names follow
+// Prometheus conventions: fogmap_ prefix, base units (seconds, bytes), _total for counters.
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include <prometheus/counter.h>
+#include <prometheus/exposer.h>
+#include <prometheus/family.h>
+#include <prometheus/gauge.h>
+#include <prometheus/histogram.h>
+#include <prometheus/registry.h>
+
+namespace fogmap {
+
+class Metrics {
+ public:
+  // Serves /metrics on bind_address (e.g. "127.0.0.1:9100"); `service` and `node` become labels.
+  Metrics(const std::string& bind_address, const std::string& service, const std::string& node);
+
+  void bytesSent(const std::string& peer, const std::string& kind, std::size_t bytes);
+  void bytesReceived(const std::string& peer, const std::string& kind, std::size_t bytes);
+  void mapsIn(std::uint64_t n = 1);
+  void mapsOut(std::uint64_t n = 1);
+  void pointsIn(std::uint64_t n);
+  void pointsOut(std::uint64_t n);
+  void clusteringSeconds(double s);
+  void mergeSeconds(double s);
+  void pairs(std::uint64_t tested, std::uint64_t pruned);
+  void endToEndSeconds(double s);
+  void childrenLive(double n);
+  void childrenStale(double n);
+  void malformed(const std::string& what);
+  void lateMaps(std::uint64_t n = 1);
+  void reconnects();
+  void droppedUploads();
+  void framesProcessed();
+
+  prometheus::Registry& registry() { return *registry_; }
+
+ private:
+  std::shared_ptr<prometheus::Registry> registry_;
+  std::unique_ptr<prometheus::Exposer> exposer_;
+  std::string node_;
+  prometheus::Family<prometheus::Counter>* bytes_sent_;
+  prometheus::Family<prometheus::Counter>* bytes_received_;
+  prometheus::Counter* maps_in_;
+  prometheus::Counter* maps_out_;
+  prometheus::Counter* points_in_;
+  prometheus::Counter* points_out_;
+  prometheus::Histogram* clustering_seconds_;
+  prometheus::Histogram* merge_seconds_;
+  prometheus::Counter* pairs_tested_;
+  prometheus::Counter* pairs_pruned_;
+  prometheus::Histogram* end_to_end_seconds_;
+  prometheus::Gauge* children_live_;
+  prometheus::Gauge* children_stale_;
+  prometheus::Family<prometheus::Counter>* malformed_;
+  prometheus::Counter* late_maps_;
+  prometheus::Counter* reconnects_;
+  prometheus::Counter* dropped_uploads_;
+  prometheus::Counter* frames_;
+};
+
+}  // namespace fogmap

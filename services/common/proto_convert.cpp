@@ -1,0 +1,349 @@
+#include "services/common/proto_convert.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Cholesky>
+
+namespace fogmap {
+namespace {
+
+static_assert(sizeof(float) == 4 && std::numeric_limits<float>::is_iec559,
+              "the wire carries IEEE-754 binary32 points");
+
+constexpr std::size_t kBytesPerPoint = 12;
+constexpr std::size_t kBytesPerLabel = 4;
+
+// ---- little-endian packing -------------------------------------------------------------------
+// The wire is little-endian whatever the host; on little-endian hosts (all we build for) the
+// copies below are plain memcpy.
+
+void putU32(std::string& out, std::uint32_t v) {
+  if constexpr (std::endian::native == std::endian::little) {
+    char b[4];
+    std::memcpy(b, &v, 4);
+    out.append(b, 4);
+  } else {
+    for (int i = 0; i < 4; ++i) out.push_back(static_cast<char>((v >> (8 * i)) & 0xFFU));
+  }
+}
+
+std::uint32_t getU32(const char* p) {
+  std::uint32_t v = 0;
+  if constexpr (std::endian::native == std::endian::little) {
+    std::memcpy(&v, p, 4);
+  } else {
+    for (int i = 0; i < 4; ++i) v |= static_cast<std::uint32_t>(static_cast<unsigned char>(p[i])) << (8 * i);
+  }
+  return v;
+}
+
+void putFloat(std::string& out, float f) { putU32(out, std::bit_cast<std::uint32_t>(f)); }
+float getFloat(const char* p) { return std::bit_cast<float>(getU32(p)); }
+
+std::string packLabels(const std::vector<std::int32_t>& labels) {
+  std::string out;
+  out.reserve(labels.size() * kBytesPerLabel);
+  for (const auto l : labels) putU32(out, static_cast<std::uint32_t>(l));
+  return out;
+}
+
+std::vector<std::int32_t> unpackLabels(const std::string& bytes) {
+  std::vector<std::int32_t> labels(bytes.size() / kBytesPerLabel);
+  for (std::size_t i = 0; i < labels.size(); ++i) {
+    labels[i] = static_cast<std::int32_t>(getU32(bytes.data() + i * kBytesPerLabel));
+  }
+  return labels;
+}
+
+// ---- domain -> wire --------------------------------------------------------------------------
+
+void toProto(const Eigen::Vector3d& v, v1::Vec3* out) {
+  out->set_x(v.x());
+  out->set_y(v.y());
+  out->set_z(v.z());
+}
+
+void toProto(const MapHeader& h, v1::MapHeader* out) {
+  out->set_node(h.node);
+  out->set_epoch(h.epoch);
+  out->set_sensor_time_ns(h.sensor_time_ns);
+  for (const auto n : h.contributing_nodes) out->add_contributing_nodes(n);
+  for (const auto n : h.missing_nodes) out->add_missing_nodes(n);
+}
+
+void toProto(const EllipsoidId& id, v1::EllipsoidId* out) {
+  out->set_node(id.node);
+  out->set_frame(id.frame);
+  out->set_index(id.index);
+}
+
+void toProto(const Ellipsoid& e, v1::Ellipsoid* out) {
+  toProto(e.id, out->mutable_id());
+  toProto(e.center, out->mutable_center());
+  const Eigen::Matrix3d& m = e.shape;
+  for (const double v : {m(0, 0), m(0, 1), m(0, 2), m(1, 1), m(1, 2), m(2, 2)}) out->add_shape(v);
+  out->set_point_count(e.point_count);
+}
+
+void toProto(const Map& map, google::protobuf::RepeatedPtrField<v1::MapObject>* out) {
+  out->Reserve(static_cast<int>(map.objects.size()));
+  for (const auto& object : map.objects) {
+    v1::MapObject* o = out->Add();
+    o->mutable_ellipsoids()->Reserve(static_cast<int>(object.ellipsoids.size()));
+    for (const auto& e : object.ellipsoids) toProto(e, o->add_ellipsoids());
+    // An empty box holds infinities; the receiver recomputes boxes anyway.
+    if (!object.box.empty()) {
+      toProto(object.box.min, o->mutable_box()->mutable_min());
+      toProto(object.box.max, o->mutable_box()->mutable_max());
+    }
+  }
+}
+
+// ---- wire -> domain --------------------------------------------------------------------------
+
+Eigen::Vector3d fromProto(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
+
+std::vector<std::uint32_t> sortedNodes(const google::protobuf::RepeatedField<std::uint32_t>& nodes) {
+  std::vector<std::uint32_t> out(nodes.begin(), nodes.end());
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
+MapHeader fromProto(const v1::MapHeader& h) {
+  MapHeader out;
+  out.node = h.node();
+  out.epoch = h.epoch();
+  out.sensor_time_ns = h.sensor_time_ns();
+  out.contributing_nodes = sortedNodes(h.contributing_nodes());
+  out.missing_nodes = sortedNodes(h.missing_nodes());
+  return out;
+}
+
+std::string ellipsoidLabel(const std::string& where, int object, int ellipsoid) {
+  return where + ": object " + std::to_string(object) + " ellipsoid " + std::to_string(ellipsoid);
+}
+
+Expected<Ellipsoid> fromProto(const v1::Ellipsoid& e, const std::string& label) {
+  if (!e.has_id()) return invalidArgument(label + ": missing id");
+  if (!e.has_center()) return invalidArgument(label + ": missing center");
+  if (e.shape_size() != 6) {
+    return invalidArgument(label + ": shape has " + std::to_string(e.shape_size()) +
+                           " values, expected 6 (upper triangle xx xy xz yy yz zz)");
+  }
+  Ellipsoid out;
+  out.id = {e.id().node(), e.id().frame(), e.id().index()};
+  out.center = fromProto(e.center());
+  if (!out.center.allFinite()) return invalidArgument(label + ": center is not finite");
+  const auto& s = e.shape();
+  out.shape << s[0], s[1], s[2],  //
+      s[1], s[3], s[4],           //
+      s[2], s[4], s[5];
+  if (!out.shape.allFinite()) return invalidArgument(label + ": shape is not finite");
+  // Symmetric by construction; positive definite is what the intersection test relies on.
+  if (out.shape.diagonal().minCoeff() <= 0.0 ||
+      Eigen::LLT<Eigen::Matrix3d>(out.shape).info() != Eigen::Success) {
+    return invalidArgument(label + ": shape is not positive definite");
+  }
+  out.point_count = e.point_count();
+  return out;
+}
+
+Expected<Map> fromProto(const google::protobuf::RepeatedPtrField<v1::MapObject>& objects,
+                        const std::string& where) {
+  std::vector<Ellipsoid> ellipsoids;
+  std::vector<std::size_t> object_of;
+  for (int o = 0; o < objects.size(); ++o) {
+    const v1::MapObject& object = objects[o];
+    if (object.ellipsoids_size() == 0) {
+      return invalidArgument(where + ": object " + std::to_string(o) + " has no ellipsoids");
+    }
+    for (int k = 0; k < object.ellipsoids_size(); ++k) {
+      auto e = fromProto(object.ellipsoids(k), ellipsoidLabel(where, o, k));
+      if (!e) return e.error();
+      ellipsoids.push_back(std::move(e).value());
+      object_of.push_back(static_cast<std::size_t>(o));
+    }
+  }
+  // Canonical maps have unique ids; a duplicate would be merged with itself downstream.
+  std::vector<std::size_t> order(ellipsoids.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return ellipsoids[a].id < ellipsoids[b].id; });
+  for (std::size_t i = 1; i < order.size(); ++i) {
+    if (ellipsoids[order[i - 1]].id == ellipsoids[order[i]].id) {
+      return invalidArgument(where + ": duplicate ellipsoid id " + toString(ellipsoids[order[i]].id) +
+                             " (objects " + std::to_string(object_of[order[i - 1]]) + " and " +
+                             std::to_string(object_of[order[i]]) + ")");
+    }
+  }
+  return mapFromGroups(ellipsoids, object_of);
+}
+
+std::optional<Mode> modeFromName(const std::string& name) {
+  for (const Mode m : {Mode::kMadc, Mode::kBaseline, Mode::kExt}) {
+    if (name == modeName(m)) return m;
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+v1::Map toProto(const MapMessage& message) {
+  v1::Map out;
+  toProto(message.header, out.mutable_header());
+  toProto(message.map, out.mutable_objects());
+  return out;
+}
+
+v1::PointChunk toProto(const PointChunk& chunk) {
+  v1::PointChunk out;
+  toProto(chunk.header, out.mutable_header());
+  out.set_chunk(chunk.chunk);
+  out.set_chunk_count(chunk.chunk_count);
+  out.set_first_point(chunk.first_point);
+  out.set_total_points(chunk.total_points);
+  std::string xyz;
+  xyz.reserve(chunk.points.size() * kBytesPerPoint);
+  for (const Point& p : chunk.points) {
+    putFloat(xyz, p.x);
+    putFloat(xyz, p.y);
+    putFloat(xyz, p.z);
+  }
+  out.set_xyz(std::move(xyz));
+  if (!chunk.labels.empty()) out.set_labels(packLabels(chunk.labels));
+  return out;
+}
+
+v1::GlobalMap toProto(const GlobalMapMessage& message) {
+  v1::GlobalMap out;
+  toProto(message.header, out.mutable_header());
+  toProto(message.map, out.mutable_objects());
+  out.set_mode(modeName(message.mode));
+  out.set_published_time_ns(message.published_time_ns);
+  out.set_merge_seconds(message.merge_seconds);
+  out.set_pairs_all(message.pairs_all);
+  out.set_pairs_tested(message.pairs_tested);
+  for (const auto& nl : message.point_labels) {
+    v1::NodeLabels* l = out.add_point_labels();
+    l->set_node(nl.node);
+    l->set_labels(packLabels(nl.labels));
+  }
+  return out;
+}
+
+v1::Geofence toProto(const Geofence& fence) {
+  v1::Geofence out;
+  out.set_name(fence.name);
+  for (const auto& h : fence.half_spaces) {
+    v1::HalfSpace* hs = out.add_half_spaces();
+    toProto(h.normal, hs->mutable_normal());
+    hs->set_offset(h.offset);
+  }
+  return out;
+}
+
+Expected<MapMessage> fromProto(const v1::Map& message) {
+  auto map = fromProto(message.objects(), "Map");
+  if (!map) return map.error();
+  return MapMessage{fromProto(message.header()), std::move(map).value()};
+}
+
+Expected<PointChunk> fromProto(const v1::PointChunk& chunk) {
+  const std::string where = "PointChunk from node " + std::to_string(chunk.header().node());
+  if (chunk.chunk_count() == 0) return invalidArgument(where + ": chunk_count is 0");
+  if (chunk.chunk() >= chunk.chunk_count()) {
+    return invalidArgument(where + ": chunk " + std::to_string(chunk.chunk()) + " is not below chunk_count " +
+                           std::to_string(chunk.chunk_count()));
+  }
+  const std::string& xyz = chunk.xyz();
+  if (xyz.size() % kBytesPerPoint != 0) {
+    return invalidArgument(where + ": xyz has " + std::to_string(xyz.size()) +
+                           " bytes, not a multiple of 12 (float32 x, y, z per point)");
+  }
+  const std::size_t count = xyz.size() / kBytesPerPoint;
+  // 64-bit sum: a 32-bit first_point plus a count cannot overflow it.
+  if (static_cast<std::uint64_t>(chunk.first_point()) + count > chunk.total_points()) {
+    return invalidArgument(where + ": first_point " + std::to_string(chunk.first_point()) + " + " +
+                           std::to_string(count) + " points exceeds total_points " +
+                           std::to_string(chunk.total_points()));
+  }
+  if (!chunk.labels().empty() && chunk.labels().size() != count * kBytesPerLabel) {
+    return invalidArgument(where + ": labels has " + std::to_string(chunk.labels().size()) + " bytes, expected " +
+                           std::to_string(count * kBytesPerLabel) + " (int32 per point)");
+  }
+  PointChunk out;
+  out.header = fromProto(chunk.header());
+  out.chunk = chunk.chunk();
+  out.chunk_count = chunk.chunk_count();
+  out.first_point = chunk.first_point();
+  out.total_points = chunk.total_points();
+  out.points.resize(count);
+  for (std::size_t i = 0; i < count; ++i) {
+    const char* p = xyz.data() + i * kBytesPerPoint;
+    Point& q = out.points[i];
+    q.x = getFloat(p);
+    q.y = getFloat(p + 4);
+    q.z = getFloat(p + 8);
+    if (!std::isfinite(q.x) || !std::isfinite(q.y) || !std::isfinite(q.z)) {
+      return invalidArgument(where + ": xyz point " + std::to_string(i) + " is not finite");
+    }
+  }
+  out.labels = unpackLabels(chunk.labels());
+  return out;
+}
+
+Expected<GlobalMapMessage> fromProto(const v1::GlobalMap& message) {
+  GlobalMapMessage out;
+  const auto mode = modeFromName(message.mode());
+  if (!mode) {
+    return invalidArgument("GlobalMap: mode '" + message.mode() + "' is unknown (expected madc, baseline or ext)");
+  }
+  out.mode = *mode;
+  if (!std::isfinite(message.merge_seconds())) return invalidArgument("GlobalMap: merge_seconds is not finite");
+  auto map = fromProto(message.objects(), "GlobalMap");
+  if (!map) return map.error();
+  out.header = fromProto(message.header());
+  out.map = std::move(map).value();
+  out.published_time_ns = message.published_time_ns();
+  out.merge_seconds = message.merge_seconds();
+  out.pairs_all = message.pairs_all();
+  out.pairs_tested = message.pairs_tested();
+  out.point_labels.reserve(static_cast<std::size_t>(message.point_labels_size()));
+  for (int i = 0; i < message.point_labels_size(); ++i) {
+    const v1::NodeLabels& nl = message.point_labels(i);
+    if (nl.labels().size() % kBytesPerLabel != 0) {
+      return invalidArgument("GlobalMap: point_labels " + std::to_string(i) + " (node " + std::to_string(nl.node()) +
+                             ") has " + std::to_string(nl.labels().size()) +
+                             " bytes, not a multiple of 4 (int32 per point)");
+    }
+    out.point_labels.push_back(NodeLabels{nl.node(), unpackLabels(nl.labels())});
+  }
+  return out;
+}
+
+Expected<Geofence> fromProto(const v1::Geofence& fence) {
+  Geofence out;
+  out.name = fence.name();
+  out.half_spaces.reserve(static_cast<std::size_t>(fence.half_spaces_size()));
+  for (int i = 0; i < fence.half_spaces_size(); ++i) {
+    const v1::HalfSpace& h = fence.half_spaces(i);
+    if (!h.has_normal()) {
+      return invalidArgument("Geofence '" + out.name + "': half-space " + std::to_string(i) + " has no normal");
+    }
+    out.half_spaces.push_back(HalfSpace{fromProto(h.normal()), h.offset()});
+  }
+  if (auto status = validateGeofence(out); !status) return status.error();
+  return out;
+}
+
+}  // namespace fogmap

@@ -1,0 +1,30 @@
+#pragma once
+// The only place that translates between fogmap's domain types and the generated protobuf types.
+// FromProto validates once at the boundary: a malformed message becomes an Error naming the field.
+#include "common/geofence.hpp"
+#include "common/messages.hpp"
+#include "common/status.hpp"
+#include "fogmap/v1/fogmap.pb.h"
+
+namespace fogmap {
+
+// Doubles travel as doubles and points as little-endian float32, so fromProto(toProto(x)) == x
+// for every valid x in canonical form (point intensity is not transmitted and comes back as 0).
+v1::Map toProto(const MapMessage& message);
+v1::PointChunk toProto(const PointChunk& chunk);
+v1::GlobalMap toProto(const GlobalMapMessage& message);
+v1::Geofence toProto(const Geofence& fence);
+
+// Every fromProto returns kInvalidArgument with the offending field (and object / ellipsoid /
+// point index) in the message. Rejects: missing ellipsoid ids or centres, shapes that are not 6
+// finite values of a symmetric positive definite matrix, non-finite centres or points, empty
+// objects, duplicate ellipsoid ids, xyz size not a multiple of 12, labels not 4 bytes per point,
+// chunk_count 0, chunk index >= chunk count, points beyond total_points, unknown modes, geofences
+// that validateGeofence rejects. Object boxes on the wire are ignored: the map is rebuilt in
+// canonical form with boxes recomputed from the ellipsoids. Header node lists come back sorted.
+Expected<MapMessage> fromProto(const v1::Map& message);
+Expected<PointChunk> fromProto(const v1::PointChunk& chunk);
+Expected<GlobalMapMessage> fromProto(const v1::GlobalMap& message);
+Expected<Geofence> fromProto(const v1::Geofence& fence);
+
+}  // namespace fogmap

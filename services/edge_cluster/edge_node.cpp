@@ -1,0 +1,128 @@
+#include "services/edge_cluster/edge_node.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <limits>
+#include <span>
+#include <string>
+#include <utility>
+
+#include "common/virtual_lidar.hpp"
+
+namespace fogmap {
+namespace {
+
+using SteadyClock = std::chrono::steady_clock;
+
+double secondsSince(SteadyClock::time_point start) {
+  return std::chrono::duration<double>(SteadyClock::now() - start).count();
+}
+
+// Packed xyz plus an ext label: the most a point costs on the wire.
+constexpr std::size_t kMaxBytesPerPoint = 3 * sizeof(float) + sizeof(std::int32_t);
+
+// Slices the points (and labels, when given) into chunks that tile [0, total) in order. An empty
+// scan still gives one empty chunk, so the parent learns that this node reported the epoch.
+std::vector<PointChunk> chunkPoints(const Cloud& points, std::span<const std::int32_t> labels, const MapHeader& header,
+                                    std::size_t max_points_per_chunk) {
+  const std::size_t total = points.size();
+  const std::size_t count = std::max<std::size_t>(1, (total + max_points_per_chunk - 1) / max_points_per_chunk);
+  std::vector<PointChunk> chunks(count);
+  for (std::size_t c = 0; c < count; ++c) {
+    const std::size_t first = c * max_points_per_chunk;
+    const std::size_t last = std::min(total, first + max_points_per_chunk);
+    PointChunk& chunk = chunks[c];
+    chunk.header = header;
+    chunk.chunk = static_cast<std::uint32_t>(c);
+    chunk.chunk_count = static_cast<std::uint32_t>(count);
+    chunk.first_point = static_cast<std::uint32_t>(first);
+    chunk.total_points = static_cast<std::uint32_t>(total);
+    chunk.points.reserve(last - first);
+    for (std::size_t i = first; i < last; ++i) {
+      const Point& p = points[i];
+      chunk.points.push_back({p.x, p.y, p.z, 0.0F});  // intensity does not travel
+    }
+    if (!labels.empty()) chunk.labels.assign(labels.begin() + first, labels.begin() + last);
+  }
+  return chunks;
+}
+
+}  // namespace
+
+Eigen::Isometry3d sensorToCommon(const SensorConfig& sensor) {
+  if (!sensor.split) return sensor.pose;
+  return sensor.pose * sectorPose(*sensor.split);
+}
+
+EdgeConfig edgeConfigFor(const TopologyConfig& topology, const NodeConfig& node) {
+  EdgeConfig config;
+  config.node = node.id;
+  config.mode = topology.mode;
+  config.madc = topology.madc;
+  config.preprocess = topology.preprocess;
+  if (node.sensor) config.preprocess.sensor_to_common = sensorToCommon(*node.sensor);
+  // Half the limit leaves room for the header and protobuf framing whatever the limit is.
+  const std::size_t by_limit = topology.max_message_bytes / 2 / kMaxBytesPerPoint;
+  config.max_points_per_chunk = std::clamp<std::size_t>(by_limit, 1, kDefaultMaxPointsPerChunk);
+  return config;
+}
+
+EdgeNode::EdgeNode(EdgeConfig config) : config_(std::move(config)) {
+  // Zero would mean "no chunk can hold a point"; one point a chunk is the least that works.
+  config_.max_points_per_chunk = std::max<std::size_t>(config_.max_points_per_chunk, 1);
+}
+
+Expected<Cloud> EdgeNode::preprocessScan(const Cloud& scan) const {
+  // Ground removal is run here rather than inside preprocess() because a scan with fewer than 3
+  // points left (all cropped away, or a narrow virtual sensor) is a legitimate empty frame, not
+  // an error: nothing above a ground can be established, so nothing is kept.
+  PreprocessConfig without_ground = config_.preprocess;
+  without_ground.ground.reset();
+  Expected<Cloud> cloud = preprocess(scan, without_ground);
+  if (!cloud || !config_.preprocess.ground) return cloud;
+  if (cloud->size() < 3) return Cloud{};
+  Expected<GroundRemoval> ground = removeGround(*cloud, *config_.preprocess.ground);
+  if (!ground) return ground.error();
+  return std::move(ground->non_ground);
+}
+
+Expected<EdgeOutput> EdgeNode::processFrame(const Cloud& scan_in_sensor_frame, std::uint64_t frame,
+                                            std::int64_t sensor_time_ns) const {
+  EdgeOutput output;
+  output.points_in = scan_in_sensor_frame.size();
+
+  const SteadyClock::time_point preprocess_start = SteadyClock::now();
+  Expected<Cloud> preprocessed = preprocessScan(scan_in_sensor_frame);
+  if (!preprocessed) return preprocessed.error();
+  const Cloud& points = *preprocessed;
+  output.preprocess_seconds = secondsSince(preprocess_start);
+  output.points_out = points.size();
+  // The wire counts points in uint32 (first_point, total_points).
+  if (points.size() > std::numeric_limits<std::uint32_t>::max()) {
+    return invalidArgument("frame " + std::to_string(frame) + " has " + std::to_string(points.size()) +
+                           " points after pre-processing, more than a point chunk can index (2^32 - 1)");
+  }
+
+  MapHeader header;
+  header.node = config_.node;
+  header.epoch = frame;
+  header.sensor_time_ns = sensor_time_ns;
+  header.contributing_nodes = {config_.node};
+
+  if (config_.mode == Mode::kBaseline) {
+    output.chunks = chunkPoints(points, {}, header, config_.max_points_per_chunk);
+    return output;
+  }
+
+  const SteadyClock::time_point clustering_start = SteadyClock::now();
+  LocalMapResult local = genLocalMap(points, config_.node, frame, config_.madc);
+  output.clustering_seconds = secondsSince(clustering_start);
+  output.clusters = static_cast<std::size_t>(local.clustering.cluster_count);
+  output.map = MapMessage{header, std::move(local.map)};
+  if (config_.mode == Mode::kExt) {
+    output.chunks = chunkPoints(points, local.clustering.labels, header, config_.max_points_per_chunk);
+  }
+  return output;
+}
+
+}  // namespace fogmap

@@ -1,0 +1,71 @@
+#pragma once
+// The edge-cluster core (DESIGN.md 2.1): one scan in the sensor frame in, what the edge ships to
+// its parent out: a local map of ellipsoids (MAD-C), the pre-processed points in chunks
+// (baseline), or both with local cluster labels (MAD-C-ext). Domain types only; no gRPC.
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "common/cloud.hpp"
+#include "common/madc.hpp"
+#include "common/messages.hpp"
+#include "common/preprocess.hpp"
+#include "common/status.hpp"
+#include "common/topology.hpp"
+
+namespace fogmap {
+
+// 65,536 points are 786 KB of packed xyz (1 MiB with ext labels): far below gRPC's limits.
+inline constexpr std::size_t kDefaultMaxPointsPerChunk = 65536;
+
+struct EdgeConfig {
+  std::uint32_t node = 0;
+  Mode mode = Mode::kMadc;
+  MadcParams madc;
+  PreprocessConfig preprocess;  // sensor_to_common = sensorToCommon(sensor)
+  std::size_t max_points_per_chunk = kDefaultMaxPointsPerChunk;
+};
+
+// What one frame produced, and what it cost.
+struct EdgeOutput {
+  std::optional<MapMessage> map;  // madc and ext modes
+  std::vector<PointChunk> chunks;  // baseline and ext modes; at least one chunk (maybe empty)
+  std::size_t points_in = 0;       // points of the scan
+  std::size_t points_out = 0;      // points left after pre-processing (clustered or shipped)
+  std::size_t clusters = 0;        // local clusters = ellipsoids (0 in baseline mode)
+  double preprocess_seconds = 0.0;
+  double clustering_seconds = 0.0;  // clustering and ellipsoids (0 in baseline mode)
+};
+
+// The sensor's pose in the common frame: its pose composed with the sector's rotation when the
+// sensor is a virtual LiDAR (the scan source returns sector points in the sector's frame).
+Eigen::Isometry3d sensorToCommon(const SensorConfig& sensor);
+
+// The edge configuration of `node` (an edge with a sensor) in `topology`: the topology's mode,
+// MAD-C and pre-processing settings with the node's pose, chunks of at most
+// kDefaultMaxPointsPerChunk points that also stay below half the message limit.
+EdgeConfig edgeConfigFor(const TopologyConfig& topology, const NodeConfig& node);
+
+class EdgeNode {
+ public:
+  explicit EdgeNode(EdgeConfig config);
+
+  // Pre-processes the scan (transform to the common frame, crop, voxel, ground) and produces the
+  // mode's output for epoch `frame`. A scan with nothing left (fewer than 3 points to fit the
+  // ground on) gives an empty map and one empty chunk. Errors on invalid pre-processing settings,
+  // when no ground plane is found, or on more than 2^32 - 1 points.
+  Expected<EdgeOutput> processFrame(const Cloud& scan_in_sensor_frame, std::uint64_t frame,
+                                    std::int64_t sensor_time_ns) const;
+
+  const EdgeConfig& config() const { return config_; }
+
+ private:
+  Expected<Cloud> preprocessScan(const Cloud& scan) const;
+
+  EdgeConfig config_;
+};
+
+}  // namespace fogmap

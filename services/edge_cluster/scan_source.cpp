@@ -1,0 +1,88 @@
+#include "services/edge_cluster/scan_source.hpp"
+
+#include <algorithm>
+#include <string>
+#include <system_error>
+#include <utility>
+
+#include "common/cloud_io.hpp"
+#include "common/virtual_lidar.hpp"
+
+namespace fogmap {
+namespace {
+
+namespace fs = std::filesystem;
+
+bool isScanFile(const fs::path& path) { return cloudFormatFromPath(path).ok(); }
+
+// cloud_io's errors name the file already; make sure of it, since the operator acts on the name.
+Error namingFile(Error error, const fs::path& file) {
+  if (error.message.find(file.string()) == std::string::npos) error.message = file.string() + ": " + error.message;
+  return error;
+}
+
+}  // namespace
+
+ScanSource::ScanSource(SensorConfig sensor, std::vector<fs::path> files)
+    : sensor_(std::move(sensor)), files_(std::move(files)) {}
+
+Expected<ScanSource> ScanSource::open(const SensorConfig& sensor) {
+  const fs::path& source = sensor.source;
+  std::error_code ec;
+  const fs::file_status status = fs::status(source, ec);
+  if (status.type() == fs::file_type::not_found) return notFound(source.string() + ": no such scan file or directory");
+  if (ec) return ioError(source.string() + ": cannot access the scan source: " + ec.message());
+
+  std::vector<fs::path> files;
+  if (fs::is_directory(status)) {
+    fs::directory_iterator it(source, ec);
+    if (ec) return ioError(source.string() + ": cannot list the scan directory: " + ec.message());
+    for (const fs::directory_entry& entry : it) {
+      // Other files (calib.txt, timestamps) may sit next to the scans; they are not scans.
+      std::error_code entry_ec;
+      if (entry.is_regular_file(entry_ec) && isScanFile(entry.path())) files.push_back(entry.path());
+    }
+    if (files.empty()) {
+      return invalidArgument(source.string() + ": the directory holds no scans (*.bin, *.pcd.bin or *.pcd files)");
+    }
+    std::sort(files.begin(), files.end(),
+              [](const fs::path& a, const fs::path& b) { return a.filename().string() < b.filename().string(); });
+  } else {
+    Expected<CloudFormat> format = cloudFormatFromPath(source);
+    if (!format) return format.error();
+    files.push_back(source);
+  }
+  return ScanSource(sensor, std::move(files));
+}
+
+bool ScanSource::done() const {
+  if (sensor_.frames && emitted_ >= *sensor_.frames) return true;
+  return exhausted_ || failures_in_a_row_ >= files_.size();
+}
+
+Expected<ScanFrame> ScanSource::next() {
+  if (done()) return Error{ErrorCode::kInternal, "ScanSource::next called after the source is done"};
+
+  const fs::path file = files_[position_];
+  ++position_;
+  if (position_ == files_.size()) {
+    position_ = 0;
+    exhausted_ = !sensor_.loop;
+  }
+
+  Expected<LoadedCloud> loaded = readCloud(file);
+  if (!loaded) {
+    ++failures_in_a_row_;
+    return namingFile(loaded.error(), file);
+  }
+  failures_in_a_row_ = 0;
+
+  ScanFrame frame;
+  frame.sequence = emitted_++;
+  frame.file = file;
+  frame.dropped_non_finite = loaded->dropped_non_finite;
+  frame.points = sensor_.split ? sectorView(loaded->points, *sensor_.split) : std::move(loaded->points);
+  return frame;
+}
+
+}  // namespace fogmap
