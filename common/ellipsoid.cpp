@@ -131,12 +131,18 @@ bool separatingMaximumExceedsOne(const Eigen::Vector3d& v2, const Eigen::Vector3
 bool ellipsoidsIntersect(const Eigen::Vector3d& center_a, const Eigen::Matrix3d& shape_a,
                          const Eigen::Vector3d& center_b, const Eigen::Matrix3d& shape_b) {
   const Eigen::Vector3d d = center_b - center_a;
-  // Cheap exits first: a centre inside the other ellipsoid, or bounding spheres apart.
+  // Cheap exits first: bounding spheres apart, a separating plane across the centre line, or
+  // the two ellipsoids meeting on the centre line; the exact test decides the rest.
   const double ra2 = shape_a.trace();  // trace >= largest eigenvalue = largest semi-axis^2
   const double rb2 = shape_b.trace();
   const double dist2 = d.squaredNorm();
   const double rsum = std::sqrt(ra2) + std::sqrt(rb2);
   if (dist2 > rsum * rsum * (1.0 + 1e-12)) return false;
+  // Separating plane normal to the centre line: with u = d / |d| the half-widths are
+  // sqrt(u^T M u), so the projections are apart when |d|^2 > sqrt(d^T A d) + sqrt(d^T B d).
+  const double ha = std::sqrt(std::max(0.0, d.dot(shape_a * d)));
+  const double hb = std::sqrt(std::max(0.0, d.dot(shape_b * d)));
+  if (dist2 > (ha + hb) * (1.0 + 2.0 * kTouchTolerance)) return false;
 
   // Congruence transform making one shape the unit sphere. Use the better-conditioned shape:
   // transforming by a nearly flat one amplifies rounding. LLT fails on singular (flat) shapes; at
@@ -157,6 +163,12 @@ bool ellipsoidsIntersect(const Eigen::Vector3d& center_a, const Eigen::Matrix3d&
     return ellipsoidsIntersect(center_a, shape_a + eps * Eigen::Matrix3d::Identity(), center_b,
                                shape_b + eps * Eigen::Matrix3d::Identity());
   }
+  // On the centre line c_a + t d, A covers t <= 1 / sqrt(d^T A^-1 d) and B covers
+  // t >= 1 - 1 / sqrt(d^T B^-1 d): if those intervals meet, so do the ellipsoids.
+  const double reach_a = std::isinf(cond_a) ? 0.0 : 1.0 / std::sqrt(d.dot(llt_a.solve(d)));
+  const double reach_b = std::isinf(cond_b) ? 0.0 : 1.0 / std::sqrt(d.dot(llt_b.solve(d)));
+  if (reach_a + reach_b >= 1.0) return true;
+
   const bool a_is_base = cond_a <= cond_b;
   const Eigen::LLT<Eigen::Matrix3d>& llt = a_is_base ? llt_a : llt_b;
   const Eigen::Matrix3d* b = a_is_base ? &shape_b : &shape_a;
@@ -165,8 +177,7 @@ bool ellipsoidsIntersect(const Eigen::Vector3d& center_a, const Eigen::Matrix3d&
   Eigen::Matrix3d c = l.solve(*b);
   c = l.solve(c.transpose()).eval();
   c = 0.5 * (c + c.transpose());
-  const Eigen::Vector3d w = l.solve(a_is_base ? d : Eigen::Vector3d(-d));
-  if (w.squaredNorm() <= 1.0) return true;  // centre of the other inside the unit sphere
+  const Eigen::Vector3d w = l.solve(d);  // the sign of d does not matter: only w_i^2 enters
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver;
   solver.compute(c);  // the closed-form 3x3 solver loses small eigenvalues of thin shapes
   const Eigen::Vector3d lambda = solver.eigenvalues().cwiseMax(0.0);

@@ -1,6 +1,7 @@
 #include "common/map.hpp"
 
 #include <algorithm>
+#include <array>
 #include <numeric>
 
 namespace fogmap {
@@ -69,107 +70,117 @@ Map localMap(std::vector<Ellipsoid> ellipsoids) {
 
 namespace {
 
-// Working set of a MERGE: deduplicated ellipsoids with their boxes and source map.
+// One ellipsoid of a MERGE: its delimiting box and the input map it came from.
 struct Item {
   const Ellipsoid* ellipsoid;
   Box box;
-};
-
-struct Group {
-  std::vector<std::size_t> members;  // indices into the item list
-  Box box;
-  bool from_child = false;
+  std::size_t map;
 };
 
 }  // namespace
 
-MergeResult merge(const Map& working, const Map& child) {
+MergeResult mergeMaps(std::span<const Map* const> maps) {
   MergeResult result;
-  std::vector<Item> items;
-  items.reserve(working.ellipsoidCount() + child.ellipsoidCount());
-  std::vector<Group> groups;
-  groups.reserve(working.objects.size() + child.objects.size());
+  std::size_t total = 0;
+  for (const auto* m : maps) total += m->ellipsoidCount();
 
-  std::vector<std::pair<EllipsoidId, std::size_t>> working_ids;  // sorted (id, item index)
-  working_ids.reserve(working.ellipsoidCount());
-  for (const auto& object : working.objects) {
-    Group g;
-    for (const auto& e : object.ellipsoids) {
-      working_ids.emplace_back(e.id, items.size());
-      g.members.push_back(items.size());
-      items.push_back({&e, delimitingBox(e)});
-      g.box.extend(items.back().box);
-    }
-    groups.push_back(std::move(g));
-  }
-  std::sort(working_ids.begin(), working_ids.end());
-  const std::size_t working_items = items.size();
-
-  // A child ellipsoid whose id the working map already holds is the same ellipsoid (ids are
-  // globally unique): it stays one item, and the child's grouping still joins through it.
-  for (const auto& object : child.objects) {
-    Group g;
-    g.from_child = true;
-    for (const auto& e : object.ellipsoids) {
-      const auto it = std::lower_bound(working_ids.begin(), working_ids.end(), std::make_pair(e.id, std::size_t{0}));
-      if (it != working_ids.end() && it->first == e.id) {
-        g.members.push_back(it->second);
-        continue;
+  // Deduplicate by id: an ellipsoid seen in several maps (a re-sent or overlapping input) is one
+  // item; every map's grouping still applies to it.
+  std::vector<std::pair<EllipsoidId, std::size_t>> by_id;  // (id, position in input order)
+  by_id.reserve(total);
+  std::vector<const Ellipsoid*> input;
+  std::vector<std::size_t> input_map;
+  input.reserve(total);
+  input_map.reserve(total);
+  for (std::size_t m = 0; m < maps.size(); ++m) {
+    for (const auto& object : maps[m]->objects) {
+      for (const auto& e : object.ellipsoids) {
+        by_id.emplace_back(e.id, input.size());
+        input.push_back(&e);
+        input_map.push_back(m);
       }
-      g.members.push_back(items.size());
-      items.push_back({&e, delimitingBox(e)});
-      g.box.extend(items.back().box);
     }
-    groups.push_back(std::move(g));
+  }
+  std::sort(by_id.begin(), by_id.end());
+  std::vector<std::size_t> item_of(input.size());
+  std::vector<Item> items;
+  items.reserve(input.size());
+  for (std::size_t k = 0; k < by_id.size(); ++k) {
+    const auto pos = by_id[k].second;
+    if (k > 0 && by_id[k].first == by_id[k - 1].first) {
+      item_of[pos] = item_of[by_id[k - 1].second];
+      continue;
+    }
+    item_of[pos] = items.size();
+    items.push_back({input[pos], delimitingBox(*input[pos]), input_map[pos]});
   }
 
   DisjointSets sets(items.size());
-  for (const auto& g : groups) {
-    for (std::size_t k = 1; k < g.members.size(); ++k) sets.unite(g.members[0], g.members[k]);
+  std::size_t pos = 0;
+  for (const auto* m : maps) {
+    for (const auto& object : m->objects) {
+      const std::size_t first = item_of[pos];
+      for (std::size_t k = 0; k < object.ellipsoids.size(); ++k) sets.unite(first, item_of[pos++]);
+    }
   }
 
-  // All-pairs count: every cross-node pair between working and (new) child ellipsoids.
+  // All-pairs count: every cross-node pair of ellipsoids from different maps.
   {
-    std::vector<std::uint32_t> nodes;
-    for (std::size_t i = working_items; i < items.size(); ++i) nodes.push_back(items[i].ellipsoid->node());
-    std::sort(nodes.begin(), nodes.end());
-    for (std::size_t i = 0; i < working_items; ++i) {
-      const auto node = items[i].ellipsoid->node();
-      const auto same = std::upper_bound(nodes.begin(), nodes.end(), node) - std::lower_bound(nodes.begin(), nodes.end(), node);
-      result.stats.pairs_all += nodes.size() - static_cast<std::size_t>(same);
+    std::vector<std::pair<std::size_t, std::uint32_t>> map_node;  // (map, node) per item, sorted
+    map_node.reserve(items.size());
+    for (const auto& it : items) map_node.emplace_back(it.map, it.ellipsoid->node());
+    std::sort(map_node.begin(), map_node.end());
+    std::vector<std::uint64_t> per_map(maps.size(), 0);
+    for (const auto& [m, node] : map_node) ++per_map[m];
+    std::uint64_t cross_maps = 0;
+    std::uint64_t seen = 0;
+    for (const auto c : per_map) {
+      cross_maps += seen * c;
+      seen += c;
     }
+    // Subtract pairs from different maps but the same node (a node can feed several maps).
+    std::vector<std::pair<std::uint32_t, std::size_t>> node_map;
+    for (const auto& [m, node] : map_node) node_map.emplace_back(node, m);
+    std::sort(node_map.begin(), node_map.end());
+    std::uint64_t same_node = 0;
+    for (std::size_t i = 0; i < node_map.size();) {
+      std::size_t j = i;
+      std::uint64_t node_total = 0;
+      std::uint64_t node_pairs_same_map = 0;
+      while (j < node_map.size() && node_map[j].first == node_map[i].first) {
+        std::size_t k = j;
+        while (k < node_map.size() && node_map[k] == node_map[j]) ++k;
+        const auto c = static_cast<std::uint64_t>(k - j);
+        node_pairs_same_map += c * (c - 1) / 2;
+        node_total += c;
+        j = k;
+      }
+      same_node += node_total * (node_total - 1) / 2 - node_pairs_same_map;
+      i = j;
+    }
+    result.stats.pairs_all = cross_maps - same_node;
   }
 
-  // Sort-and-sweep over object boxes along x; only working x child object pairs matter.
-  std::vector<std::size_t> sweep;
-  for (std::size_t g = 0; g < groups.size(); ++g) {
-    if (!groups[g].box.empty()) sweep.push_back(g);  // child objects made only of duplicates have no new items
-  }
-  std::sort(sweep.begin(), sweep.end(), [&](std::size_t a, std::size_t b) { return groups[a].box.min.x() < groups[b].box.min.x(); });
+  // Sort-and-sweep over the ellipsoids' delimiting boxes along x (ellipsoid boxes prune better
+  // than object boxes: merged objects grow long). Pairs from one input map are already decided by
+  // that map; pairs of one node are never joined directly.
+  std::vector<std::size_t> sweep(items.size());
+  std::iota(sweep.begin(), sweep.end(), 0);
+  std::sort(sweep.begin(), sweep.end(), [&](std::size_t a, std::size_t b) { return items[a].box.min.x() < items[b].box.min.x(); });
   std::vector<std::size_t> active;
-  for (const auto g : sweep) {
-    const Group& cur = groups[g];
-    std::erase_if(active, [&](std::size_t a) { return groups[a].box.max.x() < cur.box.min.x(); });
-    for (const auto a : active) {
-      const Group& other = groups[a];
-      if (other.from_child == cur.from_child || !other.box.overlaps(cur.box)) continue;
-      const Group& old_group = other.from_child ? cur : other;
-      const Group& new_group = other.from_child ? other : cur;
-      for (const auto i : old_group.members) {
-        for (const auto j : new_group.members) {
-          if (j < working_items) continue;  // a duplicate: its edges to the working map are known
-          const Item& ei = items[i];
-          const Item& ej = items[j];
-          if (ei.ellipsoid->node() == ej.ellipsoid->node() || !ei.box.overlaps(ej.box)) continue;
-          if (sets.find(i) == sets.find(j)) continue;
-          ++result.stats.pairs_tested;
-          if (intersects(*ei.ellipsoid, *ej.ellipsoid)) sets.unite(i, j);
-        }
-      }
+  for (const auto cur : sweep) {
+    const Item& ec = items[cur];
+    std::erase_if(active, [&](std::size_t a) { return items[a].box.max.x() < ec.box.min.x(); });
+    for (const auto other : active) {
+      const Item& eo = items[other];
+      if (eo.map == ec.map || eo.ellipsoid->node() == ec.ellipsoid->node() || !eo.box.overlaps(ec.box)) continue;
+      if (sets.find(cur) == sets.find(other)) continue;
+      ++result.stats.pairs_tested;
+      if (intersects(*eo.ellipsoid, *ec.ellipsoid)) sets.unite(cur, other);
     }
-    active.push_back(g);
+    active.push_back(cur);
   }
-  result.stats.pairs_pruned = result.stats.pairs_all - result.stats.pairs_tested;
+  result.stats.pairs_pruned = result.stats.pairs_all - std::min(result.stats.pairs_all, result.stats.pairs_tested);
 
   std::vector<Ellipsoid> merged;
   std::vector<std::size_t> object_of;
@@ -183,16 +194,16 @@ MergeResult merge(const Map& working, const Map& child) {
   return result;
 }
 
+MergeResult merge(const Map& working, const Map& child) {
+  const std::array<const Map*, 2> maps{&working, &child};
+  return mergeMaps(maps);
+}
+
 MergeResult mergeAll(std::span<const Map> maps) {
-  MergeResult total;
-  for (const auto& m : maps) {
-    auto step = merge(total.map, m);
-    total.map = std::move(step.map);
-    total.stats.pairs_all += step.stats.pairs_all;
-    total.stats.pairs_tested += step.stats.pairs_tested;
-    total.stats.pairs_pruned += step.stats.pairs_pruned;
-  }
-  return total;
+  std::vector<const Map*> pointers;
+  pointers.reserve(maps.size());
+  for (const auto& m : maps) pointers.push_back(&m);
+  return mergeMaps(pointers);
 }
 
 Map mergeSpecification(std::span<const Ellipsoid> ellipsoids) {

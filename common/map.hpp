@@ -56,11 +56,12 @@ struct MergeResult {
   MergeStats stats;
 };
 
-// MERGE(working, child): box pruning with a sort-and-sweep over object boxes, then ellipsoid boxes,
+// MERGE(working, child): box pruning with a sort-and-sweep over the ellipsoids' delimiting boxes,
 // then the exact test. Duplicate ellipsoid ids (the same ellipsoid seen twice) count once.
 MergeResult merge(const Map& working, const Map& child);
-// MERGE of any number of maps, folded left to right.
+// MERGE of any number of maps in one pass (equal to folding merge() over them).
 MergeResult mergeAll(std::span<const Map> maps);
+MergeResult mergeMaps(std::span<const Map* const> maps);
 
 // The specification, for tests and small inputs: connected components of the graph of all
 // (deduplicated) ellipsoids with an edge between intersecting ellipsoids of different nodes,

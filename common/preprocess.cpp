@@ -1,5 +1,6 @@
 #include "common/preprocess.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -7,6 +8,7 @@
 #include <sstream>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include <pcl/ModelCoefficients.h>
 #include <pcl/PointIndices.h>
@@ -49,6 +51,148 @@ bool voxelIndicesOverflow(const Eigen::Array3f& lo, const Eigen::Array3f& hi, fl
     if (voxels > std::numeric_limits<std::int32_t>::max()) return true;
   }
   return false;
+}
+
+// The global plane the local ground is measured from. Errors when there are fewer than 3 finite
+// points or no plane within max_tilt_deg of horizontal.
+Expected<Eigen::Vector4d> fitPriorPlane(std::span<const Point> points, const GroundParams& params) {
+  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
+  cloud->reserve(points.size());
+  for (const Point& p : points) {
+    if (isFinitePoint(p)) cloud->push_back(pcl::PointXYZ(p.x, p.y, p.z));
+  }
+  if (cloud->size() < 3) {
+    return invalidArgument("ground removal needs at least 3 finite points, got " + std::to_string(cloud->size()));
+  }
+
+  silencePcl();
+  // PCL seeds its RANSAC generator with a constant (12345) unless asked for randomness, so the same
+  // input always gives the same plane.
+  pcl::SACSegmentation<pcl::PointXYZ> segmentation;
+  segmentation.setModelType(pcl::SACMODEL_PERPENDICULAR_PLANE);
+  segmentation.setMethodType(pcl::SAC_RANSAC);
+  segmentation.setAxis(Eigen::Vector3f::UnitZ());
+  segmentation.setEpsAngle(params.max_tilt_deg * std::numbers::pi / 180.0);
+  segmentation.setDistanceThreshold(params.distance_threshold_m);
+  segmentation.setMaxIterations(params.max_iterations);
+  segmentation.setOptimizeCoefficients(true);
+  segmentation.setInputCloud(cloud);
+  pcl::PointIndices inliers;
+  pcl::ModelCoefficients coefficients;
+  segmentation.segment(inliers, coefficients);
+  if (inliers.indices.empty() || coefficients.values.size() != 4) {
+    return invalidArgument("no ground plane found within " + str(params.max_tilt_deg) +
+                           " degrees of horizontal among " + std::to_string(points.size()) + " points");
+  }
+
+  Eigen::Vector4d plane(coefficients.values[0], coefficients.values[1], coefficients.values[2],
+                        coefficients.values[3]);
+  const double normal_length = plane.head<3>().norm();
+  if (!(normal_length > 0.0) || !plane.allFinite()) {
+    return invalidArgument("the ground plane fit is degenerate (" + std::to_string(points.size()) + " points)");
+  }
+  plane /= normal_length;
+  if (plane.z() < 0.0) plane = -plane;
+  return plane;
+}
+
+// Height of the local ground above the prior plane on a flat x-y grid.
+struct GroundGrid {
+  double min_x = 0.0;
+  double min_y = 0.0;
+  double inverse_cell = 1.0;
+  std::int64_t nx = 0;
+  std::int64_t ny = 0;
+  std::vector<float> height;  // row-major in y; +inf where no estimate is within reach
+
+  // 0 (the prior plane) off the grid or where no estimate is within reach.
+  float heightAt(const Point& p) const {
+    const double fx = std::floor((p.x - min_x) * inverse_cell);
+    const double fy = std::floor((p.y - min_y) * inverse_cell);
+    if (!(fx >= 0.0 && fx < static_cast<double>(nx) && fy >= 0.0 && fy < static_cast<double>(ny))) return 0.0F;
+    const float h = height[static_cast<std::size_t>(static_cast<std::int64_t>(fy) * nx + static_cast<std::int64_t>(fx))];
+    return std::isfinite(h) ? h : 0.0F;
+  }
+};
+
+// The plane is only a prior: real roads bend, so far from the sensor they depart from any one plane
+// by more than the threshold (KITTI 000002: the car 35 m ahead stands 0.5 m below the plane fitted
+// to the dense near road, and one plane cut 58 % of it). The lowest plausible point of a cell is its
+// ground; taking the lowest over a neighbourhood reaches past the objects that hide the ground under
+// themselves. The band around the prior keeps spurious deep returns and rooftops out of the
+// estimates. Heights are measured from the prior, not in z, so that a globally tilted ground does
+// not make the neighbourhood minimum sink below the ground by the slope across the neighbourhood.
+Expected<GroundGrid> localGround(std::span<const Point> points, std::span<const float> height,
+                                 const GroundParams& params) {
+  const auto below = static_cast<float>(-params.max_below_prior_m);
+  const auto above = static_cast<float>(params.max_above_prior_m);
+  const auto isEstimate = [&](std::size_t i) { return height[i] >= below && height[i] <= above; };
+
+  GroundGrid grid;
+  double lo_x = std::numeric_limits<double>::infinity();
+  double lo_y = lo_x;
+  double hi_x = -lo_x;
+  double hi_y = -lo_x;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!isEstimate(i) || !std::isfinite(points[i].x) || !std::isfinite(points[i].y)) continue;
+    lo_x = std::min(lo_x, static_cast<double>(points[i].x));
+    lo_y = std::min(lo_y, static_cast<double>(points[i].y));
+    hi_x = std::max(hi_x, static_cast<double>(points[i].x));
+    hi_y = std::max(hi_y, static_cast<double>(points[i].y));
+  }
+  if (!(lo_x <= hi_x)) return grid;  // no estimates: the prior everywhere
+
+  // Padded by the neighbourhood so that points just outside the estimates still see them.
+  const double reach_m = params.neighbourhood_cells * params.cell_m;
+  grid.min_x = lo_x - reach_m;
+  grid.min_y = lo_y - reach_m;
+  grid.inverse_cell = 1.0 / params.cell_m;
+  const double cells_x = std::floor((hi_x + reach_m - grid.min_x) * grid.inverse_cell) + 1.0;
+  const double cells_y = std::floor((hi_y + reach_m - grid.min_y) * grid.inverse_cell) + 1.0;
+  constexpr double kMaxCells = 16777216.0;  // 2^24: 64 MiB of heights
+  if (!(cells_x * cells_y <= kMaxCells)) {
+    return invalidArgument("ground cell " + str(params.cell_m) + " m is too small for ground spanning " +
+                           str(hi_x - lo_x) + " x " + str(hi_y - lo_y) + " m: the grid would exceed 2^24 cells");
+  }
+  grid.nx = static_cast<std::int64_t>(cells_x);
+  grid.ny = static_cast<std::int64_t>(cells_y);
+  const auto cellOf = [&](const Point& p) {
+    const auto clamp = [](double f, std::int64_t n) { return std::clamp(static_cast<std::int64_t>(f), std::int64_t{0}, n - 1); };
+    const std::int64_t ix = clamp(std::floor((p.x - grid.min_x) * grid.inverse_cell), grid.nx);
+    const std::int64_t iy = clamp(std::floor((p.y - grid.min_y) * grid.inverse_cell), grid.ny);
+    return static_cast<std::size_t>(iy * grid.nx + ix);
+  };
+
+  constexpr float kNone = std::numeric_limits<float>::infinity();
+  const auto cells = static_cast<std::size_t>(grid.nx * grid.ny);
+  std::vector<float> lowest(cells, kNone);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!isEstimate(i) || !std::isfinite(points[i].x) || !std::isfinite(points[i].y)) continue;
+    float& cell = lowest[cellOf(points[i])];
+    cell = std::min(cell, height[i]);
+  }
+
+  // Square neighbourhood minimum, separably: along x into `along_x`, then along y.
+  const std::int64_t r = params.neighbourhood_cells;
+  std::vector<float> along_x(cells, kNone);
+  for (std::int64_t y = 0; y < grid.ny; ++y) {
+    const float* row = lowest.data() + y * grid.nx;
+    float* out = along_x.data() + y * grid.nx;
+    for (std::int64_t x = 0; x < grid.nx; ++x) {
+      const std::int64_t end = std::min(grid.nx, x + r + 1);
+      out[x] = *std::min_element(row + std::max<std::int64_t>(0, x - r), row + end);
+    }
+  }
+  grid.height.assign(cells, kNone);
+  for (std::int64_t y = 0; y < grid.ny; ++y) {
+    const std::int64_t end = std::min(grid.ny, y + r + 1);
+    float* out = grid.height.data() + y * grid.nx;
+    for (std::int64_t from = std::max<std::int64_t>(0, y - r); from < end; ++from) {
+      const float* in = along_x.data() + from * grid.nx;
+      for (std::int64_t x = 0; x < grid.nx; ++x) out[x] = std::min(out[x], in[x]);
+    }
+  }
+  return grid;
 }
 
 }  // namespace
@@ -132,67 +276,42 @@ Expected<GroundRemoval> removeGround(std::span<const Point> points, const Ground
   if (params.max_iterations <= 0) {
     return invalidArgument("ground RANSAC iterations must be positive, got " + std::to_string(params.max_iterations));
   }
-
-  // Only the plane comes from PCL; points are classified below, so the fit may skip non-finite ones.
-  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
-  cloud->reserve(points.size());
-  for (const Point& p : points) {
-    if (isFinitePoint(p)) cloud->push_back(pcl::PointXYZ(p.x, p.y, p.z));
+  if (!std::isfinite(params.cell_m) || !(params.cell_m > 0.0)) {
+    return invalidArgument("ground cell size must be positive and finite, got " + str(params.cell_m) + " m");
   }
-  if (cloud->size() < 3) {
-    return invalidArgument("ground removal needs at least 3 finite points, got " + std::to_string(cloud->size()));
+  if (params.neighbourhood_cells < 0) {
+    return invalidArgument("ground neighbourhood must be at least 0 cells, got " +
+                           std::to_string(params.neighbourhood_cells));
   }
-
-  // Limitation: the ground is one plane for the whole cloud. On sloped or stepped roads the real
-  // ground departs from it with distance, so low objects far away can be cut: an object standing
-  // on ground that lies below the plane has its lower part, or all of it, within the threshold. In
-  // KITTI object frame 000001 the road rises ahead and the car about 59 m ahead stands on ground
-  // about 0.45 m lower than the plane predicts there, so all 9 of its points more than 0.3 m above
-  // its box bottom are removed. (Too few points to cluster anyway.) It is not only far objects:
-  // in frame 000002 the road descends about 0.35 m over the first 35 m while the plane, fitted to
-  // the dense near road, rises slightly; the car 35 m ahead stands 0.5 m below the plane and keeps
-  // only 22 of its 52 points more than 0.3 m above its box bottom (its lower half is cut). No
-  // threshold or iteration count fixes that with one plane. Fixing it needs a local ground model,
-  // for example one plane per range/angle sector.
-  silencePcl();
-  // PCL seeds its RANSAC generator with a constant (12345) unless asked for randomness, so the same
-  // input always gives the same plane.
-  pcl::SACSegmentation<pcl::PointXYZ> segmentation;
-  segmentation.setModelType(pcl::SACMODEL_PERPENDICULAR_PLANE);
-  segmentation.setMethodType(pcl::SAC_RANSAC);
-  segmentation.setAxis(Eigen::Vector3f::UnitZ());
-  segmentation.setEpsAngle(params.max_tilt_deg * std::numbers::pi / 180.0);
-  segmentation.setDistanceThreshold(params.distance_threshold_m);
-  segmentation.setMaxIterations(params.max_iterations);
-  segmentation.setOptimizeCoefficients(true);
-  segmentation.setInputCloud(cloud);
-  pcl::PointIndices inliers;
-  pcl::ModelCoefficients coefficients;
-  segmentation.segment(inliers, coefficients);
-  if (inliers.indices.empty() || coefficients.values.size() != 4) {
-    return invalidArgument("no ground plane found within " + str(params.max_tilt_deg) +
-                           " degrees of horizontal among " + std::to_string(points.size()) + " points");
+  if (!std::isfinite(params.max_below_prior_m) || !(params.max_below_prior_m >= 0.0) ||
+      !std::isfinite(params.max_above_prior_m) || !(params.max_above_prior_m >= 0.0)) {
+    return invalidArgument("ground band around the prior plane must be non-negative and finite, got " +
+                           str(params.max_below_prior_m) + " m below and " + str(params.max_above_prior_m) +
+                           " m above");
   }
 
-  Eigen::Vector4d plane(coefficients.values[0], coefficients.values[1], coefficients.values[2],
-                        coefficients.values[3]);
-  const double normal_length = plane.head<3>().norm();
-  if (!(normal_length > 0.0) || !plane.allFinite()) {
-    return invalidArgument("the ground plane fit is degenerate (" + std::to_string(points.size()) + " points)");
-  }
-  plane /= normal_length;
-  if (plane.z() < 0.0) plane = -plane;
+  const Expected<Eigen::Vector4d> plane = fitPriorPlane(points, params);
+  if (!plane) return plane.error();
 
-  // Everything below the plane goes too, not only the inliers: KITTI scans contain spurious
-  // returns metres below the road, and nothing real lies underground. (Non-finite points fail the
-  // comparison and are removed with the ground.)
+  // Heights above the prior; NaN for non-finite points, which then fail every comparison below.
+  std::vector<float> height(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    height[i] = static_cast<float>(plane->head<3>().dot(points[i].xyz().cast<double>()) + plane->w());
+  }
+  const Expected<GroundGrid> grid = localGround(points, height, params);
+  if (!grid) return grid.error();
+
+  // Everything below the local ground goes too, not only the ground itself: KITTI scans contain
+  // spurious returns metres below the road, and nothing real lies underground.
+  const auto below = static_cast<float>(-params.max_below_prior_m);
+  const auto threshold = static_cast<float>(params.distance_threshold_m);
   GroundRemoval result;
-  result.plane = plane;
+  result.plane = *plane;
   result.non_ground.reserve(points.size());
-  for (const Point& p : points) {
-    const double height = plane.head<3>().dot(p.xyz().cast<double>()) + plane.w();
-    if (height > params.distance_threshold_m) {
-      result.non_ground.push_back(p);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const float h = height[i];
+    if (h >= below && h >= grid->heightAt(points[i]) + threshold) {
+      result.non_ground.push_back(points[i]);
     } else {
       ++result.ground_points;
     }

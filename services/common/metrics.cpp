@@ -1,1 +1,107 @@
 #include "services/common/metrics.hpp"
+
+#include <utility>
+
+namespace fogmap {
+namespace {
+
+using prometheus::Histogram;
+using prometheus::Labels;
+using prometheus::Registry;
+
+prometheus::Family<prometheus::Counter>& counterFamily(Registry& registry, const std::string& name,
+                                                       const std::string& help, const Labels& constant) {
+  return prometheus::BuildCounter().Name(name).Help(help).Labels(constant).Register(registry);
+}
+
+prometheus::Counter& counter(Registry& registry, const std::string& name, const std::string& help,
+                             const Labels& constant) {
+  return counterFamily(registry, name, help, constant).Add({});
+}
+
+prometheus::Gauge& gauge(Registry& registry, const std::string& name, const std::string& help,
+                         const Labels& constant) {
+  return prometheus::BuildGauge().Name(name).Help(help).Labels(constant).Register(registry).Add({});
+}
+
+Histogram& histogram(Registry& registry, const std::string& name, const std::string& help, const Labels& constant,
+                     Histogram::BucketBoundaries buckets) {
+  return prometheus::BuildHistogram().Name(name).Help(help).Labels(constant).Register(registry).Add(
+      {}, std::move(buckets));
+}
+
+}  // namespace
+
+Metrics::Metrics(const std::string& bind_address, const std::string& service, const std::string& node)
+    : registry_(std::make_shared<Registry>()) {
+  const Labels c{{"service", service}, {"node", node}};
+  Registry& r = *registry_;
+  bytes_sent_ = &counterFamily(r, "fogmap_bytes_sent_total", "Serialised bytes sent, by peer and message kind.", c);
+  bytes_received_ =
+      &counterFamily(r, "fogmap_bytes_received_total", "Serialised bytes received, by peer and message kind.", c);
+  maps_in_ = &counter(r, "fogmap_maps_in_total", "Maps received from children.", c);
+  maps_out_ = &counter(r, "fogmap_maps_out_total", "Maps sent to the parent or subscribers.", c);
+  points_in_ = &counter(r, "fogmap_points_in_total", "Points received (baseline and ext modes).", c);
+  points_out_ = &counter(r, "fogmap_points_out_total", "Points sent (baseline and ext modes).", c);
+  // Clustering one scan takes milliseconds to a second or two.
+  clustering_seconds_ = &histogram(r, "fogmap_clustering_seconds", "Time to cluster one scan.", c,
+                                   {0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5});
+  // MERGE of summaries is sub-millisecond to about a second.
+  merge_seconds_ = &histogram(r, "fogmap_merge_seconds", "Time to merge one epoch's maps.", c,
+                              {0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1});
+  pairs_tested_ = &counter(r, "fogmap_merge_pairs_tested_total",
+                           "Ellipsoid pairs given the exact intersection test after box pruning.", c);
+  pairs_pruned_ = &counter(r, "fogmap_merge_pairs_pruned_total",
+                           "Cross-node ellipsoid pairs ruled out by box pruning.", c);
+  end_to_end_seconds_ = &histogram(r, "fogmap_end_to_end_seconds",
+                                   "Time from the earliest sensor timestamp to the global map.", c,
+                                   {0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2});
+  children_live_ = &gauge(r, "fogmap_children_live", "Children that delivered the last epoch in time.", c);
+  children_stale_ = &gauge(r, "fogmap_children_stale", "Children that missed the last epoch (dead or late).", c);
+  malformed_ = &counterFamily(r, "fogmap_malformed_inputs_total", "Inputs rejected as malformed, by kind.", c);
+  late_maps_ = &counter(r, "fogmap_late_maps_total", "Maps that arrived after their epoch was emitted.", c);
+  reconnects_ = &counter(r, "fogmap_reconnects_total", "Upload streams re-opened after a failure.", c);
+  dropped_uploads_ = &counter(r, "fogmap_dropped_uploads_total",
+                              "Unacknowledged uploads dropped because the send queue was full.", c);
+  frames_ = &counter(r, "fogmap_frames_total", "Sensor frames processed.", c);
+
+  if (!bind_address.empty()) {
+    exposer_ = std::make_unique<prometheus::Exposer>(bind_address);
+    exposer_->RegisterCollectable(registry_);
+  }
+}
+
+Metrics::~Metrics() = default;
+
+int Metrics::listeningPort() const {
+  if (!exposer_) return 0;
+  const auto ports = exposer_->GetListeningPorts();
+  return ports.empty() ? 0 : ports.front();
+}
+
+void Metrics::bytesSent(const std::string& peer, const std::string& kind, std::size_t bytes) {
+  bytes_sent_->Add({{"peer", peer}, {"kind", kind}}).Increment(static_cast<double>(bytes));
+}
+void Metrics::bytesReceived(const std::string& peer, const std::string& kind, std::size_t bytes) {
+  bytes_received_->Add({{"peer", peer}, {"kind", kind}}).Increment(static_cast<double>(bytes));
+}
+void Metrics::mapsIn(std::uint64_t n) { maps_in_->Increment(static_cast<double>(n)); }
+void Metrics::mapsOut(std::uint64_t n) { maps_out_->Increment(static_cast<double>(n)); }
+void Metrics::pointsIn(std::uint64_t n) { points_in_->Increment(static_cast<double>(n)); }
+void Metrics::pointsOut(std::uint64_t n) { points_out_->Increment(static_cast<double>(n)); }
+void Metrics::clusteringSeconds(double s) { clustering_seconds_->Observe(s); }
+void Metrics::mergeSeconds(double s) { merge_seconds_->Observe(s); }
+void Metrics::pairs(std::uint64_t tested, std::uint64_t pruned) {
+  pairs_tested_->Increment(static_cast<double>(tested));
+  pairs_pruned_->Increment(static_cast<double>(pruned));
+}
+void Metrics::endToEndSeconds(double s) { end_to_end_seconds_->Observe(s); }
+void Metrics::childrenLive(double n) { children_live_->Set(n); }
+void Metrics::childrenStale(double n) { children_stale_->Set(n); }
+void Metrics::malformed(const std::string& what) { malformed_->Add({{"what", what}}).Increment(); }
+void Metrics::lateMaps(std::uint64_t n) { late_maps_->Increment(static_cast<double>(n)); }
+void Metrics::reconnects() { reconnects_->Increment(); }
+void Metrics::droppedUploads() { dropped_uploads_->Increment(); }
+void Metrics::framesProcessed() { frames_->Increment(); }
+
+}  // namespace fogmap

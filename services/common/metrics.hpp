@@ -1,6 +1,8 @@
 #pragma once
 // Prometheus metrics shared by the services (prometheus-cpp, pull model on /metrics). Names follow
-// Prometheus conventions: fogmap_ prefix, base units (seconds, bytes), _total for counters.
+// Prometheus conventions: fogmap_ prefix, base units (seconds, bytes), _total for counters; every
+// series carries the constant labels service and node.
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -16,9 +18,19 @@ namespace fogmap {
 
 class Metrics {
  public:
-  // Serves /metrics on bind_address (e.g. "127.0.0.1:9100"); `service` and `node` become labels.
+  // Serves /metrics on bind_address (e.g. "127.0.0.1:9100"; port 0 picks a free port, see
+  // listeningPort); an empty bind_address serves nothing (tests, tools). `service` and `node`
+  // become constant labels. Throws std::runtime_error when the address cannot be bound.
   Metrics(const std::string& bind_address, const std::string& service, const std::string& node);
+  ~Metrics();
+  Metrics(const Metrics&) = delete;
+  Metrics& operator=(const Metrics&) = delete;
 
+  // The port /metrics is served on, 0 when nothing is served.
+  int listeningPort() const;
+
+  // `peer` names the other end (a node id or address), `kind` the message kind ("map", "points",
+  // "global_map", ...).
   void bytesSent(const std::string& peer, const std::string& kind, std::size_t bytes);
   void bytesReceived(const std::string& peer, const std::string& kind, std::size_t bytes);
   void mapsIn(std::uint64_t n = 1);
@@ -31,6 +43,7 @@ class Metrics {
   void endToEndSeconds(double s);
   void childrenLive(double n);
   void childrenStale(double n);
+  // `what` names the rejected input kind ("map", "points", "geofence", ...).
   void malformed(const std::string& what);
   void lateMaps(std::uint64_t n = 1);
   void reconnects();
@@ -42,7 +55,6 @@ class Metrics {
  private:
   std::shared_ptr<prometheus::Registry> registry_;
   std::unique_ptr<prometheus::Exposer> exposer_;
-  std::string node_;
   prometheus::Family<prometheus::Counter>* bytes_sent_;
   prometheus::Family<prometheus::Counter>* bytes_received_;
   prometheus::Counter* maps_in_;

@@ -181,9 +181,9 @@ Expected<Map> fromProto(const google::protobuf::RepeatedPtrField<v1::MapObject>&
             [&](std::size_t a, std::size_t b) { return ellipsoids[a].id < ellipsoids[b].id; });
   for (std::size_t i = 1; i < order.size(); ++i) {
     if (ellipsoids[order[i - 1]].id == ellipsoids[order[i]].id) {
+      const auto [first, second] = std::minmax(object_of[order[i - 1]], object_of[order[i]]);
       return invalidArgument(where + ": duplicate ellipsoid id " + toString(ellipsoids[order[i]].id) +
-                             " (objects " + std::to_string(object_of[order[i - 1]]) + " and " +
-                             std::to_string(object_of[order[i]]) + ")");
+                             " (objects " + std::to_string(first) + " and " + std::to_string(second) + ")");
     }
   }
   return mapFromGroups(ellipsoids, object_of);

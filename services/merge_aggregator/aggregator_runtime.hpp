@@ -1,0 +1,77 @@
+#pragma once
+// What the gRPC adapters share: the core behind one mutex, the clock, and the emitter (the poll
+// thread that turns emitted epochs into uploads to the parent or global maps for subscribers).
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <functional>
+#include <mutex>
+#include <thread>
+#include <utility>
+
+#include "services/common/metrics.hpp"
+#include "services/common/proto_convert.hpp"
+#include "services/merge_aggregator/aggregator_core.hpp"
+
+namespace fogmap {
+
+// Unix time in nanoseconds: sensor timestamps are unix ns, so epoch deadlines and end-to-end
+// latency use the same clock.
+using NowNs = std::function<std::int64_t()>;
+std::int64_t systemNowNs();
+
+// The core is not thread-safe; every RPC handler and the emitter go through here.
+class SharedAggregator {
+ public:
+  explicit SharedAggregator(MergeAggregator core) : core_(std::move(core)) {}
+  // Runs f(core) under the lock and returns its result.
+  template <class F>
+  decltype(auto) with(F&& f) {
+    std::lock_guard lock(mutex_);
+    return std::forward<F>(f)(core_);
+  }
+
+ private:
+  std::mutex mutex_;
+  MergeAggregator core_;
+};
+
+// Where emitted epochs go; either may be empty.
+struct EmitterSinks {
+  std::function<void(v1::Upload)> to_parent;      // intermediate: ParentLink::send
+  std::function<void(GlobalMapMessage)> publish;  // root: GlobalMapService::publish
+};
+
+class Emitter {
+ public:
+  // `metrics` may be null (tests).
+  Emitter(SharedAggregator& aggregator, EmitterSinks sinks, Metrics* metrics, NowNs now_ns = systemNowNs,
+          std::chrono::milliseconds period = std::chrono::milliseconds(2));
+  ~Emitter();  // stops the thread
+  Emitter(const Emitter&) = delete;
+  Emitter& operator=(const Emitter&) = delete;
+
+  // Polls every `period` on a thread until stop().
+  void start();
+  void stop();
+  // One poll: emits every due epoch to the sinks, updates metrics; returns how many it emitted.
+  std::size_t pollOnce();
+
+ private:
+  void run();
+
+  SharedAggregator& aggregator_;
+  EmitterSinks sinks_;
+  Metrics* metrics_;
+  NowNs now_ns_;
+  std::chrono::milliseconds period_;
+  prometheus::Counter* epochs_dropped_ = nullptr;
+  std::uint64_t dropped_reported_ = 0;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  bool stopping_ = false;
+  std::thread thread_;
+};
+
+}  // namespace fogmap

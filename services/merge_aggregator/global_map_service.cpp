@@ -1,0 +1,159 @@
+#include "services/merge_aggregator/global_map_service.hpp"
+
+#include <algorithm>
+#include <string>
+#include <utility>
+
+#include "services/common/grpc_options.hpp"
+#include "services/common/proto_convert.hpp"
+
+namespace fogmap {
+namespace {
+
+// The geofence report has no domain counterpart in proto_convert (yet); its conversion lives here.
+v1::Containment toProto(Containment c) {
+  switch (c) {
+    case Containment::kOutside: return v1::CONTAINMENT_OUTSIDE;
+    case Containment::kCrossing: return v1::CONTAINMENT_CROSSING;
+    case Containment::kInside: return v1::CONTAINMENT_INSIDE;
+  }
+  return v1::CONTAINMENT_UNSPECIFIED;
+}
+
+void toProto(const Eigen::Vector3d& v, v1::Vec3* out) {
+  out->set_x(v.x());
+  out->set_y(v.y());
+  out->set_z(v.z());
+}
+
+v1::GeofenceReport toProto(const GeofenceReport& report) {
+  v1::GeofenceReport out;
+  out.set_epoch(report.epoch);
+  for (const auto& intrusion : report.intrusions) {
+    auto* proto = out.add_intrusions();
+    proto->set_geofence(intrusion.geofence);
+    proto->set_object_index(static_cast<std::uint32_t>(intrusion.object_index));
+    proto->set_containment(toProto(intrusion.containment));
+    toProto(intrusion.box.min, proto->mutable_box()->mutable_min());
+    toProto(intrusion.box.max, proto->mutable_box()->mutable_max());
+    for (const auto& id : intrusion.ellipsoids) {
+      auto* proto_id = proto->add_ellipsoids();
+      proto_id->set_node(id.node);
+      proto_id->set_frame(id.frame);
+      proto_id->set_index(id.index);
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+GlobalMapService::GlobalMapService(SharedAggregator& aggregator, Metrics* metrics, std::size_t queue_capacity,
+                                   std::chrono::milliseconds poll_wait)
+    : aggregator_(aggregator), queue_capacity_(std::max<std::size_t>(1, queue_capacity)), poll_wait_(poll_wait) {
+  if (metrics != nullptr) {
+    // Not in the shared Metrics: only the root has subscribers.
+    dropped_counter_ = &prometheus::BuildCounter()
+                            .Name("fogmap_subscriber_dropped_maps_total")
+                            .Help("Global maps dropped from a slow subscriber's queue")
+                            .Register(metrics->registry())
+                            .Add({});
+  }
+}
+
+void GlobalMapService::publish(const GlobalMapMessage& message) {
+  // Converted once, shared by every subscriber; the label-free copy only when someone wants it.
+  auto with_labels = std::make_shared<const v1::GlobalMap>(toProto(message));
+  std::shared_ptr<const v1::GlobalMap> without_labels;
+  std::uint64_t dropped = 0;
+  {
+    std::lock_guard lock(mutex_);
+    for (const auto& subscriber : subscribers_) {
+      if (!subscriber->point_labels && !without_labels) {
+        auto copy = std::make_shared<v1::GlobalMap>(*with_labels);
+        copy->clear_point_labels();
+        without_labels = std::move(copy);
+      }
+      subscriber->queue.push_back(subscriber->point_labels ? with_labels : without_labels);
+      while (subscriber->queue.size() > queue_capacity_) {
+        subscriber->queue.pop_front();
+        ++dropped;
+      }
+    }
+    dropped_ += dropped;
+  }
+  if (dropped > 0 && dropped_counter_ != nullptr) dropped_counter_->Increment(static_cast<double>(dropped));
+  published_.notify_all();
+}
+
+void GlobalMapService::shutdown() {
+  {
+    std::lock_guard lock(mutex_);
+    shutting_down_ = true;
+  }
+  published_.notify_all();
+}
+
+std::size_t GlobalMapService::subscriberCount() const {
+  std::lock_guard lock(mutex_);
+  return subscribers_.size();
+}
+
+std::uint64_t GlobalMapService::droppedMessages() const {
+  std::lock_guard lock(mutex_);
+  return dropped_;
+}
+
+grpc::Status GlobalMapService::Subscribe(grpc::ServerContext* context, const v1::SubscribeRequest* request,
+                                         grpc::ServerWriter<v1::GlobalMap>* writer) {
+  auto subscriber = std::make_shared<Subscriber>();
+  subscriber->point_labels = request->include_point_labels();
+  {
+    std::lock_guard lock(mutex_);
+    if (shutting_down_) return {grpc::StatusCode::UNAVAILABLE, "the aggregator is shutting down"};
+    subscribers_.push_back(subscriber);
+  }
+  struct Unsubscribe {
+    GlobalMapService& service;
+    const std::shared_ptr<Subscriber>& subscriber;
+    ~Unsubscribe() {
+      std::lock_guard lock(service.mutex_);
+      std::erase(service.subscribers_, subscriber);
+    }
+  } unsubscribe{*this, subscriber};
+
+  // Bounded waits: a cancelled client raises no condition variable, so look again regularly.
+  while (!context->IsCancelled()) {
+    std::shared_ptr<const v1::GlobalMap> next;
+    {
+      std::unique_lock lock(mutex_);
+      published_.wait_for(lock, poll_wait_, [&] { return shutting_down_ || !subscriber->queue.empty(); });
+      if (shutting_down_) return {grpc::StatusCode::UNAVAILABLE, "the aggregator is shutting down"};
+      if (subscriber->queue.empty()) continue;
+      next = std::move(subscriber->queue.front());
+      subscriber->queue.pop_front();
+    }
+    if (!writer->Write(*next)) break;  // the client is gone
+  }
+  return grpc::Status::OK;
+}
+
+grpc::Status GlobalMapService::SetGeofence(grpc::ServerContext* /*context*/, const v1::Geofence* request,
+                                           v1::SetGeofenceReply* reply) {
+  auto fence = fromProto(*request);
+  if (!fence) return toGrpcStatus(fence.error());
+  const auto count = aggregator_.with([&](MergeAggregator& core) { return core.setGeofence(std::move(*fence)); });
+  if (!count) return toGrpcStatus(count.error());
+  reply->set_geofence_count(static_cast<std::uint32_t>(*count));
+  return grpc::Status::OK;
+}
+
+grpc::Status GlobalMapService::QueryGeofences(grpc::ServerContext* /*context*/, const v1::GeofenceQuery* request,
+                                              v1::GeofenceReport* reply) {
+  const auto report = aggregator_.with([&](const MergeAggregator& core) { return core.queryGeofences(request->name()); });
+  if (!report) return toGrpcStatus(report.error());
+  *reply = toProto(*report);
+  return grpc::Status::OK;
+}
+
+}  // namespace fogmap

@@ -1,0 +1,60 @@
+#pragma once
+// gRPC adapter for GlobalMapService (the root only): live global maps for subscribers, and
+// geofences set and queried on the latest global map.
+//
+// Every subscriber has its own bounded queue: a slow subscriber loses its oldest global maps
+// (counted) and never slows the emitter or the other subscribers.
+#include <chrono>
+#include <condition_variable>
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+#include "fogmap/v1/fogmap.grpc.pb.h"
+#include "services/common/metrics.hpp"
+#include "services/merge_aggregator/aggregator_runtime.hpp"
+
+namespace fogmap {
+
+class GlobalMapService final : public v1::GlobalMapService::Service {
+ public:
+  // `metrics` may be null. `poll_wait` bounds how long a Subscribe handler sleeps before it looks
+  // for a cancelled client again.
+  GlobalMapService(SharedAggregator& aggregator, Metrics* metrics, std::size_t queue_capacity = 16,
+                   std::chrono::milliseconds poll_wait = std::chrono::milliseconds(100));
+
+  // Queues the global map for every subscriber (the emitter's publish sink).
+  void publish(const GlobalMapMessage& message);
+  // Ends every Subscribe call (UNAVAILABLE) and refuses new ones; call before Server::Shutdown.
+  void shutdown();
+  std::size_t subscriberCount() const;
+  std::uint64_t droppedMessages() const;
+
+  grpc::Status Subscribe(grpc::ServerContext* context, const v1::SubscribeRequest* request,
+                         grpc::ServerWriter<v1::GlobalMap>* writer) override;
+  grpc::Status SetGeofence(grpc::ServerContext* context, const v1::Geofence* request,
+                           v1::SetGeofenceReply* reply) override;
+  grpc::Status QueryGeofences(grpc::ServerContext* context, const v1::GeofenceQuery* request,
+                              v1::GeofenceReport* reply) override;
+
+ private:
+  struct Subscriber {
+    bool point_labels = false;
+    std::deque<std::shared_ptr<const v1::GlobalMap>> queue;
+  };
+
+  SharedAggregator& aggregator_;
+  std::size_t queue_capacity_;
+  std::chrono::milliseconds poll_wait_;
+  prometheus::Counter* dropped_counter_ = nullptr;
+  mutable std::mutex mutex_;
+  std::condition_variable published_;
+  std::vector<std::shared_ptr<Subscriber>> subscribers_;
+  std::uint64_t dropped_ = 0;
+  bool shutting_down_ = false;
+};
+
+}  // namespace fogmap

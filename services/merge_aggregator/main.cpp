@@ -1,0 +1,170 @@
+// merge-aggregator: the composition root. Reads the topology, builds the core, metrics, parent
+// link, adapters and server, runs until SIGINT or SIGTERM.
+//   merge-aggregator --topology FILE --node NAME
+#include <csignal>
+#include <cstdlib>
+#include <exception>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include <grpcpp/grpcpp.h>
+
+#include "common/topology.hpp"
+#include "services/common/grpc_options.hpp"
+#include "services/common/metrics.hpp"
+#include "services/common/parent_link.hpp"
+#include "services/merge_aggregator/aggregator_runtime.hpp"
+#include "services/merge_aggregator/global_map_service.hpp"
+#include "services/merge_aggregator/ingest_service.hpp"
+
+namespace {
+
+constexpr int kBadConfig = 2;
+constexpr int kRuntimeFailure = 1;
+
+struct Args {
+  std::string topology;
+  std::string node;
+};
+
+void usage(std::ostream& out) {
+  out << "usage: merge-aggregator --topology FILE --node NAME\n";
+}
+
+std::optional<Args> parseArgs(int argc, char** argv) {
+  Args args;
+  for (int i = 1; i < argc; ++i) {
+    const std::string_view arg = argv[i];
+    if (arg == "--help" || arg == "-h") {
+      usage(std::cout);
+      std::exit(EXIT_SUCCESS);
+    }
+    if ((arg == "--topology" || arg == "--node") && i + 1 < argc) {
+      (arg == "--topology" ? args.topology : args.node) = argv[++i];
+    } else {
+      std::cerr << "merge-aggregator: unexpected argument '" << arg << "'\n";
+      return std::nullopt;
+    }
+  }
+  if (args.topology.empty() || args.node.empty()) {
+    std::cerr << "merge-aggregator: --topology and --node are required\n";
+    return std::nullopt;
+  }
+  return args;
+}
+
+int run(const Args& args, const sigset_t& stop_signals) {
+  using namespace fogmap;
+  const auto topology = loadTopology(args.topology);
+  if (!topology) {
+    std::cerr << "merge-aggregator: " << args.topology << ": " << topology.error().message << "\n";
+    return kBadConfig;
+  }
+  const NodeConfig* self = topology->find(args.node);
+  if (self == nullptr || self->role != Role::kAggregator) {
+    std::cerr << "merge-aggregator: " << args.topology << " has no aggregator named '" << args.node << "'\n";
+    return kBadConfig;
+  }
+
+  AggregatorConfig config;
+  config.node = self->id;
+  config.mode = topology->mode;
+  config.is_root = self->parent.empty();
+  config.deadline_ms = topology->deadline_ms;
+  config.madc = topology->madc;
+  for (const NodeConfig* child : topology->children(self->name)) {
+    config.children.push_back({child->id, topology->sensorsBelow(child->name)});
+  }
+  auto core = MergeAggregator::create(std::move(config));
+  if (!core) {
+    std::cerr << "merge-aggregator: " << args.topology << ": " << core.error().message << "\n";
+    return kBadConfig;
+  }
+  const bool is_root = core->config().is_root;
+  SharedAggregator aggregator(std::move(*core));
+
+  Metrics metrics(self->host + ":" + std::to_string(self->metrics_port), "merge-aggregator", self->name);
+
+  std::unique_ptr<ParentLink> parent_link;
+  if (!is_root) {
+    const NodeConfig* parent = topology->find(self->parent);
+    const std::string parent_name = parent->name;
+    ParentLinkConfig link_config;
+    link_config.target = parent->host + ":" + std::to_string(parent->port);
+    link_config.max_message_bytes = topology->max_message_bytes;
+    ParentLinkHooks hooks;
+    hooks.on_sent = [&metrics, parent_name](const std::string& kind, std::size_t bytes) {
+      metrics.bytesSent(parent_name, kind, bytes);
+    };
+    hooks.on_reconnect = [&metrics] { metrics.reconnects(); };
+    hooks.on_dropped = [&metrics] { metrics.droppedUploads(); };
+    parent_link = std::make_unique<ParentLink>(std::move(link_config), std::move(hooks));
+  }
+  auto to_parent = [&parent_link](v1::Upload upload) { parent_link->send(std::move(upload)); };
+
+  IngestService ingest(aggregator, &metrics, is_root ? std::function<void(v1::Upload)>{} : to_parent);
+  std::optional<GlobalMapService> global_maps;
+  EmitterSinks sinks;
+  if (is_root) {
+    global_maps.emplace(aggregator, &metrics);
+    sinks.publish = [&global_maps](const GlobalMapMessage& message) { global_maps->publish(message); };
+  } else {
+    sinks.to_parent = to_parent;
+  }
+  Emitter emitter(aggregator, std::move(sinks), &metrics);
+
+  grpc::ServerBuilder builder;
+  configureServer(builder, topology->max_message_bytes);
+  int bound_port = 0;
+  const std::string address = self->host + ":" + std::to_string(self->port);
+  builder.AddListeningPort(address, grpc::InsecureServerCredentials(), &bound_port);
+  builder.RegisterService(&ingest);
+  if (global_maps) builder.RegisterService(&*global_maps);
+  const std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
+  if (!server || bound_port == 0) {
+    std::cerr << "merge-aggregator: cannot listen on " << address << "\n";
+    return kRuntimeFailure;
+  }
+  emitter.start();
+  std::cerr << "ready" << std::endl;
+
+  int signal = 0;
+  sigwait(&stop_signals, &signal);
+
+  // Subscribers first (they would otherwise hold Shutdown until its deadline), then the server,
+  // then the emitter; an intermediate gives its last uploads a moment to reach the parent.
+  if (global_maps) global_maps->shutdown();
+  server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
+  server->Wait();
+  emitter.stop();
+  if (parent_link) parent_link->flush(std::chrono::milliseconds(500));
+  return EXIT_SUCCESS;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  // Blocked before any thread starts, so every thread inherits the mask and sigwait below is
+  // the only place that sees the signals.
+  sigset_t stop_signals;
+  sigemptyset(&stop_signals);
+  sigaddset(&stop_signals, SIGINT);
+  sigaddset(&stop_signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+
+  const auto args = parseArgs(argc, argv);
+  if (!args) {
+    usage(std::cerr);
+    return kBadConfig;
+  }
+  try {
+    return run(*args, stop_signals);
+  } catch (const std::exception& e) {
+    // prometheus-cpp's exposer throws when its port is taken.
+    std::cerr << "merge-aggregator: " << e.what() << "\n";
+    return kRuntimeFailure;
+  }
+}

@@ -1,0 +1,369 @@
+// The aggregator's gRPC adapters over real sockets on loopback: children push over MapIngest.Push,
+// subscribers receive global maps over GlobalMapService.Subscribe.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <memory>
+#include <random>
+#include <thread>
+
+#include <grpcpp/grpcpp.h>
+
+#include "common/clustering.hpp"
+#include "services/common/grpc_options.hpp"
+#include "services/common/proto_convert.hpp"
+#include "services/merge_aggregator/aggregator_runtime.hpp"
+#include "services/merge_aggregator/global_map_service.hpp"
+#include "services/merge_aggregator/ingest_service.hpp"
+
+namespace fogmap {
+namespace {
+
+using namespace std::chrono_literals;
+
+constexpr std::size_t kMaxMessageBytes = 64U << 20;
+constexpr std::uint32_t kRoot = 100;
+constexpr auto kRpcTimeout = 10s;
+
+// Waits for `condition`, bounded: the server side of a call has no client-visible signal.
+template <class F>
+bool eventually(F condition, std::chrono::milliseconds timeout = 5000ms) {
+  const auto end = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < end) {
+    if (condition()) return true;
+    std::this_thread::sleep_for(1ms);
+  }
+  return condition();
+}
+
+AggregatorConfig rootConfig(Mode mode, std::vector<std::uint32_t> edges, double deadline_ms) {
+  AggregatorConfig config;
+  config.node = kRoot;
+  config.mode = mode;
+  config.is_root = true;
+  config.deadline_ms = deadline_ms;
+  for (const auto edge : edges) config.children.push_back({edge, {edge}});
+  return config;
+}
+
+MergeAggregator makeCore(AggregatorConfig config) {
+  auto core = MergeAggregator::create(std::move(config));
+  EXPECT_TRUE(core.ok());
+  return std::move(core).value();
+}
+
+// A root aggregator served in-process on 127.0.0.1, port chosen by the OS.
+class RootServer {
+ public:
+  explicit RootServer(AggregatorConfig config)
+      : aggregator_(makeCore(std::move(config))),
+        ingest_(aggregator_, nullptr, {}),
+        global_maps_(aggregator_, nullptr, 16, 20ms),
+        emitter_(aggregator_, EmitterSinks{{}, [this](const GlobalMapMessage& m) { global_maps_.publish(m); }},
+                 nullptr) {
+    grpc::ServerBuilder builder;
+    configureServer(builder, kMaxMessageBytes);
+    builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port_);
+    builder.RegisterService(&ingest_);
+    builder.RegisterService(&global_maps_);
+    server_ = builder.BuildAndStart();
+    channel_ = makeChannel("127.0.0.1:" + std::to_string(port_), kMaxMessageBytes);
+  }
+  ~RootServer() {
+    global_maps_.shutdown();
+    if (server_) server_->Shutdown(std::chrono::system_clock::now() + 2s);
+    emitter_.stop();
+  }
+
+  bool started() const { return server_ != nullptr && port_ != 0; }
+  std::unique_ptr<v1::MapIngest::Stub> ingestStub() { return v1::MapIngest::NewStub(channel_); }
+  std::unique_ptr<v1::GlobalMapService::Stub> globalStub() { return v1::GlobalMapService::NewStub(channel_); }
+
+  SharedAggregator& aggregator() { return aggregator_; }
+  IngestService& ingest() { return ingest_; }
+  GlobalMapService& globalMaps() { return global_maps_; }
+  Emitter& emitter() { return emitter_; }
+
+ private:
+  SharedAggregator aggregator_;
+  IngestService ingest_;
+  GlobalMapService global_maps_;
+  Emitter emitter_;
+  int port_ = 0;
+  std::unique_ptr<grpc::Server> server_;
+  std::shared_ptr<grpc::Channel> channel_;
+};
+
+// One child's upload stream.
+class Child {
+ public:
+  explicit Child(v1::MapIngest::Stub& stub) {
+    context_.set_deadline(std::chrono::system_clock::now() + kRpcTimeout);
+    stream_ = stub.Push(&context_);
+  }
+  bool write(std::uint64_t sequence, v1::Upload upload) {
+    upload.set_sequence(sequence);
+    return stream_->Write(upload);
+  }
+  bool writeMap(std::uint64_t sequence, const MapMessage& map) {
+    v1::Upload upload;
+    *upload.mutable_map() = toProto(map);
+    return write(sequence, std::move(upload));
+  }
+  bool writePoints(std::uint64_t sequence, const PointChunk& chunk) {
+    v1::Upload upload;
+    *upload.mutable_points() = toProto(chunk);
+    return write(sequence, std::move(upload));
+  }
+  // The next acknowledged sequence, or nullopt when the stream ended.
+  std::optional<std::uint64_t> readAck() {
+    v1::Ack ack;
+    if (!stream_->Read(&ack)) return std::nullopt;
+    return ack.sequence();
+  }
+  grpc::Status finish() {
+    stream_->WritesDone();
+    return stream_->Finish();
+  }
+
+ private:
+  grpc::ClientContext context_;
+  std::unique_ptr<grpc::ClientReaderWriter<v1::Upload, v1::Ack>> stream_;
+};
+
+// One Subscribe call.
+class Subscription {
+ public:
+  Subscription(v1::GlobalMapService::Stub& stub, bool point_labels) {
+    context_.set_deadline(std::chrono::system_clock::now() + kRpcTimeout);
+    v1::SubscribeRequest request;
+    request.set_include_point_labels(point_labels);
+    reader_ = stub.Subscribe(&context_, request);
+  }
+  ~Subscription() { context_.TryCancel(); }
+  std::optional<v1::GlobalMap> next() {
+    v1::GlobalMap map;
+    if (!reader_->Read(&map)) return std::nullopt;
+    return map;
+  }
+
+ private:
+  grpc::ClientContext context_;
+  std::unique_ptr<grpc::ClientReader<v1::GlobalMap>> reader_;
+};
+
+Ellipsoid randomEllipsoid(std::mt19937_64& rng, std::uint32_t node, std::uint64_t frame, std::uint32_t index) {
+  std::uniform_real_distribution<double> pos(-5.0, 5.0);
+  std::uniform_real_distribution<double> radius(0.4, 1.5);
+  Ellipsoid e;
+  e.id = {node, frame, index};
+  e.center = {pos(rng), pos(rng), 1.0};
+  const Eigen::Vector3d r(radius(rng), radius(rng), radius(rng));
+  e.shape = r.cwiseAbs2().asDiagonal();
+  e.point_count = 15;
+  return e;
+}
+
+MapMessage randomMap(std::mt19937_64& rng, std::uint32_t node, std::uint64_t epoch, int count) {
+  std::vector<Ellipsoid> ellipsoids;
+  for (int k = 0; k < count; ++k) ellipsoids.push_back(randomEllipsoid(rng, node, epoch, static_cast<std::uint32_t>(k)));
+  MapMessage message;
+  message.header = {node, epoch, 1'700'000'000'000'000'000 + static_cast<std::int64_t>(epoch), {node}, {}};
+  message.map = localMap(std::move(ellipsoids));
+  return message;
+}
+
+TEST(AggregatorService, PushFromTwoChildrenPublishesTheMergedGlobalMap) {
+  RootServer server(rootConfig(Mode::kMadc, {1, 2}, /*deadline_ms=*/10'000.0));
+  ASSERT_TRUE(server.started());
+  server.emitter().start();
+  auto global_stub = server.globalStub();
+  Subscription subscription(*global_stub, false);
+  ASSERT_TRUE(eventually([&] { return server.globalMaps().subscriberCount() == 1; }));
+
+  std::mt19937_64 rng(31);
+  auto ingest_stub = server.ingestStub();
+  Child a(*ingest_stub);
+  Child b(*ingest_stub);
+  // Epoch 1 makes both children live (whether it is emitted merged or child 2's map arrives late,
+  // it is acknowledged); epoch 2 must then wait for both.
+  ASSERT_TRUE(a.writeMap(1, randomMap(rng, 1, 1, 3)));
+  ASSERT_EQ(a.readAck(), 1U);
+  ASSERT_TRUE(b.writeMap(1, randomMap(rng, 2, 1, 3)));
+  ASSERT_EQ(b.readAck(), 1U);
+  const std::vector<MapMessage> epoch2{randomMap(rng, 1, 2, 10), randomMap(rng, 2, 2, 10)};
+  ASSERT_TRUE(a.writeMap(2, epoch2[0]));
+  ASSERT_EQ(a.readAck(), 2U);
+  ASSERT_TRUE(b.writeMap(2, epoch2[1]));
+  ASSERT_EQ(b.readAck(), 2U);
+
+  std::optional<GlobalMapMessage> received;
+  for (int i = 0; i < 2 && !received; ++i) {  // epoch 1 (at most once), then epoch 2
+    const auto map = subscription.next();
+    ASSERT_TRUE(map.has_value()) << "the subscription ended before epoch 2";
+    auto converted = fromProto(*map);
+    ASSERT_TRUE(converted.ok()) << converted.error().message;
+    if (converted->header.epoch == 2) received = std::move(*converted);
+  }
+  ASSERT_TRUE(received.has_value());
+  const std::vector<Map> maps{epoch2[0].map, epoch2[1].map};
+  EXPECT_EQ(received->map, mergeAll(maps).map);
+  EXPECT_EQ(received->header.node, kRoot);
+  EXPECT_EQ(received->header.contributing_nodes, (std::vector<std::uint32_t>{1, 2}));
+  EXPECT_TRUE(received->header.missing_nodes.empty());
+  EXPECT_GE(received->published_time_ns, received->header.sensor_time_ns);
+
+  EXPECT_TRUE(a.finish().ok());
+  EXPECT_TRUE(b.finish().ok());
+  EXPECT_EQ(server.aggregator().with([](MergeAggregator& core) { return core.liveChildren(); }), 0U)
+      << "a closed stream is a dead child";
+}
+
+TEST(AggregatorService, MalformedUploadIsCountedNotAckedAndTheStreamGoesOn) {
+  RootServer server(rootConfig(Mode::kMadc, {1, 2}, 10'000.0));
+  ASSERT_TRUE(server.started());
+  std::mt19937_64 rng(32);
+  auto stub = server.ingestStub();
+  Child child(*stub);
+
+  ASSERT_TRUE(child.writeMap(1, randomMap(rng, 1, 1, 2)));
+  v1::Upload bad;
+  *bad.mutable_map() = toProto(randomMap(rng, 1, 2, 2));
+  bad.mutable_map()->mutable_objects(0)->mutable_ellipsoids(0)->mutable_shape()->RemoveLast();  // 5 values
+  ASSERT_TRUE(child.write(2, bad));
+  ASSERT_TRUE(child.write(3, v1::Upload{}));  // no payload at all
+  ASSERT_TRUE(child.writeMap(4, randomMap(rng, 1, 3, 2)));
+
+  EXPECT_EQ(child.readAck(), 1U);
+  EXPECT_EQ(child.readAck(), 4U) << "uploads 2 and 3 are never acknowledged";
+  const auto counters = server.ingest().counters();
+  EXPECT_EQ(counters.malformed, 2U);
+  EXPECT_EQ(counters.accepted, 2U);
+  EXPECT_EQ(server.aggregator().with([](MergeAggregator& core) { return core.pendingEpochs(); }), 2U);
+  EXPECT_TRUE(child.finish().ok());
+}
+
+TEST(AggregatorService, StreamFromANodeThatIsNoChildIsRefused) {
+  RootServer server(rootConfig(Mode::kMadc, {1, 2}, 10'000.0));
+  ASSERT_TRUE(server.started());
+  std::mt19937_64 rng(33);
+  auto stub = server.ingestStub();
+  Child stranger(*stub);
+  ASSERT_TRUE(stranger.writeMap(1, randomMap(rng, 7, 1, 2)));
+  EXPECT_FALSE(stranger.readAck().has_value());
+  const auto status = stranger.finish();
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << status.error_message();
+  EXPECT_EQ(server.ingest().counters().rejected_streams, 1U);
+  EXPECT_EQ(server.aggregator().with([](MergeAggregator& core) { return core.liveChildren(); }), 0U);
+}
+
+// A sensor's scan as point chunks.
+std::vector<PointChunk> scanChunks(std::mt19937_64& rng, std::uint32_t node, std::uint64_t epoch, float x0) {
+  std::normal_distribution<float> jitter(0.0F, 0.1F);
+  Cloud cloud;
+  for (int blob = 0; blob < 3; ++blob) {
+    for (int i = 0; i < 25; ++i) cloud.push_back({x0 + 4.0F * static_cast<float>(blob) + jitter(rng), jitter(rng), 1.0F + jitter(rng), 0.0F});
+  }
+  std::vector<PointChunk> chunks(2);
+  for (std::uint32_t k = 0; k < 2; ++k) {
+    auto& chunk = chunks[k];
+    chunk.header = {node, epoch, 1'700'000'000'000'000'000, {node}, {}};
+    chunk.chunk = k;
+    chunk.chunk_count = 2;
+    chunk.first_point = k == 0 ? 0 : 40;
+    chunk.total_points = static_cast<std::uint32_t>(cloud.size());
+    chunk.points.assign(cloud.begin() + (k == 0 ? 0 : 40), k == 0 ? cloud.begin() + 40 : cloud.end());
+  }
+  return chunks;
+}
+
+TEST(AggregatorService, BaselineSubscribersGetPointLabelsOnlyWhenTheyAskForThem) {
+  RootServer server(rootConfig(Mode::kBaseline, {1, 2}, 10'000.0));
+  ASSERT_TRUE(server.started());
+  auto global_stub = server.globalStub();
+  Subscription with_labels(*global_stub, true);
+  Subscription without_labels(*global_stub, false);
+  ASSERT_TRUE(eventually([&] { return server.globalMaps().subscriberCount() == 2; }));
+
+  std::mt19937_64 rng(34);
+  auto ingest_stub = server.ingestStub();
+  Child a(*ingest_stub);
+  Child b(*ingest_stub);
+  std::uint64_t sequence = 0;
+  // Sensor 2's first blob overlaps sensor 1's last one.
+  for (const auto& chunk : scanChunks(rng, 1, 5, 0.0F)) ASSERT_TRUE(a.writePoints(++sequence, chunk));
+  for (const auto& chunk : scanChunks(rng, 2, 5, 8.0F)) ASSERT_TRUE(b.writePoints(++sequence, chunk));
+  EXPECT_EQ(a.readAck(), 1U);
+  EXPECT_EQ(a.readAck(), 2U);
+  EXPECT_EQ(b.readAck(), 3U);
+  EXPECT_EQ(b.readAck(), 4U);
+
+  // The poll is fired by hand: every upload is acknowledged, so the epoch is complete now.
+  ASSERT_EQ(server.emitter().pollOnce(), 1U);
+  const auto labelled = with_labels.next();
+  const auto plain = without_labels.next();
+  ASSERT_TRUE(labelled.has_value());
+  ASSERT_TRUE(plain.has_value());
+  EXPECT_EQ(labelled->mode(), "baseline");
+  EXPECT_EQ(labelled->objects_size(), 5) << "six blobs, two of which coincide";
+  EXPECT_EQ(plain->objects_size(), 5);
+  ASSERT_EQ(labelled->point_labels_size(), 2);
+  EXPECT_EQ(labelled->point_labels(0).labels().size(), 75U * 4U);
+  EXPECT_EQ(plain->point_labels_size(), 0);
+
+  EXPECT_TRUE(a.finish().ok());
+  EXPECT_TRUE(b.finish().ok());
+}
+
+TEST(AggregatorService, GeofencesAreSetAndQueriedOverGrpc) {
+  RootServer server(rootConfig(Mode::kMadc, {1}, 10'000.0));
+  ASSERT_TRUE(server.started());
+  auto global_stub = server.globalStub();
+
+  grpc::ClientContext invalid_context;
+  v1::SetGeofenceReply reply;
+  v1::Geofence empty;
+  empty.set_name("empty");
+  EXPECT_EQ(global_stub->SetGeofence(&invalid_context, empty, &reply).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+
+  grpc::ClientContext set_context;
+  ASSERT_TRUE(global_stub->SetGeofence(&set_context, toProto(boxGeofence("zone", {-2, -2, -2}, {2, 2, 2})), &reply).ok());
+  EXPECT_EQ(reply.geofence_count(), 1U);
+
+  auto ingest_stub = server.ingestStub();
+  Child child(*ingest_stub);
+  MapMessage map;
+  map.header = {1, 8, 1'700'000'000'000'000'000, {1}, {}};
+  Ellipsoid near;
+  near.id = {1, 8, 0};
+  near.center = {0.0, 0.0, 0.0};
+  near.shape = Eigen::Matrix3d::Identity() * 0.25;
+  Ellipsoid far = near;
+  far.id = {1, 8, 1};
+  far.center = {20.0, 0.0, 0.0};
+  map.map = localMap({near, far});
+  ASSERT_TRUE(child.writeMap(1, map));
+  ASSERT_EQ(child.readAck(), 1U);
+  ASSERT_EQ(server.emitter().pollOnce(), 1U);
+
+  grpc::ClientContext query_context;
+  v1::GeofenceQuery query;
+  query.set_name("zone");
+  v1::GeofenceReport report;
+  ASSERT_TRUE(global_stub->QueryGeofences(&query_context, query, &report).ok());
+  EXPECT_EQ(report.epoch(), 8U);
+  ASSERT_EQ(report.intrusions_size(), 1);
+  EXPECT_EQ(report.intrusions(0).geofence(), "zone");
+  EXPECT_EQ(report.intrusions(0).object_index(), 0U);
+  EXPECT_EQ(report.intrusions(0).containment(), v1::CONTAINMENT_INSIDE);
+  ASSERT_EQ(report.intrusions(0).ellipsoids_size(), 1);
+  EXPECT_EQ(report.intrusions(0).ellipsoids(0).index(), 0U);
+
+  grpc::ClientContext missing_context;
+  query.set_name("nowhere");
+  EXPECT_EQ(global_stub->QueryGeofences(&missing_context, query, &report).error_code(), grpc::StatusCode::NOT_FOUND);
+  EXPECT_TRUE(child.finish().ok());
+}
+
+}  // namespace
+}  // namespace fogmap

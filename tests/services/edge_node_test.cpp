@@ -1,0 +1,282 @@
+#include "services/edge_cluster/edge_node.hpp"
+
+#include <cstdint>
+#include <filesystem>
+#include <random>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "common/cloud_io.hpp"
+#include "common/clustering.hpp"
+#include "common/preprocess.hpp"
+#include "common/virtual_lidar.hpp"
+#include "services/common/proto_convert.hpp"
+
+namespace fogmap {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr std::uint32_t kNode = 7;
+constexpr std::uint64_t kFrame = 42;
+constexpr std::int64_t kSensorTimeNs = 1'700'000'000'123'456'789;
+constexpr std::size_t kFourMiB = 4U << 20;
+
+const Cloud& realScan() {
+  static const Cloud scan = [] {
+    Expected<LoadedCloud> loaded = readCloud(fs::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a" / "0000000000.bin");
+    EXPECT_TRUE(loaded.ok()) << loaded.error().message;
+    return loaded ? loaded->points : Cloud{};
+  }();
+  return scan;
+}
+
+EdgeConfig edgeConfig(Mode mode) {
+  EdgeConfig config;
+  config.node = kNode;
+  config.mode = mode;
+  config.preprocess.crop = CropBox{};
+  config.preprocess.ground = GroundParams{};
+  return config;
+}
+
+// The oracle: the library pre-processing and clustering run directly.
+Cloud preprocessed(const Cloud& scan, const EdgeConfig& config) {
+  Expected<Cloud> cloud = preprocess(scan, config.preprocess);
+  EXPECT_TRUE(cloud.ok()) << cloud.error().message;
+  return cloud ? *cloud : Cloud{};
+}
+
+MapHeader expectedHeader() { return MapHeader{kNode, kFrame, kSensorTimeNs, {kNode}, {}}; }
+
+EdgeOutput process(const EdgeNode& edge, const Cloud& scan) {
+  Expected<EdgeOutput> output = edge.processFrame(scan, kFrame, kSensorTimeNs);
+  EXPECT_TRUE(output.ok()) << output.error().message;
+  return output ? *output : EdgeOutput{};
+}
+
+// Checks the chunks tile the scan in order and returns their points and labels joined.
+struct Reassembled {
+  Cloud points;
+  std::vector<std::int32_t> labels;
+};
+Reassembled reassemble(const std::vector<PointChunk>& chunks) {
+  Reassembled all;
+  for (std::size_t c = 0; c < chunks.size(); ++c) {
+    const PointChunk& chunk = chunks[c];
+    EXPECT_EQ(chunk.header, expectedHeader());
+    EXPECT_EQ(chunk.chunk, c);
+    EXPECT_EQ(chunk.chunk_count, chunks.size());
+    EXPECT_EQ(chunk.first_point, all.points.size());
+    all.points.insert(all.points.end(), chunk.points.begin(), chunk.points.end());
+    all.labels.insert(all.labels.end(), chunk.labels.begin(), chunk.labels.end());
+  }
+  for (const PointChunk& chunk : chunks) EXPECT_EQ(chunk.total_points, all.points.size());
+  return all;
+}
+
+Cloud withoutIntensity(Cloud cloud) {
+  for (Point& p : cloud) p.intensity = 0.0F;
+  return cloud;
+}
+
+TEST(EdgeNode, MadcMapHasOneEllipsoidPerClusterOfThePreprocessedScan) {
+  const EdgeConfig config = edgeConfig(Mode::kMadc);
+  const Cloud points = preprocessed(realScan(), config);
+  const Clustering clustering = euclideanClusters(points, config.madc.clustering);
+  ASSERT_GT(clustering.cluster_count, 10) << "the real scan has many obstacles";
+
+  const EdgeOutput output = process(EdgeNode(config), realScan());
+  ASSERT_TRUE(output.map.has_value());
+  EXPECT_TRUE(output.chunks.empty());
+  EXPECT_EQ(output.map->header, expectedHeader());
+  EXPECT_EQ(output.map->map.ellipsoidCount(), static_cast<std::size_t>(clustering.cluster_count));
+  EXPECT_EQ(output.map->map.objects.size(), static_cast<std::size_t>(clustering.cluster_count));
+  EXPECT_EQ(output.clusters, static_cast<std::size_t>(clustering.cluster_count));
+  EXPECT_EQ(output.points_in, realScan().size());
+  EXPECT_EQ(output.points_out, points.size());
+  EXPECT_GT(output.clustering_seconds, 0.0);
+
+  std::set<std::uint32_t> indices;
+  for (const MapObject& object : output.map->map.objects) {
+    for (const Ellipsoid& e : object.ellipsoids) {
+      EXPECT_EQ(e.id.node, kNode);
+      EXPECT_EQ(e.id.frame, kFrame);
+      indices.insert(e.id.index);
+    }
+  }
+  ASSERT_EQ(indices.size(), static_cast<std::size_t>(clustering.cluster_count));
+  EXPECT_EQ(*indices.begin(), 0U);
+  EXPECT_EQ(*indices.rbegin(), static_cast<std::uint32_t>(clustering.cluster_count - 1));
+}
+
+TEST(EdgeNode, BaselineChunksReassembleToThePreprocessedScan) {
+  EdgeConfig config = edgeConfig(Mode::kBaseline);
+  config.max_points_per_chunk = 5000;  // several chunks from one real scan
+  const Cloud points = preprocessed(realScan(), config);
+  ASSERT_GT(points.size(), 3 * config.max_points_per_chunk);
+
+  const EdgeOutput output = process(EdgeNode(config), realScan());
+  EXPECT_FALSE(output.map.has_value());
+  EXPECT_EQ(output.clusters, 0U);
+  EXPECT_EQ(output.chunks.size(), (points.size() + 4999) / 5000);
+  const Reassembled all = reassemble(output.chunks);
+  EXPECT_EQ(all.points, withoutIntensity(points));
+  EXPECT_TRUE(all.labels.empty());
+  for (const PointChunk& chunk : output.chunks) EXPECT_LE(chunk.points.size(), config.max_points_per_chunk);
+}
+
+TEST(EdgeNode, DefaultChunksStayWellUnderTheMessageLimit) {
+  // A dense synthetic scan well above one chunk, without ground to remove.
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> coordinate(-40.0F, 40.0F);
+  Cloud scan(300'000);
+  for (Point& p : scan) p = {coordinate(rng), coordinate(rng), coordinate(rng) / 20.0F, 1.0F};
+  for (Mode mode : {Mode::kBaseline, Mode::kExt}) {
+    EdgeConfig config = edgeConfig(mode);
+    config.preprocess = PreprocessConfig{};
+    config.madc.clustering.eps_m = 0.05;  // keep the clustering of random points quick
+    const EdgeOutput output = process(EdgeNode(config), scan);
+    ASSERT_GE(output.chunks.size(), 4U) << modeName(mode);
+    EXPECT_EQ(reassemble(output.chunks).points, withoutIntensity(scan));
+    for (const PointChunk& chunk : output.chunks) {
+      EXPECT_LT(toProto(chunk).ByteSizeLong(), kFourMiB) << modeName(mode) << " chunk " << chunk.chunk;
+    }
+  }
+}
+
+TEST(EdgeNode, ExtShipsTheMapAndPointsLabelledByTheLocalClustering) {
+  EdgeConfig config = edgeConfig(Mode::kExt);
+  config.max_points_per_chunk = 7000;
+  const Cloud points = preprocessed(realScan(), config);
+  const Clustering clustering = euclideanClusters(points, config.madc.clustering);
+
+  const EdgeOutput output = process(EdgeNode(config), realScan());
+  ASSERT_TRUE(output.map.has_value());
+  EXPECT_EQ(output.map->header, expectedHeader());
+  EXPECT_EQ(output.map->map.ellipsoidCount(), static_cast<std::size_t>(clustering.cluster_count));
+  ASSERT_GT(output.chunks.size(), 1U);
+  const Reassembled all = reassemble(output.chunks);
+  EXPECT_EQ(all.points, withoutIntensity(points));
+  EXPECT_EQ(all.labels, clustering.labels);
+  for (const PointChunk& chunk : output.chunks) EXPECT_EQ(chunk.labels.size(), chunk.points.size());
+}
+
+TEST(EdgeNode, ATranslatedPoseShiftsEveryEllipsoidCentreByTheTranslation) {
+  // Crop and ground first, so that both runs see the same obstacles; then only the pose differs.
+  const Cloud obstacles = preprocessed(realScan(), edgeConfig(Mode::kMadc));
+  EdgeConfig at_origin = edgeConfig(Mode::kMadc);
+  at_origin.preprocess = PreprocessConfig{};
+  EdgeConfig moved = at_origin;
+  const Eigen::Vector3d translation(12.5, -7.25, 1.5);
+  moved.preprocess.sensor_to_common = Eigen::Translation3d(translation) * Eigen::Isometry3d::Identity();
+
+  const EdgeOutput reference = process(EdgeNode(at_origin), obstacles);
+  const EdgeOutput shifted = process(EdgeNode(moved), obstacles);
+  ASSERT_TRUE(reference.map && shifted.map);
+  ASSERT_GT(reference.map->map.ellipsoidCount(), 0U);
+  ASSERT_EQ(shifted.map->map.objects.size(), reference.map->map.objects.size());
+  for (std::size_t i = 0; i < reference.map->map.objects.size(); ++i) {
+    const Ellipsoid& a = reference.map->map.objects[i].ellipsoids.at(0);
+    const Ellipsoid& b = shifted.map->map.objects[i].ellipsoids.at(0);
+    ASSERT_EQ(a.id, b.id);
+    EXPECT_EQ(a.point_count, b.point_count);
+    EXPECT_LT((b.center - a.center - translation).norm(), 1e-4) << toString(a.id);
+    EXPECT_LT((b.shape - a.shape).norm(), 1e-3) << toString(a.id);
+  }
+}
+
+TEST(EdgeNode, ARotatedPoseTurnsTheMapWithIt) {
+  const Cloud obstacles = preprocessed(realScan(), edgeConfig(Mode::kMadc));
+  EdgeConfig at_origin = edgeConfig(Mode::kMadc);
+  at_origin.preprocess = PreprocessConfig{};
+  EdgeConfig turned = at_origin;
+  const Eigen::Isometry3d pose = sectorPose(SectorSplit{4, 0, 0.0});  // 45 degrees about z
+  turned.preprocess.sensor_to_common = pose;
+
+  const EdgeOutput reference = process(EdgeNode(at_origin), obstacles);
+  const EdgeOutput output = process(EdgeNode(turned), obstacles);
+  ASSERT_TRUE(reference.map && output.map);
+  ASSERT_EQ(output.map->map.objects.size(), reference.map->map.objects.size());
+  for (std::size_t i = 0; i < reference.map->map.objects.size(); ++i) {
+    const Ellipsoid& a = reference.map->map.objects[i].ellipsoids.at(0);
+    const Ellipsoid& b = output.map->map.objects[i].ellipsoids.at(0);
+    EXPECT_LT((b.center - pose * a.center).norm(), 1e-4) << toString(a.id);
+  }
+}
+
+TEST(EdgeNode, AScanWithNothingLeftGivesAnEmptyMapNotAnError) {
+  const Cloud far_away = {{500.0F, 0.0F, 0.0F, 0.0F}, {0.0F, 500.0F, 0.0F, 0.0F}, {1.0F, 1.0F, 0.0F, 0.0F}};
+  for (const Cloud& scan : {Cloud{}, far_away}) {
+    for (Mode mode : {Mode::kMadc, Mode::kBaseline, Mode::kExt}) {
+      const EdgeOutput output = process(EdgeNode(edgeConfig(mode)), scan);
+      EXPECT_EQ(output.points_in, scan.size());
+      EXPECT_EQ(output.points_out, 0U);
+      if (mode != Mode::kBaseline) {
+        ASSERT_TRUE(output.map.has_value()) << modeName(mode);
+        EXPECT_EQ(output.map->header, expectedHeader());
+        EXPECT_TRUE(output.map->map.objects.empty());
+      }
+      if (mode != Mode::kMadc) {
+        // One empty chunk still tells the parent that this node reported the epoch.
+        ASSERT_EQ(output.chunks.size(), 1U) << modeName(mode);
+        EXPECT_EQ(output.chunks[0].total_points, 0U);
+        EXPECT_EQ(output.chunks[0].chunk_count, 1U);
+        EXPECT_TRUE(output.chunks[0].points.empty());
+      }
+    }
+  }
+}
+
+TEST(EdgeNode, InvalidGroundSettingsAreAnError) {
+  EdgeConfig config = edgeConfig(Mode::kMadc);
+  config.preprocess.ground->max_tilt_deg = 0.0;
+  Expected<EdgeOutput> output = EdgeNode(config).processFrame(realScan(), kFrame, kSensorTimeNs);
+  ASSERT_FALSE(output.ok());
+  EXPECT_EQ(output.error().code, ErrorCode::kInvalidArgument);
+}
+
+TEST(EdgeNode, AVirtualSensorPoseIsTheSensorPoseAfterTheSectorRotation) {
+  SensorConfig sensor;
+  sensor.pose = Eigen::Translation3d(3.0, 4.0, 1.8) * Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ());
+  EXPECT_TRUE(sensorToCommon(sensor).isApprox(sensor.pose));
+  sensor.split = SectorSplit{6, 4, 10.0};
+  EXPECT_TRUE(sensorToCommon(sensor).isApprox(sensor.pose * sectorPose(*sensor.split)));
+
+  // A sector view put through its pose lands where the whole scan put through the sensor pose does.
+  const Cloud view = sectorView(realScan(), *sensor.split);
+  ASSERT_FALSE(view.empty());
+  const Eigen::Vector3d via_sector = sensorToCommon(sensor) * view.front().xyz().cast<double>();
+  const Eigen::Vector3d scan_point = sectorPose(*sensor.split) * view.front().xyz().cast<double>();
+  EXPECT_LT((via_sector - sensor.pose * scan_point).norm(), 1e-9);
+}
+
+TEST(EdgeNode, ConfigFromTheTopologyUsesItsModeSettingsAndTheNodePose) {
+  TopologyConfig topology;
+  topology.mode = Mode::kExt;
+  topology.madc.clustering.eps_m = 0.5;
+  topology.preprocess.crop = CropBox{};
+  topology.max_message_bytes = 1U << 20;
+  NodeConfig node;
+  node.id = 3;
+  node.name = "edge-3";
+  node.sensor = SensorConfig{};
+  node.sensor->pose = Eigen::Translation3d(1.0, 2.0, 3.0) * Eigen::Isometry3d::Identity();
+
+  const EdgeConfig config = edgeConfigFor(topology, node);
+  EXPECT_EQ(config.node, 3U);
+  EXPECT_EQ(config.mode, Mode::kExt);
+  EXPECT_EQ(config.madc.clustering.eps_m, 0.5);
+  EXPECT_TRUE(config.preprocess.crop.has_value());
+  EXPECT_TRUE(config.preprocess.sensor_to_common.isApprox(node.sensor->pose));
+  EXPECT_EQ(config.max_points_per_chunk, (1U << 20) / 2 / 16);  // half of a 1 MiB limit at 16 bytes a point
+
+  topology.max_message_bytes = 64U << 20;
+  EXPECT_EQ(edgeConfigFor(topology, node).max_points_per_chunk, kDefaultMaxPointsPerChunk);
+}
+
+}  // namespace
+}  // namespace fogmap

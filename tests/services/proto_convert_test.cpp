@@ -1,0 +1,382 @@
+#include "services/common/proto_convert.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <string>
+
+#include <Eigen/Geometry>
+
+namespace fogmap {
+namespace {
+
+// Symmetric positive definite, and exactly symmetric as withAura produces them (the wire carries
+// the upper triangle only).
+Eigen::Matrix3d randomShape(std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> axis(0.1, 3.0);
+  std::normal_distribution<double> normal;
+  const Eigen::Matrix3d r =
+      Eigen::Quaterniond(normal(rng), normal(rng), normal(rng), normal(rng)).normalized().toRotationMatrix();
+  const Eigen::Vector3d semi(axis(rng), axis(rng), axis(rng));
+  const Eigen::Matrix3d m = r * semi.cwiseAbs2().asDiagonal() * r.transpose();
+  return 0.5 * (m + m.transpose());
+}
+
+// A map of `objects` objects with 1..3 ellipsoids each, from several nodes, in canonical form.
+Map randomMap(std::mt19937_64& rng, int objects) {
+  std::uniform_real_distribution<double> pos(-50.0, 50.0);
+  std::vector<Ellipsoid> ellipsoids;
+  std::vector<std::size_t> object_of;
+  for (int o = 0; o < objects; ++o) {
+    const int n = 1 + o % 3;
+    for (int k = 0; k < n; ++k) {
+      Ellipsoid e;
+      e.id = {static_cast<std::uint32_t>(1 + k), 1000 + static_cast<std::uint64_t>(o), static_cast<std::uint32_t>(o)};
+      // Values with no short decimal form, so a float or text round trip would show.
+      e.center = {pos(rng) + 1e-9 / 3.0, pos(rng), pos(rng) / 7.0};
+      e.shape = randomShape(rng);
+      e.point_count = 5 + static_cast<std::uint64_t>(o * 3 + k);
+      ellipsoids.push_back(e);
+      object_of.push_back(static_cast<std::size_t>(o));
+    }
+  }
+  return mapFromGroups(ellipsoids, object_of);
+}
+
+MapHeader sampleHeader() {
+  MapHeader h;
+  h.node = 7;
+  h.epoch = 123456789012ULL;
+  h.sensor_time_ns = 1700000000123456789LL;
+  h.contributing_nodes = {1, 2, 5};
+  h.missing_nodes = {3};
+  return h;
+}
+
+MapMessage sampleMapMessage() {
+  std::mt19937_64 rng(11);
+  return {sampleHeader(), randomMap(rng, 9)};
+}
+
+v1::Map sampleProtoMap() { return toProto(sampleMapMessage()); }
+
+// Asserts that `result` is an invalid-argument error whose message contains every fragment.
+template <class T>
+void expectRejected(const Expected<T>& result, std::initializer_list<std::string> fragments) {
+  ASSERT_FALSE(result.ok());
+  EXPECT_EQ(result.error().code, ErrorCode::kInvalidArgument);
+  for (const auto& f : fragments) {
+    EXPECT_NE(result.error().message.find(f), std::string::npos)
+        << "message '" << result.error().message << "' does not mention '" << f << "'";
+  }
+}
+
+bool samePoints(const Cloud& a, const Cloud& b) {
+  if (a.size() != b.size()) return false;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    // Bitwise: the wire carries float32 exactly.
+    if (std::memcmp(&a[i].x, &b[i].x, sizeof(float)) != 0 || std::memcmp(&a[i].y, &b[i].y, sizeof(float)) != 0 ||
+        std::memcmp(&a[i].z, &b[i].z, sizeof(float)) != 0) {
+      return false;
+    }
+  }
+  return true;
+}
+
+// ---- round trips -----------------------------------------------------------------------------
+
+TEST(ProtoConvert, MapRoundTripIsExact) {
+  std::mt19937_64 rng(1);
+  for (int trial = 0; trial < 50; ++trial) {
+    const MapMessage m{sampleHeader(), randomMap(rng, trial)};
+    const auto back = fromProto(toProto(m));
+    ASSERT_TRUE(back.ok()) << back.error().message;
+    ASSERT_EQ(*back, m) << "trial " << trial;
+  }
+}
+
+TEST(ProtoConvert, MapRoundTripSurvivesSerialisation) {
+  const MapMessage m = sampleMapMessage();
+  const std::string bytes = toProto(m).SerializeAsString();
+  v1::Map parsed;
+  ASSERT_TRUE(parsed.ParseFromString(bytes));
+  const auto back = fromProto(parsed);
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  EXPECT_EQ(*back, m);
+}
+
+TEST(ProtoConvert, MapBoxesAreRecomputedNotTrusted) {
+  const MapMessage m = sampleMapMessage();
+  v1::Map wire = toProto(m);
+  wire.mutable_objects(0)->mutable_box()->mutable_min()->set_x(-1e9);
+  wire.mutable_objects(1)->clear_box();
+  const auto back = fromProto(wire);
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  EXPECT_EQ(*back, m);
+}
+
+TEST(ProtoConvert, MapIsRebuiltInCanonicalForm) {
+  const MapMessage m = sampleMapMessage();
+  v1::Map wire = toProto(m);
+  // Reverse the object order and the ellipsoids within each object.
+  std::reverse(wire.mutable_objects()->begin(), wire.mutable_objects()->end());
+  for (auto& o : *wire.mutable_objects()) std::reverse(o.mutable_ellipsoids()->begin(), o.mutable_ellipsoids()->end());
+  // Unsorted node lists come back sorted.
+  wire.mutable_header()->clear_contributing_nodes();
+  for (const std::uint32_t n : {5U, 1U, 2U}) wire.mutable_header()->add_contributing_nodes(n);
+  const auto back = fromProto(wire);
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  EXPECT_EQ(*back, m);
+}
+
+TEST(ProtoConvert, PointChunkRoundTripIsExact) {
+  PointChunk c;
+  c.header = sampleHeader();
+  c.chunk = 2;
+  c.chunk_count = 4;
+  c.first_point = 1000;
+  c.total_points = 5000;
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<float> pos(-80.0F, 80.0F);
+  for (int i = 0; i < 777; ++i) c.points.push_back({pos(rng), pos(rng), pos(rng) / 3.0F, 0.0F});
+  c.points.push_back({-0.0F, std::numeric_limits<float>::denorm_min(), std::numeric_limits<float>::max(), 0.0F});
+
+  v1::PointChunk wire = toProto(c);
+  EXPECT_EQ(wire.xyz().size(), c.points.size() * 12);
+  EXPECT_TRUE(wire.labels().empty());
+  auto back = fromProto(wire);
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  EXPECT_EQ(back->header, c.header);
+  EXPECT_EQ(back->chunk, c.chunk);
+  EXPECT_EQ(back->chunk_count, c.chunk_count);
+  EXPECT_EQ(back->first_point, c.first_point);
+  EXPECT_EQ(back->total_points, c.total_points);
+  EXPECT_TRUE(samePoints(back->points, c.points));
+  EXPECT_TRUE(back->labels.empty());
+
+  for (std::size_t i = 0; i < c.points.size(); ++i) c.labels.push_back(static_cast<std::int32_t>(i % 5) - 1);
+  c.labels.back() = std::numeric_limits<std::int32_t>::min();
+  wire = toProto(c);
+  EXPECT_EQ(wire.labels().size(), c.points.size() * 4);
+  back = fromProto(wire);
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  EXPECT_EQ(back->labels, c.labels);
+  EXPECT_TRUE(samePoints(back->points, c.points));
+}
+
+TEST(ProtoConvert, PointsArePackedLittleEndianFloat32) {
+  PointChunk c;
+  c.total_points = 1;
+  c.points.push_back({1.0F, -2.0F, 0.5F, 9.0F});
+  c.labels = {-1};
+  const v1::PointChunk wire = toProto(c);
+  const std::string expected_xyz("\x00\x00\x80\x3f\x00\x00\x00\xc0\x00\x00\x00\x3f", 12);
+  EXPECT_EQ(wire.xyz(), expected_xyz);
+  EXPECT_EQ(wire.labels(), std::string("\xff\xff\xff\xff", 4));
+}
+
+TEST(ProtoConvert, GlobalMapRoundTripIsExact) {
+  std::mt19937_64 rng(4);
+  for (const Mode mode : {Mode::kMadc, Mode::kBaseline, Mode::kExt}) {
+    GlobalMapMessage g;
+    g.header = sampleHeader();
+    g.map = randomMap(rng, 12);
+    g.mode = mode;
+    g.published_time_ns = 1700000000999999999LL;
+    g.merge_seconds = 0.000123456789;
+    g.pairs_all = 1234;
+    g.pairs_tested = 56;
+    g.point_labels = {{1, {0, 0, -1, 2}}, {4, {}}, {9, {std::numeric_limits<std::int32_t>::max()}}};
+    const auto back = fromProto(toProto(g));
+    ASSERT_TRUE(back.ok()) << back.error().message;
+    EXPECT_EQ(*back, g) << modeName(mode);
+  }
+}
+
+TEST(ProtoConvert, GeofenceRoundTripIsExact) {
+  const Geofence fence = boxGeofence("loading bay", {-1.5, 2.0 / 3.0, 0.0}, {4.0, 5.25, 3.0});
+  const auto back = fromProto(toProto(fence));
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  EXPECT_EQ(back->name, fence.name);
+  ASSERT_EQ(back->half_spaces.size(), fence.half_spaces.size());
+  for (std::size_t i = 0; i < fence.half_spaces.size(); ++i) {
+    EXPECT_EQ(back->half_spaces[i].normal, fence.half_spaces[i].normal);
+    EXPECT_EQ(back->half_spaces[i].offset, fence.half_spaces[i].offset);
+  }
+}
+
+// ---- malformed maps --------------------------------------------------------------------------
+
+TEST(ProtoConvert, RejectsEllipsoidWithoutId) {
+  v1::Map wire = sampleProtoMap();
+  wire.mutable_objects(2)->mutable_ellipsoids(0)->clear_id();
+  expectRejected(fromProto(wire), {"object 2", "ellipsoid 0", "id"});
+}
+
+TEST(ProtoConvert, RejectsEllipsoidWithoutCenter) {
+  v1::Map wire = sampleProtoMap();
+  wire.mutable_objects(1)->mutable_ellipsoids(1)->clear_center();
+  expectRejected(fromProto(wire), {"object 1", "ellipsoid 1", "center"});
+}
+
+TEST(ProtoConvert, RejectsShapeWithoutSixValues) {
+  for (const int n : {0, 5, 7, 9}) {
+    v1::Map wire = sampleProtoMap();
+    auto* shape = wire.mutable_objects(3)->mutable_ellipsoids(0)->mutable_shape();
+    shape->Clear();
+    for (int i = 0; i < n; ++i) shape->Add(1.0);
+    expectRejected(fromProto(wire), {"object 3", "ellipsoid 0", "shape", std::to_string(n) + " values"});
+  }
+}
+
+TEST(ProtoConvert, RejectsNonFiniteNumbers) {
+  for (const double bad : {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    v1::Map wire = sampleProtoMap();
+    wire.mutable_objects(4)->mutable_ellipsoids(0)->mutable_center()->set_y(bad);
+    expectRejected(fromProto(wire), {"object 4", "center", "finite"});
+
+    wire = sampleProtoMap();
+    wire.mutable_objects(4)->mutable_ellipsoids(0)->set_shape(4, bad);
+    expectRejected(fromProto(wire), {"object 4", "shape", "finite"});
+  }
+}
+
+TEST(ProtoConvert, RejectsShapeNotPositiveDefinite) {
+  const std::vector<std::array<double, 6>> bad = {
+      {0.0, 0.0, 0.0, 0.0, 0.0, 0.0},    // zero
+      {1.0, 0.0, 0.0, -1.0, 0.0, 1.0},   // negative diagonal
+      {1.0, 2.0, 0.0, 1.0, 0.0, 1.0},    // positive diagonal, indefinite
+      {1.0, 1.0, 1.0, 1.0, 1.0, 1.0},    // singular (rank 1)
+  };
+  for (const auto& values : bad) {
+    v1::Map wire = sampleProtoMap();
+    auto* shape = wire.mutable_objects(5)->mutable_ellipsoids(0)->mutable_shape();
+    for (int i = 0; i < 6; ++i) shape->Set(i, values[static_cast<std::size_t>(i)]);
+    expectRejected(fromProto(wire), {"object 5", "ellipsoid 0", "positive definite"});
+  }
+}
+
+TEST(ProtoConvert, RejectsEmptyObject) {
+  v1::Map wire = sampleProtoMap();
+  wire.add_objects();
+  expectRejected(fromProto(wire), {"object " + std::to_string(wire.objects_size() - 1), "no ellipsoids"});
+}
+
+TEST(ProtoConvert, RejectsDuplicateEllipsoidIds) {
+  v1::Map wire = sampleProtoMap();
+  *wire.mutable_objects(6)->add_ellipsoids() = wire.objects(2).ellipsoids(0);
+  expectRejected(fromProto(wire), {"duplicate ellipsoid id", "objects 2 and 6"});
+}
+
+TEST(ProtoConvert, RejectsMalformedGlobalMapObjects) {
+  GlobalMapMessage g;
+  std::mt19937_64 rng(5);
+  g.map = randomMap(rng, 4);
+  v1::GlobalMap wire = toProto(g);
+  wire.mutable_objects(1)->mutable_ellipsoids(0)->mutable_shape()->RemoveLast();
+  expectRejected(fromProto(wire), {"GlobalMap", "object 1", "shape"});
+}
+
+TEST(ProtoConvert, RejectsUnknownMode) {
+  for (const std::string mode : {"", "MADC", "centralised"}) {
+    v1::GlobalMap wire = toProto(GlobalMapMessage{});
+    wire.set_mode(mode);
+    expectRejected(fromProto(wire), {"mode '" + mode + "'"});
+  }
+}
+
+TEST(ProtoConvert, RejectsPointLabelsNotFourBytesEach) {
+  GlobalMapMessage g;
+  g.point_labels = {{3, {1, 2}}};
+  v1::GlobalMap wire = toProto(g);
+  wire.mutable_point_labels(0)->mutable_labels()->push_back('\0');
+  expectRejected(fromProto(wire), {"point_labels 0", "node 3", "9 bytes"});
+}
+
+// ---- malformed point chunks ------------------------------------------------------------------
+
+v1::PointChunk samplePointChunk() {
+  PointChunk c;
+  c.header.node = 4;
+  c.chunk = 1;
+  c.chunk_count = 3;
+  c.first_point = 10;
+  c.total_points = 30;
+  for (int i = 0; i < 10; ++i) c.points.push_back({static_cast<float>(i), 1.0F, 2.0F, 0.0F});
+  c.labels.assign(10, 0);
+  return toProto(c);
+}
+
+TEST(ProtoConvert, SamplePointChunkIsValid) { EXPECT_TRUE(fromProto(samplePointChunk()).ok()); }
+
+TEST(ProtoConvert, RejectsXyzNotMultipleOfTwelve) {
+  v1::PointChunk wire = samplePointChunk();
+  wire.mutable_xyz()->append("abcde");
+  expectRejected(fromProto(wire), {"node 4", "xyz", "125 bytes", "multiple of 12"});
+}
+
+TEST(ProtoConvert, RejectsLabelsNotFourBytesPerPoint) {
+  v1::PointChunk wire = samplePointChunk();
+  wire.mutable_labels()->resize(36);
+  expectRejected(fromProto(wire), {"labels", "36 bytes", "expected 40"});
+}
+
+TEST(ProtoConvert, RejectsChunkIndexNotBelowCount) {
+  v1::PointChunk wire = samplePointChunk();
+  wire.set_chunk(3);
+  expectRejected(fromProto(wire), {"chunk 3", "chunk_count 3"});
+}
+
+TEST(ProtoConvert, RejectsZeroChunkCount) {
+  v1::PointChunk wire = samplePointChunk();
+  wire.set_chunk(0);
+  wire.set_chunk_count(0);
+  expectRejected(fromProto(wire), {"chunk_count is 0"});
+}
+
+TEST(ProtoConvert, RejectsPointsBeyondTotal) {
+  v1::PointChunk wire = samplePointChunk();
+  wire.set_first_point(21);
+  expectRejected(fromProto(wire), {"first_point 21", "10 points", "total_points 30"});
+  // A first_point near 2^32 must not wrap around.
+  wire.set_first_point(std::numeric_limits<std::uint32_t>::max());
+  wire.set_total_points(std::numeric_limits<std::uint32_t>::max());
+  expectRejected(fromProto(wire), {"exceeds total_points"});
+}
+
+TEST(ProtoConvert, RejectsNonFinitePoints) {
+  v1::PointChunk wire = samplePointChunk();
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  std::memcpy(wire.mutable_xyz()->data() + 5 * 12 + 4, &nan, sizeof nan);
+  expectRejected(fromProto(wire), {"point 5", "not finite"});
+}
+
+// ---- malformed geofences ---------------------------------------------------------------------
+
+TEST(ProtoConvert, RejectsInvalidGeofences) {
+  v1::Geofence empty;
+  empty.set_name("yard");
+  expectRejected(fromProto(empty), {"yard", "no half-spaces"});
+
+  v1::Geofence no_normal = toProto(boxGeofence("gate", {0, 0, 0}, {1, 1, 1}));
+  no_normal.mutable_half_spaces(2)->clear_normal();
+  expectRejected(fromProto(no_normal), {"gate", "half-space 2", "normal"});
+
+  v1::Geofence zero = toProto(boxGeofence("gate", {0, 0, 0}, {1, 1, 1}));
+  zero.mutable_half_spaces(1)->mutable_normal()->set_x(0.0);
+  zero.mutable_half_spaces(1)->mutable_normal()->set_y(0.0);
+  zero.mutable_half_spaces(1)->mutable_normal()->set_z(0.0);
+  expectRejected(fromProto(zero), {"half-space 1", "zero normal"});
+
+  v1::Geofence nan = toProto(boxGeofence("gate", {0, 0, 0}, {1, 1, 1}));
+  nan.mutable_half_spaces(4)->set_offset(std::numeric_limits<double>::quiet_NaN());
+  expectRejected(fromProto(nan), {"half-space 4", "offset"});
+}
+
+}  // namespace
+}  // namespace fogmap
