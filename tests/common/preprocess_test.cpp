@@ -231,21 +231,22 @@ struct BendingRoadScene {
   std::size_t road = 0;
 };
 
-// A road flat out to 15 m that then descends at 3 % (1 m lower than the flat part at 48 m), sampled
+// A road flat out to 15 m that then descends at 5 % (1.25 m lower than the flat part at 40 m), sampled
 // like a lidar (rings around the origin, denser near), +-2 cm noise. Two car-sized boxes, 4 x 1.8 m,
-// filled from 0.1 m (the underbody) to 1.5 m above the road: one at 8 m on the flat part, one at
-// 35 m on the slope. No road returns under the boxes (occluded).
+// filled from 0.25 m (the underbody) to 1.5 m above the road: one at 8 m on the flat part, one at
+// 32 m on the slope. No road returns under the boxes (occluded), so the cells under them see only the
+// underbody and need the neighbourhood to find the ground.
 BendingRoadScene bendingRoadScene() {
-  const auto roadZ = [](double x) { return -1.7 - 0.03 * std::max(0.0, x - 15.0); };
+  const auto roadZ = [](double x) { return -1.7 - 0.05 * std::max(0.0, x - 15.0); };
   struct Footprint {
     double x, y;
     bool contains(double px, double py) const { return std::abs(px - x) <= 2.0 && std::abs(py - y) <= 0.9; }
   };
-  const Footprint boxes[] = {{8.0, 2.0}, {35.0, -3.0}};
+  const Footprint boxes[] = {{8.0, 2.0}, {32.0, -3.0}};
   BendingRoadScene scene;
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> noise(-0.02, 0.02);
-  for (double range = 2.0; range <= 48.0; range += 0.25) {
+  for (double range = 2.0; range <= 40.0; range *= 1.01) {  // ring spacing grows with range, as a lidar's
     for (double azimuth_deg = -60.0; azimuth_deg <= 60.0; azimuth_deg += 0.5) {
       const double x = range * std::cos(azimuth_deg * std::numbers::pi / 180.0);
       const double y = range * std::sin(azimuth_deg * std::numbers::pi / 180.0);
@@ -257,7 +258,7 @@ BendingRoadScene bendingRoadScene() {
   for (const Footprint& box : boxes) {
     for (double dx = -2.0; dx <= 2.0; dx += 0.2) {
       for (double dy = -0.9; dy <= 0.9; dy += 0.2) {
-        for (double up = 0.1; up <= 1.5; up += 0.1) {
+        for (double up = 0.25; up <= 1.5; up += 0.1) {
           const double x = box.x + dx;
           scene.points.push_back({static_cast<float>(x), static_cast<float>(box.y + dy), static_cast<float>(roadZ(x) + up),
                                   static_cast<float>(up)});
@@ -296,6 +297,14 @@ TEST(Preprocess, RemoveGroundFollowsARoadThatBendsDownAndKeepsTheBoxesOnBothPart
   EXPECT_EQ(box_kept, box_points);
   EXPECT_EQ(road_kept, 0u);
   EXPECT_EQ(result->ground_points + result->non_ground.size(), scene.points.size());
+
+  // And the neighbourhood: a cell's own lowest point under a box is the underbody.
+  GroundParams own_cell_only;
+  own_cell_only.neighbourhood_cells = 0;
+  const Expected<GroundRemoval> own = removeGround(scene.points, own_cell_only);
+  ASSERT_TRUE(own.ok()) << own.error().message;
+  EXPECT_LT(std::count_if(own->non_ground.begin(), own->non_ground.end(), [](const Point& p) { return p.intensity > 0.3F; }),
+            static_cast<std::ptrdiff_t>(box_points));
 }
 
 TEST(Preprocess, RemoveGroundRejectsACellTooSmallForTheExtent) {

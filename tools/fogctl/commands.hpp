@@ -4,5 +4,15 @@ namespace fogmap::cli {
 
 int runCluster(int argc, char** argv);
 int runBench(int argc, char** argv);
+int runUp(int argc, char** argv);
+int runDown(int argc, char** argv);
+int runTopology(int argc, char** argv);
+int runSplit(int argc, char** argv);
+int runWatch(int argc, char** argv);
+int runDemo(int argc, char** argv);
+
+// SIGINT/SIGTERM set a flag that long-running commands poll.
+void installStopHandlers();
+bool stopRequested();
 
 }  // namespace fogmap::cli

@@ -1,0 +1,241 @@
+// fogctl up / down / topology / split / watch: running a local cluster and looking at it.
+#include <signal.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <set>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <thread>
+
+#include <grpcpp/grpcpp.h>
+
+#include "common/cloud_io.hpp"
+#include "common/topology.hpp"
+#include "common/virtual_lidar.hpp"
+#include "fogmap/v1/fogmap.grpc.pb.h"
+#include "services/common/grpc_options.hpp"
+#include "services/common/proto_convert.hpp"
+#include "tools/fogctl/args.hpp"
+#include "tools/fogctl/commands.hpp"
+#include "tools/fogctl/launcher.hpp"
+
+namespace fogmap::cli {
+namespace {
+
+std::atomic<bool> g_stop{false};
+void onSignal(int) { g_stop = true; }
+
+int fail(const Error& e) {
+  std::cerr << "fogctl: " << e.message << "\n";
+  return e.code == ErrorCode::kInvalidArgument ? 2 : 1;
+}
+
+std::filesystem::path defaultStateDir(const TopologyConfig& t) { return std::filesystem::path(".fogmap") / t.name; }
+
+}  // namespace
+
+void installStopHandlers() {
+  struct sigaction sa {};
+  sa.sa_handler = onSignal;
+  ::sigaction(SIGINT, &sa, nullptr);
+  ::sigaction(SIGTERM, &sa, nullptr);
+}
+
+bool stopRequested() { return g_stop.load(); }
+
+int runUp(int argc, char** argv) {
+  const auto args = Args::parse(argc, argv, 2, {"state", "timeout-s"}, {"detach"});
+  if (!args) return fail(args.error());
+  if (args->positional().size() != 1) return fail(invalidArgument("usage: fogctl up TOPOLOGY.yaml [--detach] [--state DIR]"));
+  const std::filesystem::path file = args->positional()[0];
+  const auto topology = loadTopology(file);
+  if (!topology) return fail(topology.error());
+  const auto timeout_s = args->getDouble("timeout-s", 30.0);
+  if (!timeout_s) return fail(timeout_s.error());
+  const std::filesystem::path state = args->has("state") ? std::filesystem::path(args->get("state")) : defaultStateDir(*topology);
+  installStopHandlers();
+  auto cluster = startCluster(file, *topology, state, std::chrono::milliseconds(static_cast<long>(*timeout_s * 1000)));
+  if (!cluster) return fail(cluster.error());
+  std::printf("%-14s %-11s %-22s %-8s %s\n", "node", "role", "listen", "metrics", "parent");
+  for (const auto& n : topology->nodes) {
+    const std::string listen = n.port ? n.host + ":" + std::to_string(n.port) : "-";
+    std::printf("%-14s %-11s %-22s %-8u %s\n", n.name.c_str(), n.role == Role::kEdge ? "edge" : "aggregator", listen.c_str(),
+                n.metrics_port, n.parent.empty() ? "(root)" : n.parent.c_str());
+  }
+  std::printf("cluster '%s' is up (%zu services, mode %s); logs in %s\n", topology->name.c_str(), topology->nodes.size(),
+              modeName(topology->mode), (state / "logs").c_str());
+  if (args->has("detach")) {
+    std::printf("stop it with: fogctl down %s\n", file.c_str());
+    return 0;
+  }
+  std::printf("Ctrl-C stops the cluster\n");
+  while (!stopRequested() && allRunning(*cluster)) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  if (!allRunning(*cluster)) std::fprintf(stderr, "fogctl: a service exited; stopping the cluster (see %s)\n", (state / "logs").c_str());
+  stopCluster(*cluster, std::chrono::milliseconds(5000));
+  std::printf("cluster '%s' stopped\n", topology->name.c_str());
+  return 0;
+}
+
+int runDown(int argc, char** argv) {
+  const auto args = Args::parse(argc, argv, 2, {"state"}, {});
+  if (!args) return fail(args.error());
+  std::filesystem::path state;
+  if (args->has("state")) {
+    state = args->get("state");
+  } else if (args->positional().size() == 1) {
+    const auto topology = loadTopology(args->positional()[0]);
+    if (!topology) return fail(topology.error());
+    state = defaultStateDir(*topology);
+  } else {
+    return fail(invalidArgument("usage: fogctl down TOPOLOGY.yaml | --state DIR"));
+  }
+  const Status s = stopRecorded(state, std::chrono::milliseconds(5000));
+  if (!s) return fail(s.error());
+  std::printf("stopped the cluster recorded in %s\n", state.c_str());
+  return 0;
+}
+
+int runTopology(int argc, char** argv) {
+  const auto args = Args::parse(argc, argv, 2, {"edges", "source", "base-port", "mode", "frames", "out"}, {});
+  if (!args) return fail(args.error());
+  if (args->positional().size() != 1 || (args->positional()[0] != "star" && args->positional()[0] != "tree")) {
+    return fail(invalidArgument("usage: fogctl topology star|tree --edges K --source DIR [--base-port P] [--mode madc|baseline|ext] [--frames N] [--out FILE]"));
+  }
+  const auto edges = args->getInt("edges", 4);
+  const auto base = args->getInt("base-port", 50000);
+  if (!edges || *edges < 1 || *edges > 64) return fail(invalidArgument("--edges must be in [1, 64]"));
+  if (!base || *base < 1024 || *base > 60000) return fail(invalidArgument("--base-port must be in [1024, 60000]"));
+  const std::string source = args->get("source", "../data/kitti_raw_seq_a");
+  TopologyConfig t = args->positional()[0] == "star" ? makeStarTopology(static_cast<int>(*edges), source, static_cast<int>(*base))
+                                                     : makeTreeTopology(static_cast<int>(*edges), source, static_cast<int>(*base));
+  const std::string mode = args->get("mode", "madc");
+  if (mode == "baseline") {
+    t.mode = Mode::kBaseline;
+  } else if (mode == "ext") {
+    t.mode = Mode::kExt;
+  } else if (mode != "madc") {
+    return fail(invalidArgument("--mode must be madc, baseline or ext"));
+  }
+  if (args->has("frames")) {
+    const auto frames = args->getInt("frames", 0);
+    if (!frames || *frames < 1) return fail(invalidArgument("--frames must be positive"));
+    for (auto& n : t.nodes) {
+      if (n.sensor) n.sensor->frames = static_cast<std::uint64_t>(*frames);
+    }
+  }
+  const std::string text = "# fogmap topology, generated by: fogctl topology " + args->positional()[0] + " --edges " +
+                           std::to_string(*edges) + "\n" + toYaml(t);
+  if (!args->has("out")) {
+    std::cout << text;
+    return 0;
+  }
+  std::ofstream out(args->get("out"));
+  out << text;
+  if (!out) return fail(ioError("cannot write " + args->get("out")));
+  return 0;
+}
+
+int runSplit(int argc, char** argv) {
+  const auto args = Args::parse(argc, argv, 2, {"input", "views", "overlap-deg", "out"}, {});
+  if (!args) return fail(args.error());
+  if (!args->has("input") || !args->has("out")) {
+    return fail(invalidArgument("usage: fogctl split --input SCAN --views K [--overlap-deg 10] --out DIR"));
+  }
+  const auto views = args->getInt("views", 4);
+  const auto overlap = args->getDouble("overlap-deg", 10.0);
+  if (!views || *views < 1 || *views > 64) return fail(invalidArgument("--views must be in [1, 64]"));
+  if (!overlap || *overlap < 0.0 || *overlap >= 360.0 / static_cast<double>(*views)) {
+    return fail(invalidArgument("--overlap-deg must be in [0, 360 / views)"));
+  }
+  const auto scan = readCloud(args->get("input"));
+  if (!scan) return fail(scan.error());
+  const std::filesystem::path out = args->get("out");
+  std::error_code ec;
+  std::filesystem::create_directories(out, ec);
+  if (ec) return fail(ioError("cannot create " + out.string()));
+  const auto stem = std::filesystem::path(args->get("input")).stem().string();
+  std::printf("# %ld virtual LiDARs cut from %s (%zu points); pose = sensor -> scan frame\n", *views,
+              args->get("input").c_str(), scan->points.size());
+  for (int k = 0; k < *views; ++k) {
+    const SectorSplit split{static_cast<int>(*views), k, *overlap};
+    const Cloud view = sectorView(scan->points, split);
+    const auto file = out / (stem + "_view" + std::to_string(k) + ".bin");
+    if (const Status s = writeKittiBin(file, view); !s) return fail(s.error());
+    const double yaw = std::atan2(sectorPose(split).rotation()(1, 0), sectorPose(split).rotation()(0, 0)) * 180.0 / M_PI;
+    std::printf("- view: %d\n  file: %s\n  points: %zu\n  pose: {translation_m: [0, 0, 0], rpy_deg: [0, 0, %.3f]}\n", k,
+                file.c_str(), view.size(), yaw);
+  }
+  return 0;
+}
+
+int runWatch(int argc, char** argv) {
+  const auto args = Args::parse(argc, argv, 2, {"target", "count", "objects"}, {});
+  if (!args) return fail(args.error());
+  std::string target = args->get("target");
+  if (target.empty() && args->positional().size() == 1) {
+    const auto topology = loadTopology(args->positional()[0]);
+    if (!topology) return fail(topology.error());
+    target = topology->root()->host + ":" + std::to_string(topology->root()->port);
+  }
+  if (target.empty()) return fail(invalidArgument("usage: fogctl watch TOPOLOGY.yaml | --target HOST:PORT [--count N] [--objects 10]"));
+  const auto count = args->getInt("count", 0);
+  const auto shown = args->getInt("objects", 10);
+  if (!count || *count < 0 || !shown || *shown < 0) return fail(invalidArgument("--count and --objects must be non-negative"));
+  installStopHandlers();
+  auto channel = makeChannel(target, 64U << 20);
+  auto stub = v1::GlobalMapService::NewStub(channel);
+  grpc::ClientContext context;
+  v1::SubscribeRequest request;
+  auto reader = stub->Subscribe(&context, request);
+  std::thread canceller([&] {
+    while (!stopRequested()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    context.TryCancel();
+  });
+  v1::GlobalMap message;
+  long received = 0;
+  while (reader->Read(&message)) {
+    auto global = fromProto(message);
+    if (!global) {
+      std::fprintf(stderr, "fogctl: malformed global map: %s\n", global.error().message.c_str());
+      continue;
+    }
+    const auto& h = global->header;
+    const double e2e_ms = static_cast<double>(global->published_time_ns - h.sensor_time_ns) / 1e6;
+    std::string contributing;
+    for (const auto n : h.contributing_nodes) contributing += std::to_string(n) + " ";
+    std::string missing;
+    for (const auto n : h.missing_nodes) missing += std::to_string(n) + " ";
+    std::printf("epoch %lu  objects %zu  ellipsoids %zu  merge %.3f ms  e2e %.1f ms  nodes [ %s]  missing [ %s]\n",
+                static_cast<unsigned long>(h.epoch), global->map.objects.size(), global->map.ellipsoidCount(),
+                global->merge_seconds * 1e3, e2e_ms, contributing.c_str(), missing.c_str());
+    // The largest objects first: position (box centre) and size (box extent) in metres.
+    std::vector<const MapObject*> objects;
+    for (const auto& o : global->map.objects) objects.push_back(&o);
+    std::sort(objects.begin(), objects.end(), [](const MapObject* a, const MapObject* b) {
+      return (a->box.max - a->box.min).prod() > (b->box.max - b->box.min).prod();
+    });
+    for (long k = 0; k < std::min<long>(*shown, static_cast<long>(objects.size())); ++k) {
+      const auto& o = *objects[static_cast<std::size_t>(k)];
+      const Eigen::Vector3d c = 0.5 * (o.box.min + o.box.max);
+      const Eigen::Vector3d s = o.box.max - o.box.min;
+      std::set<std::uint32_t> nodes;
+      for (const auto& e : o.ellipsoids) nodes.insert(e.node());
+      std::string from;
+      for (const auto n : nodes) from += std::to_string(n) + " ";
+      std::printf("  object at (%7.2f, %7.2f, %5.2f) m  size %5.2f x %5.2f x %4.2f m  %zu ellipsoids from nodes [ %s]\n",
+                  c.x(), c.y(), c.z(), s.x(), s.y(), s.z(), o.ellipsoids.size(), from.c_str());
+    }
+    std::fflush(stdout);
+    if (*count > 0 && ++received >= *count) break;
+  }
+  context.TryCancel();
+  g_stop = true;
+  canceller.join();
+  return 0;
+}
+
+}  // namespace fogmap::cli

@@ -1,0 +1,194 @@
+#include "tools/fogctl/launcher.hpp"
+
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <fstream>
+#include <thread>
+
+namespace fogmap::cli {
+
+std::filesystem::path binaryDir() {
+  std::error_code ec;
+  const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
+  return ec ? std::filesystem::current_path() : self.parent_path();
+}
+
+namespace {
+
+Expected<pid_t> spawn(const std::filesystem::path& binary, const std::vector<std::string>& args,
+                      const std::filesystem::path& log) {
+  if (!std::filesystem::exists(binary)) return notFound("service binary not found: " + binary.string());
+  const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) return ioError("cannot open log file " + log.string());
+  std::vector<std::string> argv_storage{binary.string()};
+  argv_storage.insert(argv_storage.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (auto& a : argv_storage) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    ::close(fd);
+    return ioError("fork failed");
+  }
+  if (pid == 0) {
+    ::dup2(fd, STDOUT_FILENO);
+    ::dup2(fd, STDERR_FILENO);
+    ::setpgid(0, 0);  // Ctrl-C on fogctl reaches fogctl only; it stops the services itself
+    ::execv(argv[0], argv.data());
+    ::_exit(127);
+  }
+  ::close(fd);
+  return pid;
+}
+
+bool running(pid_t pid) {
+  int status = 0;
+  const pid_t r = ::waitpid(pid, &status, WNOHANG);
+  if (r == 0) return true;
+  if (r == pid) return false;
+  return ::kill(pid, 0) == 0;  // not our child (stopRecorded): probe it
+}
+
+}  // namespace
+
+Expected<std::string> httpGet(const std::string& host, std::uint16_t port, const std::string& path,
+                              std::chrono::milliseconds timeout) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
+  if (fd < 0) return ioError("socket() failed");
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(port);
+  if (::inet_pton(AF_INET, host.c_str(), &addr.sin_addr) != 1) {
+    ::close(fd);
+    return invalidArgument("not an IPv4 address: " + host);
+  }
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  auto wait_for = [&](short events) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) return false;
+    pollfd p{fd, events, 0};
+    return ::poll(&p, 1, static_cast<int>(left.count())) == 1;
+  };
+  std::string response;
+  bool ok = false;
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0 || errno == EINPROGRESS) {
+    int err = 0;
+    socklen_t len = sizeof err;
+    if (wait_for(POLLOUT) && ::getsockopt(fd, SOL_SOCKET, SO_ERROR, &err, &len) == 0 && err == 0) {
+      const std::string request = "GET " + path + " HTTP/1.0\r\nHost: " + host + "\r\n\r\n";
+      if (::send(fd, request.data(), request.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(request.size())) {
+        char buffer[65536];
+        while (wait_for(POLLIN)) {
+          const ssize_t n = ::recv(fd, buffer, sizeof buffer, 0);
+          if (n <= 0) {
+            ok = n == 0;
+            break;
+          }
+          response.append(buffer, static_cast<std::size_t>(n));
+        }
+      }
+    }
+  }
+  ::close(fd);
+  if (!ok) return ioError("no HTTP answer from " + host + ":" + std::to_string(port) + path);
+  const auto body = response.find("\r\n\r\n");
+  if (response.rfind("HTTP/1.", 0) != 0 || body == std::string::npos) return ioError("malformed HTTP answer from " + host);
+  if (response.find(" 200 ") > response.find("\r\n")) return ioError("HTTP error from " + host + ": " + response.substr(0, response.find("\r\n")));
+  return response.substr(body + 4);
+}
+
+Expected<Cluster> startCluster(const std::filesystem::path& topology_file, const TopologyConfig& topology,
+                               const std::filesystem::path& state_dir, std::chrono::milliseconds timeout) {
+  Cluster cluster;
+  cluster.topology_file = std::filesystem::absolute(topology_file);
+  cluster.state_dir = state_dir;
+  std::error_code ec;
+  std::filesystem::create_directories(state_dir / "logs", ec);
+  if (ec) return ioError("cannot create " + (state_dir / "logs").string() + ": " + ec.message());
+  const auto bin = binaryDir();
+  std::vector<const NodeConfig*> order;
+  for (const auto& n : topology.nodes) {
+    if (n.role == Role::kAggregator) order.push_back(&n);
+  }
+  for (const auto& n : topology.nodes) {
+    if (n.role == Role::kEdge) order.push_back(&n);
+  }
+  std::ofstream pids(state_dir / "pids");
+  for (const auto* n : order) {
+    const auto binary = bin / (n->role == Role::kEdge ? "edge-cluster" : "merge-aggregator");
+    const auto log = state_dir / "logs" / (n->name + ".log");
+    auto pid = spawn(binary, {"--topology", cluster.topology_file.string(), "--node", n->name}, log);
+    if (!pid) {
+      stopCluster(cluster, std::chrono::milliseconds(2000));
+      return pid.error();
+    }
+    cluster.nodes.push_back({n->name, *pid, log});
+    pids << *pid << ' ' << n->name << '\n';
+  }
+  pids.close();
+  // Ready = every service answers on /metrics (servers listen before metrics start).
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  for (const auto* n : order) {
+    while (true) {
+      if (httpGet(n->host, n->metrics_port, "/metrics", std::chrono::milliseconds(500)).ok()) break;
+      const auto it = std::find_if(cluster.nodes.begin(), cluster.nodes.end(), [&](const RunningNode& r) { return r.name == n->name; });
+      if (!running(it->pid)) {
+        stopCluster(cluster, std::chrono::milliseconds(2000));
+        return Error{ErrorCode::kInternal, "node " + n->name + " exited during start; see " + it->log.string()};
+      }
+      if (std::chrono::steady_clock::now() > deadline) {
+        stopCluster(cluster, std::chrono::milliseconds(2000));
+        return Error{ErrorCode::kInternal, "node " + n->name + " not ready within the timeout; see " + it->log.string()};
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+  }
+  return cluster;
+}
+
+void stopCluster(const Cluster& cluster, std::chrono::milliseconds grace) {
+  // Edges first (they flush to their parents), then aggregators from the leaves up.
+  for (auto it = cluster.nodes.rbegin(); it != cluster.nodes.rend(); ++it) {
+    if (it->pid > 0) ::kill(it->pid, SIGTERM);
+  }
+  const auto deadline = std::chrono::steady_clock::now() + grace;
+  for (const auto& n : cluster.nodes) {
+    while (n.pid > 0 && running(n.pid) && std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    if (n.pid > 0 && running(n.pid)) {
+      ::kill(n.pid, SIGKILL);
+      ::waitpid(n.pid, nullptr, 0);
+    }
+  }
+  std::error_code ec;
+  std::filesystem::remove(cluster.state_dir / "pids", ec);
+}
+
+Status stopRecorded(const std::filesystem::path& state_dir, std::chrono::milliseconds grace) {
+  std::ifstream in(state_dir / "pids");
+  if (!in) return notFound("no running cluster recorded in " + (state_dir / "pids").string());
+  Cluster cluster;
+  cluster.state_dir = state_dir;
+  pid_t pid = 0;
+  std::string name;
+  while (in >> pid >> name) cluster.nodes.push_back({name, pid, {}});
+  stopCluster(cluster, grace);
+  return {};
+}
+
+bool allRunning(const Cluster& cluster) {
+  for (const auto& n : cluster.nodes) {
+    if (!running(n.pid)) return false;
+  }
+  return true;
+}
+
+}  // namespace fogmap::cli

@@ -1,0 +1,46 @@
+#pragma once
+// Starts and stops the services of a topology as local processes.
+#include <chrono>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <sys/types.h>
+
+#include "common/status.hpp"
+#include "common/topology.hpp"
+
+namespace fogmap::cli {
+
+struct RunningNode {
+  std::string name;
+  pid_t pid = -1;
+  std::filesystem::path log;
+};
+
+struct Cluster {
+  std::filesystem::path topology_file;
+  std::filesystem::path state_dir;  // logs/ and pids
+  std::vector<RunningNode> nodes;
+};
+
+// The directory holding fogctl, where the service binaries live too.
+std::filesystem::path binaryDir();
+
+// Starts every node of the topology (aggregators first), logs under state_dir/logs, records the
+// pids in state_dir/pids, and waits until every /metrics endpoint answers (bounded by timeout).
+// On failure everything started is stopped again.
+Expected<Cluster> startCluster(const std::filesystem::path& topology_file, const TopologyConfig& topology,
+                               const std::filesystem::path& state_dir, std::chrono::milliseconds timeout);
+// SIGTERM, then SIGKILL after the grace period; reaps the children.
+void stopCluster(const Cluster& cluster, std::chrono::milliseconds grace);
+// Stops the processes recorded in state_dir/pids by another fogctl invocation.
+Status stopRecorded(const std::filesystem::path& state_dir, std::chrono::milliseconds grace);
+// True when every process of the cluster is still running.
+bool allRunning(const Cluster& cluster);
+
+// A plain HTTP/1.0 GET of http://host:port/path on loopback; the body, or an error.
+Expected<std::string> httpGet(const std::string& host, std::uint16_t port, const std::string& path,
+                              std::chrono::milliseconds timeout);
+
+}  // namespace fogmap::cli
