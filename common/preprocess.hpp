@@ -30,10 +30,12 @@ struct GroundParams {
                                        // also the inlier distance of the prior plane's RANSAC fit
   double max_tilt_deg = 15.0;          // the prior plane's normal is within this angle of +z
   int max_iterations = 200;            // RANSAC iterations for the prior plane
+  std::size_t prior_sample_points = 8192;  // the prior is fitted on an evenly strided sample of about this size
   double cell_m = 1.0;                 // edge of the square x-y cells of the local ground grid
   int neighbourhood_cells = 1;         // a cell's ground is the lowest estimate within this many cells (1: 3 x 3)
-  double max_below_prior_m = 1.5;      // points further below the prior plane are spurious: always ground, never estimates
-  double max_above_prior_m = 0.5;      // points further above the prior plane (roofs, canopies) are never estimates
+  double max_below_prior_m = 1.5;      // points further below the prior plane are spurious returns:
+                                       // always ground, never ground estimates
+  double max_above_prior_m = 0.5;      // points further above it (roofs, canopies) are never ground estimates
 };
 
 struct GroundRemoval {

@@ -394,6 +394,7 @@ TopologyConfig makeTreeTopology(int edges, const std::filesystem::path& source, 
 
 std::string toYaml(const TopologyConfig& t) {
   YAML::Emitter out;
+  out.SetDoublePrecision(12);  // 0.35, not 0.34999999999999998
   out << YAML::BeginMap;
   out << YAML::Key << "name" << YAML::Value << t.name;
   out << YAML::Key << "mode" << YAML::Value << modeName(t.mode);

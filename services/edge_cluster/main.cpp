@@ -178,8 +178,9 @@ int run(const Flags& flags) {
 
     if (scan->sequence % kStatusEveryFrames == 0) {
       std::cerr << "edge-cluster " << node->name << ": frame " << scan->sequence << ": " << output->points_in
-                << " points in, " << output->points_out << " after pre-processing, " << output->clusters
-                << " clusters in " << output->clustering_seconds * 1e3 << " ms, " << uploads << " upload(s); link "
+                << " points in, " << output->points_out << " after pre-processing (" << output->preprocess_seconds * 1e3
+                << " ms), " << output->clusters << " clusters (" << output->clustering_seconds * 1e3 << " ms), "
+                << uploads << " upload(s); link "
                 << (link.connected() ? "connected" : "disconnected") << ", " << link.unacknowledged()
                 << " unacknowledged\n";
     }

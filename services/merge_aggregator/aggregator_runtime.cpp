@@ -11,16 +11,7 @@ std::int64_t systemNowNs() {
 
 Emitter::Emitter(SharedAggregator& aggregator, EmitterSinks sinks, Metrics* metrics, NowNs now_ns,
                  std::chrono::milliseconds period)
-    : aggregator_(aggregator), sinks_(std::move(sinks)), metrics_(metrics), now_ns_(std::move(now_ns)), period_(period) {
-  if (metrics_ != nullptr) {
-    // Not in the shared Metrics: only an aggregator has epochs to drop.
-    epochs_dropped_ = &prometheus::BuildCounter()
-                           .Name("fogmap_aggregator_epochs_dropped_total")
-                           .Help("Open epochs evicted because too many were pending")
-                           .Register(metrics_->registry())
-                           .Add({});
-  }
-}
+    : aggregator_(aggregator), sinks_(std::move(sinks)), metrics_(metrics), now_ns_(std::move(now_ns)), period_(period) {}
 
 Emitter::~Emitter() { stop(); }
 
@@ -54,20 +45,16 @@ std::size_t Emitter::pollOnce() {
   std::vector<EpochOutput> outputs;
   std::size_t live = 0;
   std::size_t stale = 0;
-  std::uint64_t dropped = 0;
   aggregator_.with([&](MergeAggregator& core) {
     outputs = core.poll(now_ns_());
     live = core.liveChildren();
     stale = core.staleChildren();
-    dropped = core.counters().dropped_epochs;
   });
 
   if (metrics_ != nullptr) {
     metrics_->childrenLive(static_cast<double>(live));
     metrics_->childrenStale(static_cast<double>(stale));
-    if (dropped > dropped_reported_) epochs_dropped_->Increment(static_cast<double>(dropped - dropped_reported_));
   }
-  dropped_reported_ = dropped;
 
   for (auto& output : outputs) {
     if (metrics_ != nullptr) {

@@ -66,8 +66,6 @@ class Emitter {
   Metrics* metrics_;
   NowNs now_ns_;
   std::chrono::milliseconds period_;
-  prometheus::Counter* epochs_dropped_ = nullptr;
-  std::uint64_t dropped_reported_ = 0;
   std::mutex mutex_;
   std::condition_variable wake_;
   bool stopping_ = false;

@@ -1,6 +1,7 @@
 #include "services/merge_aggregator/global_map_service.hpp"
 
 #include <algorithm>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -50,39 +51,31 @@ v1::GeofenceReport toProto(const GeofenceReport& report) {
 
 GlobalMapService::GlobalMapService(SharedAggregator& aggregator, Metrics* metrics, std::size_t queue_capacity,
                                    std::chrono::milliseconds poll_wait)
-    : aggregator_(aggregator), queue_capacity_(std::max<std::size_t>(1, queue_capacity)), poll_wait_(poll_wait) {
-  if (metrics != nullptr) {
-    // Not in the shared Metrics: only the root has subscribers.
-    dropped_counter_ = &prometheus::BuildCounter()
-                            .Name("fogmap_subscriber_dropped_maps_total")
-                            .Help("Global maps dropped from a slow subscriber's queue")
-                            .Register(metrics->registry())
-                            .Add({});
-  }
-}
+    : aggregator_(aggregator),
+      metrics_(metrics),
+      queue_capacity_(std::max<std::size_t>(1, queue_capacity)), poll_wait_(poll_wait) {}
 
 void GlobalMapService::publish(const GlobalMapMessage& message) {
   // Converted once, shared by every subscriber; the label-free copy only when someone wants it.
-  auto with_labels = std::make_shared<const v1::GlobalMap>(toProto(message));
-  std::shared_ptr<const v1::GlobalMap> without_labels;
-  std::uint64_t dropped = 0;
+  const auto full = std::make_shared<const v1::GlobalMap>(toProto(message));
+  const Published with_labels{full, full->ByteSizeLong()};
+  std::optional<Published> without_labels;
   {
     std::lock_guard lock(mutex_);
     for (const auto& subscriber : subscribers_) {
       if (!subscriber->point_labels && !without_labels) {
-        auto copy = std::make_shared<v1::GlobalMap>(*with_labels);
+        auto copy = std::make_shared<v1::GlobalMap>(*full);
         copy->clear_point_labels();
-        without_labels = std::move(copy);
+        const std::size_t bytes = copy->ByteSizeLong();
+        without_labels = Published{std::move(copy), bytes};
       }
-      subscriber->queue.push_back(subscriber->point_labels ? with_labels : without_labels);
+      subscriber->queue.push_back(subscriber->point_labels ? with_labels : *without_labels);
       while (subscriber->queue.size() > queue_capacity_) {
         subscriber->queue.pop_front();
-        ++dropped;
+        ++dropped_;
       }
     }
-    dropped_ += dropped;
   }
-  if (dropped > 0 && dropped_counter_ != nullptr) dropped_counter_->Increment(static_cast<double>(dropped));
   published_.notify_all();
 }
 
@@ -124,7 +117,7 @@ grpc::Status GlobalMapService::Subscribe(grpc::ServerContext* context, const v1:
 
   // Bounded waits: a cancelled client raises no condition variable, so look again regularly.
   while (!context->IsCancelled()) {
-    std::shared_ptr<const v1::GlobalMap> next;
+    Published next;
     {
       std::unique_lock lock(mutex_);
       published_.wait_for(lock, poll_wait_, [&] { return shutting_down_ || !subscriber->queue.empty(); });
@@ -133,7 +126,8 @@ grpc::Status GlobalMapService::Subscribe(grpc::ServerContext* context, const v1:
       next = std::move(subscriber->queue.front());
       subscriber->queue.pop_front();
     }
-    if (!writer->Write(*next)) break;  // the client is gone
+    if (!writer->Write(*next.map)) break;  // the client is gone
+    if (metrics_ != nullptr) metrics_->bytesSent("subscriber", "global_map", next.bytes);
   }
   return grpc::Status::OK;
 }

@@ -41,15 +41,20 @@ class GlobalMapService final : public v1::GlobalMapService::Service {
                               v1::GeofenceReport* reply) override;
 
  private:
+  // A global map shared by every subscriber that wants this form of it, with its wire size.
+  struct Published {
+    std::shared_ptr<const v1::GlobalMap> map;
+    std::size_t bytes = 0;
+  };
   struct Subscriber {
     bool point_labels = false;
-    std::deque<std::shared_ptr<const v1::GlobalMap>> queue;
+    std::deque<Published> queue;
   };
 
   SharedAggregator& aggregator_;
+  Metrics* metrics_;
   std::size_t queue_capacity_;
   std::chrono::milliseconds poll_wait_;
-  prometheus::Counter* dropped_counter_ = nullptr;
   mutable std::mutex mutex_;
   std::condition_variable published_;
   std::vector<std::shared_ptr<Subscriber>> subscribers_;

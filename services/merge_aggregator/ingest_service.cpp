@@ -122,6 +122,7 @@ bool IngestService::handlePoints(PointChunk chunk) {
     v1::Upload upload;
     *upload.mutable_points() = toProto(*outcome->relay);
     relay_(std::move(upload));
+    if (metrics_ != nullptr) metrics_->pointsOut(points);
   }
   return true;
 }

@@ -60,7 +60,7 @@ int run(const Args& args, const sigset_t& stop_signals) {
   using namespace fogmap;
   const auto topology = loadTopology(args.topology);
   if (!topology) {
-    std::cerr << "merge-aggregator: " << args.topology << ": " << topology.error().message << "\n";
+    std::cerr << "merge-aggregator: " << topology.error().message << "\n";  // names the file already
     return kBadConfig;
   }
   const NodeConfig* self = topology->find(args.node);

@@ -4,13 +4,17 @@
 
 #include <chrono>
 #include <memory>
+#include <algorithm>
 #include <random>
 #include <thread>
 
 #include <grpcpp/grpcpp.h>
 
 #include "common/clustering.hpp"
+#include "common/madc.hpp"
 #include "services/common/grpc_options.hpp"
+#include "services/common/metrics.hpp"
+#include "services/common/parent_link.hpp"
 #include "services/common/proto_convert.hpp"
 #include "services/merge_aggregator/aggregator_runtime.hpp"
 #include "services/merge_aggregator/global_map_service.hpp"
@@ -52,30 +56,40 @@ MergeAggregator makeCore(AggregatorConfig config) {
   return std::move(core).value();
 }
 
-// A root aggregator served in-process on 127.0.0.1, port chosen by the OS.
-class RootServer {
+// An aggregator served in-process on 127.0.0.1, port chosen by the OS; with a parent target it is
+// an intermediate that uploads (and relays) through a real ParentLink.
+class AggregatorServer {
  public:
-  explicit RootServer(AggregatorConfig config)
+  explicit AggregatorServer(AggregatorConfig config, const std::string& parent_target = "",
+                            Metrics* metrics = nullptr)
       : aggregator_(makeCore(std::move(config))),
-        ingest_(aggregator_, nullptr, {}),
-        global_maps_(aggregator_, nullptr, 16, 20ms),
-        emitter_(aggregator_, EmitterSinks{{}, [this](const GlobalMapMessage& m) { global_maps_.publish(m); }},
-                 nullptr) {
+        parent_(parent_target.empty()
+                    ? nullptr
+                    : std::make_unique<ParentLink>(
+                          ParentLinkConfig{.target = parent_target, .max_message_bytes = kMaxMessageBytes},
+                          ParentLinkHooks{})),
+        ingest_(aggregator_, metrics, parent_ ? toParent() : std::function<void(v1::Upload)>{}),
+        global_maps_(aggregator_, metrics, 16, 20ms),
+        emitter_(aggregator_,
+                 EmitterSinks{parent_ ? toParent() : std::function<void(v1::Upload)>{},
+                              [this](const GlobalMapMessage& m) { global_maps_.publish(m); }},
+                 metrics) {
     grpc::ServerBuilder builder;
     configureServer(builder, kMaxMessageBytes);
     builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port_);
     builder.RegisterService(&ingest_);
     builder.RegisterService(&global_maps_);
     server_ = builder.BuildAndStart();
-    channel_ = makeChannel("127.0.0.1:" + std::to_string(port_), kMaxMessageBytes);
+    channel_ = makeChannel(target(), kMaxMessageBytes);
   }
-  ~RootServer() {
+  ~AggregatorServer() {
     global_maps_.shutdown();
     if (server_) server_->Shutdown(std::chrono::system_clock::now() + 2s);
     emitter_.stop();
   }
 
   bool started() const { return server_ != nullptr && port_ != 0; }
+  std::string target() const { return "127.0.0.1:" + std::to_string(port_); }
   std::unique_ptr<v1::MapIngest::Stub> ingestStub() { return v1::MapIngest::NewStub(channel_); }
   std::unique_ptr<v1::GlobalMapService::Stub> globalStub() { return v1::GlobalMapService::NewStub(channel_); }
 
@@ -85,7 +99,12 @@ class RootServer {
   Emitter& emitter() { return emitter_; }
 
  private:
+  std::function<void(v1::Upload)> toParent() {
+    return [this](v1::Upload upload) { parent_->send(std::move(upload)); };
+  }
+
   SharedAggregator aggregator_;
+  std::unique_ptr<ParentLink> parent_;
   IngestService ingest_;
   GlobalMapService global_maps_;
   Emitter emitter_;
@@ -174,7 +193,7 @@ MapMessage randomMap(std::mt19937_64& rng, std::uint32_t node, std::uint64_t epo
 }
 
 TEST(AggregatorService, PushFromTwoChildrenPublishesTheMergedGlobalMap) {
-  RootServer server(rootConfig(Mode::kMadc, {1, 2}, /*deadline_ms=*/10'000.0));
+  AggregatorServer server(rootConfig(Mode::kMadc, {1, 2}, /*deadline_ms=*/10'000.0));
   ASSERT_TRUE(server.started());
   server.emitter().start();
   auto global_stub = server.globalStub();
@@ -219,8 +238,24 @@ TEST(AggregatorService, PushFromTwoChildrenPublishesTheMergedGlobalMap) {
       << "a closed stream is a dead child";
 }
 
+// Sum of the counter series of `family` that carry the label (any series when the label is empty).
+double counterValue(Metrics& metrics, const std::string& family, const std::pair<std::string, std::string>& label) {
+  double sum = 0.0;
+  for (const auto& f : metrics.registry().Collect()) {
+    if (f.name != family) continue;
+    for (const auto& m : f.metric) {
+      const bool match = label.first.empty() || std::any_of(m.label.begin(), m.label.end(), [&](const auto& l) {
+                           return l.name == label.first && l.value == label.second;
+                         });
+      if (match) sum += m.counter.value;
+    }
+  }
+  return sum;
+}
+
 TEST(AggregatorService, MalformedUploadIsCountedNotAckedAndTheStreamGoesOn) {
-  RootServer server(rootConfig(Mode::kMadc, {1, 2}, 10'000.0));
+  Metrics metrics("", "merge-aggregator", "sink");  // registry only, nothing served
+  AggregatorServer server(rootConfig(Mode::kMadc, {1, 2}, 10'000.0), "", &metrics);
   ASSERT_TRUE(server.started());
   std::mt19937_64 rng(32);
   auto stub = server.ingestStub();
@@ -240,11 +275,15 @@ TEST(AggregatorService, MalformedUploadIsCountedNotAckedAndTheStreamGoesOn) {
   EXPECT_EQ(counters.malformed, 2U);
   EXPECT_EQ(counters.accepted, 2U);
   EXPECT_EQ(server.aggregator().with([](MergeAggregator& core) { return core.pendingEpochs(); }), 2U);
+  EXPECT_EQ(counterValue(metrics, "fogmap_malformed_inputs_total", {"what", "map"}), 1.0);
+  EXPECT_EQ(counterValue(metrics, "fogmap_malformed_inputs_total", {"what", "upload"}), 1.0);
+  EXPECT_EQ(counterValue(metrics, "fogmap_maps_in_total", {}), 2.0);
+  EXPECT_GT(counterValue(metrics, "fogmap_bytes_received_total", {"peer", "1"}), 0.0) << "named by the child's id";
   EXPECT_TRUE(child.finish().ok());
 }
 
 TEST(AggregatorService, StreamFromANodeThatIsNoChildIsRefused) {
-  RootServer server(rootConfig(Mode::kMadc, {1, 2}, 10'000.0));
+  AggregatorServer server(rootConfig(Mode::kMadc, {1, 2}, 10'000.0));
   ASSERT_TRUE(server.started());
   std::mt19937_64 rng(33);
   auto stub = server.ingestStub();
@@ -257,13 +296,30 @@ TEST(AggregatorService, StreamFromANodeThatIsNoChildIsRefused) {
   EXPECT_EQ(server.aggregator().with([](MergeAggregator& core) { return core.liveChildren(); }), 0U);
 }
 
-// A sensor's scan as point chunks.
-std::vector<PointChunk> scanChunks(std::mt19937_64& rng, std::uint32_t node, std::uint64_t epoch, float x0) {
+// A sensor's scan: three blobs of 25 points in a row along x from x0.
+Cloud blobRow(std::mt19937_64& rng, float x0) {
   std::normal_distribution<float> jitter(0.0F, 0.1F);
   Cloud cloud;
   for (int blob = 0; blob < 3; ++blob) {
-    for (int i = 0; i < 25; ++i) cloud.push_back({x0 + 4.0F * static_cast<float>(blob) + jitter(rng), jitter(rng), 1.0F + jitter(rng), 0.0F});
+    for (int i = 0; i < 25; ++i) {
+      cloud.push_back({x0 + 4.0F * static_cast<float>(blob) + jitter(rng), jitter(rng), 1.0F + jitter(rng), 0.0F});
+    }
   }
+  return cloud;
+}
+
+PointChunk wholeScan(std::uint32_t node, std::uint64_t epoch, const Cloud& cloud, const std::vector<std::int32_t>& labels) {
+  PointChunk chunk;
+  chunk.header = {node, epoch, 1'700'000'000'000'000'000, {node}, {}};
+  chunk.total_points = static_cast<std::uint32_t>(cloud.size());
+  chunk.points = cloud;
+  chunk.labels = labels;
+  return chunk;
+}
+
+// A sensor's scan (blobRow) as two point chunks.
+std::vector<PointChunk> scanChunks(std::mt19937_64& rng, std::uint32_t node, std::uint64_t epoch, float x0) {
+  const Cloud cloud = blobRow(rng, x0);
   std::vector<PointChunk> chunks(2);
   for (std::uint32_t k = 0; k < 2; ++k) {
     auto& chunk = chunks[k];
@@ -278,7 +334,7 @@ std::vector<PointChunk> scanChunks(std::mt19937_64& rng, std::uint32_t node, std
 }
 
 TEST(AggregatorService, BaselineSubscribersGetPointLabelsOnlyWhenTheyAskForThem) {
-  RootServer server(rootConfig(Mode::kBaseline, {1, 2}, 10'000.0));
+  AggregatorServer server(rootConfig(Mode::kBaseline, {1, 2}, 10'000.0));
   ASSERT_TRUE(server.started());
   auto global_stub = server.globalStub();
   Subscription with_labels(*global_stub, true);
@@ -316,7 +372,7 @@ TEST(AggregatorService, BaselineSubscribersGetPointLabelsOnlyWhenTheyAskForThem)
 }
 
 TEST(AggregatorService, GeofencesAreSetAndQueriedOverGrpc) {
-  RootServer server(rootConfig(Mode::kMadc, {1}, 10'000.0));
+  AggregatorServer server(rootConfig(Mode::kMadc, {1}, 10'000.0));
   ASSERT_TRUE(server.started());
   auto global_stub = server.globalStub();
 
@@ -363,6 +419,89 @@ TEST(AggregatorService, GeofencesAreSetAndQueriedOverGrpc) {
   query.set_name("nowhere");
   EXPECT_EQ(global_stub->QueryGeofences(&missing_context, query, &report).error_code(), grpc::StatusCode::NOT_FOUND);
   EXPECT_TRUE(child.finish().ok());
+}
+
+TEST(AggregatorService, ExtTreeMergesAtTheIntermediateAndRelaysPointsToTheRoot) {
+  // sink (100) <- agg (101) <- edges 1, 2; edge 3 belongs directly to the sink but never connects.
+  AggregatorConfig root_config = rootConfig(Mode::kExt, {}, 10'000.0);
+  root_config.children = {{101, {1, 2}}, {3, {3}}};
+  AggregatorServer root(root_config);
+  ASSERT_TRUE(root.started());
+  root.emitter().start();
+  auto global_stub = root.globalStub();
+  Subscription subscription(*global_stub, true);
+  ASSERT_TRUE(eventually([&] { return root.globalMaps().subscriberCount() == 1; }));
+
+  AggregatorConfig mid_config = rootConfig(Mode::kExt, {1, 2}, 10'000.0);
+  mid_config.node = 101;
+  mid_config.is_root = false;
+  AggregatorServer mid(mid_config, root.target());
+  ASSERT_TRUE(mid.started());
+  mid.emitter().start();
+
+  std::mt19937_64 rng(35);
+  const MadcParams params;
+  const std::vector<Cloud> clouds{blobRow(rng, 0.0F), blobRow(rng, 8.0F)};  // blob at x = 8 seen by both
+  auto stub = mid.ingestStub();
+  Child a(*stub);
+  Child b(*stub);
+  Child* edges[2] = {&a, &b};
+  // Epoch 1 makes both edges live at the intermediate; a relayed chunk is the first thing the
+  // root sees, so the root must name the intermediate's stream by the sensor's id.
+  for (std::uint32_t s = 0; s < 2; ++s) {
+    const auto local = genLocalMap(clouds[s], s + 1, 1, params);
+    ASSERT_TRUE(edges[s]->writePoints(1, wholeScan(s + 1, 1, clouds[s], local.clustering.labels)));
+    MapMessage map{{s + 1, 1, 1'700'000'000'000'000'000, {s + 1}, {}}, local.map};
+    ASSERT_TRUE(edges[s]->writeMap(2, map));
+    ASSERT_EQ(edges[s]->readAck(), 1U);
+    ASSERT_EQ(edges[s]->readAck(), 2U);
+  }
+  std::vector<LocalMapResult> locals;
+  std::vector<Map> maps;
+  for (std::uint32_t s = 0; s < 2; ++s) {
+    locals.push_back(genLocalMap(clouds[s], s + 1, 2, params));
+    maps.push_back(locals.back().map);
+    MapMessage map{{s + 1, 2, 1'700'000'000'000'000'000, {s + 1}, {}}, locals.back().map};
+    ASSERT_TRUE(edges[s]->writeMap(3, map));
+    ASSERT_TRUE(edges[s]->writePoints(4, wholeScan(s + 1, 2, clouds[s], locals.back().clustering.labels)));
+    ASSERT_EQ(edges[s]->readAck(), 3U);
+    ASSERT_EQ(edges[s]->readAck(), 4U);
+  }
+
+  std::optional<GlobalMapMessage> received;
+  for (int i = 0; i < 2 && !received; ++i) {  // epoch 1 (at most once), then epoch 2
+    const auto proto = subscription.next();
+    ASSERT_TRUE(proto.has_value()) << "the subscription ended before epoch 2";
+    auto converted = fromProto(*proto);
+    ASSERT_TRUE(converted.ok()) << converted.error().message;
+    if (converted->header.epoch == 2) received = std::move(*converted);
+  }
+  ASSERT_TRUE(received.has_value());
+  const Map expected = mergeAll(maps).map;
+  EXPECT_EQ(received->map, expected);
+  EXPECT_EQ(received->header.contributing_nodes, (std::vector<std::uint32_t>{1, 2}));
+  EXPECT_EQ(received->header.missing_nodes, (std::vector<std::uint32_t>{3}));
+  ASSERT_EQ(received->point_labels.size(), 2U);
+  for (std::uint32_t s = 0; s < 2; ++s) {
+    const auto& labels = received->point_labels[s].labels;
+    ASSERT_EQ(labels.size(), clouds[s].size());
+    for (std::size_t i = 0; i < labels.size(); ++i) {
+      const std::int32_t local = locals[s].clustering.labels[i];
+      if (local < 0) {
+        EXPECT_EQ(labels[i], -1);
+        continue;
+      }
+      ASSERT_GE(labels[i], 0);
+      ASSERT_LT(static_cast<std::size_t>(labels[i]), expected.objects.size());
+      const auto& ellipsoids = expected.objects[static_cast<std::size_t>(labels[i])].ellipsoids;
+      const EllipsoidId id{s + 1, 2, static_cast<std::uint32_t>(local)};
+      EXPECT_TRUE(std::any_of(ellipsoids.begin(), ellipsoids.end(), [&](const Ellipsoid& e) { return e.id == id; }));
+    }
+  }
+  EXPECT_EQ(root.aggregator().with([](MergeAggregator& core) { return core.liveChildren(); }), 1U)
+      << "the intermediate's one stream, named by a relayed chunk and by its own maps";
+  EXPECT_TRUE(a.finish().ok());
+  EXPECT_TRUE(b.finish().ok());
 }
 
 }  // namespace
