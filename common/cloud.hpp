@@ -14,6 +14,7 @@ struct Point {
   float intensity = 0.0F;
 
   Eigen::Vector3f xyz() const { return {x, y, z}; }
+  bool operator==(const Point&) const = default;
 };
 
 using Cloud = std::vector<Point>;

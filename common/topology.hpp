@@ -31,7 +31,9 @@ struct SensorConfig {
   bool loop = true;                     // start again after the last scan
   std::optional<std::uint64_t> frames;  // stop after this many frames (default: endless when looping)
   std::optional<SectorSplit> split;     // virtual LiDAR; its pose is the sector's rotation
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // sensor -> common frame (after the split)
+  // The scan's frame -> common frame. With a split, the points of a view are in the sector's frame
+  // and the edge applies pose * sectorPose(split).
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
 };
 
 struct NodeConfig {

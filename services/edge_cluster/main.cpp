@@ -134,19 +134,24 @@ int run(const Flags& flags) {
             << sensor.source.string() << " at " << sensor.rate_hz << " Hz, mode " << fogmap::modeName(topology->mode)
             << ", sending to " << parent->name << " (" << link_config.target << ")\n";
 
-  const auto period = std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(1.0 / sensor.rate_hz));
+  // Epochs are windows of one sensor period on the wall clock (DESIGN 2.2): every edge captures
+  // epoch k at k * period, so the sensors of one cluster report the same epoch at about the same
+  // time (clocks are assumed synchronised, e.g. by NTP or PTP), and a replayed recording shows scan
+  // k mod N in epoch k on every sensor.
+  const auto period_ns = static_cast<std::int64_t>(1e9 / sensor.rate_hz);
   std::set<std::string> reported_bad_files;  // each bad file is named once, counted every time
   std::uint64_t frame_errors = 0;
-  SteadyClock::time_point next_tick = SteadyClock::now();
+  std::int64_t epoch = wallClockNs() / period_ns + 1;
   while (!stopRequested() && !source->done()) {
-    waitUntil(next_tick);
+    waitUntil(SteadyClock::now() + std::chrono::nanoseconds(epoch * period_ns - wallClockNs()));
     if (stopRequested()) break;
-    // After a stall (slow disk, a frame longer than the period) carry on from now instead of
-    // bursting to catch up: a burst would stamp old data with new times.
-    next_tick = std::max(next_tick + period, SteadyClock::now());
-
     const std::int64_t sensor_time_ns = wallClockNs();
-    fogmap::Expected<fogmap::ScanFrame> scan = source->next();
+    const auto this_epoch = static_cast<std::uint64_t>(epoch);
+    // After a stall (slow disk, a frame longer than the period) skip to the next window instead
+    // of bursting to catch up: a burst would stamp old data with new times.
+    epoch = std::max(epoch + 1, sensor_time_ns / period_ns + 1);
+
+    fogmap::Expected<fogmap::ScanFrame> scan = source->at(this_epoch);
     if (!scan) {
       metrics.malformed("scan");
       if (reported_bad_files.insert(scan.error().message).second) {

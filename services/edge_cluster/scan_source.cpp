@@ -70,6 +70,17 @@ Expected<ScanFrame> ScanSource::next() {
     exhausted_ = !sensor_.loop;
   }
 
+  return read(file, emitted_);
+}
+
+Expected<ScanFrame> ScanSource::at(std::uint64_t epoch) {
+  if (done()) return Error{ErrorCode::kInternal, "ScanSource::at called after the source is done"};
+  // Without looping each scan plays once: the source ends after as many frames as files.
+  if (!sensor_.loop && emitted_ + 1 >= files_.size()) exhausted_ = true;
+  return read(files_[static_cast<std::size_t>(epoch % files_.size())], epoch);
+}
+
+Expected<ScanFrame> ScanSource::read(const fs::path& file, std::uint64_t sequence) {
   Expected<LoadedCloud> loaded = readCloud(file);
   if (!loaded) {
     ++failures_in_a_row_;
@@ -78,7 +89,8 @@ Expected<ScanFrame> ScanSource::next() {
   failures_in_a_row_ = 0;
 
   ScanFrame frame;
-  frame.sequence = emitted_++;
+  ++emitted_;
+  frame.sequence = sequence;
   frame.file = file;
   frame.dropped_non_finite = loaded->dropped_non_finite;
   frame.points = sensor_.split ? sectorView(loaded->points, *sensor_.split) : std::move(loaded->points);

@@ -36,11 +36,15 @@ class ScanSource {
   // following call continues with the next file. Must not be called when done().
   Expected<ScanFrame> next();
 
+  // Reads the scan of time epoch `epoch` (the scan epoch mod the number of scans), so that every
+  // sensor replaying one recording shows the same scan in the same epoch; sequence = epoch.
+  Expected<ScanFrame> at(std::uint64_t epoch);
   const std::vector<std::filesystem::path>& files() const { return files_; }
   std::uint64_t emitted() const { return emitted_; }
 
  private:
   ScanSource(SensorConfig sensor, std::vector<std::filesystem::path> files);
+  Expected<ScanFrame> read(const std::filesystem::path& file, std::uint64_t sequence);
 
   SensorConfig sensor_;
   std::vector<std::filesystem::path> files_;

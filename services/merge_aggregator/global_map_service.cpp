@@ -21,10 +21,12 @@ v1::Containment toProto(Containment c) {
   return v1::CONTAINMENT_UNSPECIFIED;
 }
 
-void toProto(const Eigen::Vector3d& v, v1::Vec3* out) {
-  out->set_x(v.x());
-  out->set_y(v.y());
-  out->set_z(v.z());
+v1::Vec3 toProto(const Eigen::Vector3d& v) {
+  v1::Vec3 out;
+  out.set_x(v.x());
+  out.set_y(v.y());
+  out.set_z(v.z());
+  return out;
 }
 
 v1::GeofenceReport toProto(const GeofenceReport& report) {
@@ -35,8 +37,8 @@ v1::GeofenceReport toProto(const GeofenceReport& report) {
     proto->set_geofence(intrusion.geofence);
     proto->set_object_index(static_cast<std::uint32_t>(intrusion.object_index));
     proto->set_containment(toProto(intrusion.containment));
-    toProto(intrusion.box.min, proto->mutable_box()->mutable_min());
-    toProto(intrusion.box.max, proto->mutable_box()->mutable_max());
+    *proto->mutable_box()->mutable_min() = toProto(intrusion.box.min);
+    *proto->mutable_box()->mutable_max() = toProto(intrusion.box.max);
     for (const auto& id : intrusion.ellipsoids) {
       auto* proto_id = proto->add_ellipsoids();
       proto_id->set_node(id.node);
@@ -53,7 +55,8 @@ GlobalMapService::GlobalMapService(SharedAggregator& aggregator, Metrics* metric
                                    std::chrono::milliseconds poll_wait)
     : aggregator_(aggregator),
       metrics_(metrics),
-      queue_capacity_(std::max<std::size_t>(1, queue_capacity)), poll_wait_(poll_wait) {}
+      queue_capacity_(std::max<std::size_t>(1, queue_capacity)),
+      poll_wait_(poll_wait) {}
 
 void GlobalMapService::publish(const GlobalMapMessage& message) {
   // Converted once, shared by every subscriber; the label-free copy only when someone wants it.
