@@ -80,31 +80,27 @@ void toProto(const MapHeader& h, v1::MapHeader* out) {
   for (const auto n : h.missing_nodes) out->add_missing_nodes(n);
 }
 
-void toProto(const EllipsoidId& id, v1::EllipsoidId* out) {
+// The frame is left out when it is the map's epoch (the usual case).
+void toProto(const EllipsoidId& id, std::uint64_t epoch, v1::EllipsoidId* out) {
   out->set_node(id.node);
-  out->set_frame(id.frame);
+  if (id.frame != epoch) out->set_frame(id.frame);
   out->set_index(id.index);
 }
 
-void toProto(const Ellipsoid& e, v1::Ellipsoid* out) {
-  toProto(e.id, out->mutable_id());
-  toProto(e.center, out->mutable_center());
+void toProto(const Ellipsoid& e, std::uint64_t epoch, v1::Ellipsoid* out) {
+  toProto(e.id, epoch, out->mutable_id());
+  for (int k = 0; k < 3; ++k) out->add_center(static_cast<float>(e.center[k]));
   const Eigen::Matrix3d& m = e.shape;
-  for (const double v : {m(0, 0), m(0, 1), m(0, 2), m(1, 1), m(1, 2), m(2, 2)}) out->add_shape(v);
+  for (const double v : {m(0, 0), m(0, 1), m(0, 2), m(1, 1), m(1, 2), m(2, 2)}) out->add_shape(static_cast<float>(v));
   out->set_point_count(e.point_count);
 }
 
-void toProto(const Map& map, google::protobuf::RepeatedPtrField<v1::MapObject>* out) {
+void toProto(const Map& map, std::uint64_t epoch, google::protobuf::RepeatedPtrField<v1::MapObject>* out) {
   out->Reserve(static_cast<int>(map.objects.size()));
   for (const auto& object : map.objects) {
     v1::MapObject* o = out->Add();
     o->mutable_ellipsoids()->Reserve(static_cast<int>(object.ellipsoids.size()));
-    for (const auto& e : object.ellipsoids) toProto(e, o->add_ellipsoids());
-    // An empty box holds infinities; the receiver recomputes boxes anyway.
-    if (!object.box.empty()) {
-      toProto(object.box.min, o->mutable_box()->mutable_min());
-      toProto(object.box.max, o->mutable_box()->mutable_max());
-    }
+    for (const auto& e : object.ellipsoids) toProto(e, epoch, o->add_ellipsoids());
   }
 }
 
@@ -133,16 +129,18 @@ std::string ellipsoidLabel(const std::string& where, int object, int ellipsoid) 
   return where + ": object " + std::to_string(object) + " ellipsoid " + std::to_string(ellipsoid);
 }
 
-Expected<Ellipsoid> fromProto(const v1::Ellipsoid& e, const std::string& label) {
+Expected<Ellipsoid> fromProto(const v1::Ellipsoid& e, std::uint64_t epoch, const std::string& label) {
   if (!e.has_id()) return invalidArgument(label + ": missing id");
-  if (!e.has_center()) return invalidArgument(label + ": missing center");
+  if (e.center_size() != 3) {
+    return invalidArgument(label + ": center has " + std::to_string(e.center_size()) + " values, expected 3 (x y z)");
+  }
   if (e.shape_size() != 6) {
     return invalidArgument(label + ": shape has " + std::to_string(e.shape_size()) +
                            " values, expected 6 (upper triangle xx xy xz yy yz zz)");
   }
   Ellipsoid out;
-  out.id = {e.id().node(), e.id().frame(), e.id().index()};
-  out.center = fromProto(e.center());
+  out.id = {e.id().node(), e.id().has_frame() ? e.id().frame() : epoch, e.id().index()};
+  out.center = {e.center(0), e.center(1), e.center(2)};
   if (!out.center.allFinite()) return invalidArgument(label + ": center is not finite");
   const auto& s = e.shape();
   out.shape << s[0], s[1], s[2],  //
@@ -158,7 +156,7 @@ Expected<Ellipsoid> fromProto(const v1::Ellipsoid& e, const std::string& label) 
   return out;
 }
 
-Expected<Map> fromProto(const google::protobuf::RepeatedPtrField<v1::MapObject>& objects,
+Expected<Map> fromProto(const google::protobuf::RepeatedPtrField<v1::MapObject>& objects, std::uint64_t epoch,
                         const std::string& where) {
   std::vector<Ellipsoid> ellipsoids;
   std::vector<std::size_t> object_of;
@@ -168,7 +166,7 @@ Expected<Map> fromProto(const google::protobuf::RepeatedPtrField<v1::MapObject>&
       return invalidArgument(where + ": object " + std::to_string(o) + " has no ellipsoids");
     }
     for (int k = 0; k < object.ellipsoids_size(); ++k) {
-      auto e = fromProto(object.ellipsoids(k), ellipsoidLabel(where, o, k));
+      auto e = fromProto(object.ellipsoids(k), epoch, ellipsoidLabel(where, o, k));
       if (!e) return e.error();
       ellipsoids.push_back(std::move(e).value());
       object_of.push_back(static_cast<std::size_t>(o));
@@ -201,7 +199,7 @@ std::optional<Mode> modeFromName(const std::string& name) {
 v1::Map toProto(const MapMessage& message) {
   v1::Map out;
   toProto(message.header, out.mutable_header());
-  toProto(message.map, out.mutable_objects());
+  toProto(message.map, message.header.epoch, out.mutable_objects());
   return out;
 }
 
@@ -227,7 +225,7 @@ v1::PointChunk toProto(const PointChunk& chunk) {
 v1::GlobalMap toProto(const GlobalMapMessage& message) {
   v1::GlobalMap out;
   toProto(message.header, out.mutable_header());
-  toProto(message.map, out.mutable_objects());
+  toProto(message.map, message.header.epoch, out.mutable_objects());
   out.set_mode(modeName(message.mode));
   out.set_published_time_ns(message.published_time_ns);
   out.set_merge_seconds(message.merge_seconds);
@@ -253,7 +251,7 @@ v1::Geofence toProto(const Geofence& fence) {
 }
 
 Expected<MapMessage> fromProto(const v1::Map& message) {
-  auto map = fromProto(message.objects(), "Map");
+  auto map = fromProto(message.objects(), message.header().epoch(), "Map");
   if (!map) return map.error();
   return MapMessage{fromProto(message.header()), std::move(map).value()};
 }
@@ -310,7 +308,7 @@ Expected<GlobalMapMessage> fromProto(const v1::GlobalMap& message) {
   }
   out.mode = *mode;
   if (!std::isfinite(message.merge_seconds())) return invalidArgument("GlobalMap: merge_seconds is not finite");
-  auto map = fromProto(message.objects(), "GlobalMap");
+  auto map = fromProto(message.objects(), message.header().epoch(), "GlobalMap");
   if (!map) return map.error();
   out.header = fromProto(message.header());
   out.map = std::move(map).value();

@@ -14,7 +14,6 @@
 #include "services/common/proto_convert.hpp"
 #include "services/edge_cluster/edge_node.hpp"
 #include "services/edge_cluster/scan_source.hpp"
-#include "tools/fogctl/commands.hpp"
 #include "tools/fogctl/launcher.hpp"
 
 namespace fogmap::cli {

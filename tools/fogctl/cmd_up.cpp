@@ -26,9 +26,6 @@
 namespace fogmap::cli {
 namespace {
 
-std::atomic<bool> g_stop{false};
-void onSignal(int) { g_stop = true; }
-
 int fail(const Error& e) {
   std::cerr << "fogctl: " << e.message << "\n";
   return e.code == ErrorCode::kInvalidArgument ? 2 : 1;
@@ -37,15 +34,6 @@ int fail(const Error& e) {
 std::filesystem::path defaultStateDir(const TopologyConfig& t) { return std::filesystem::path(".fogmap") / t.name; }
 
 }  // namespace
-
-void installStopHandlers() {
-  struct sigaction sa {};
-  sa.sa_handler = onSignal;
-  ::sigaction(SIGINT, &sa, nullptr);
-  ::sigaction(SIGTERM, &sa, nullptr);
-}
-
-bool stopRequested() { return g_stop.load(); }
 
 int runUp(int argc, char** argv) {
   const auto args = Args::parse(argc, argv, 2, {"state", "timeout-s"}, {"detach"});
@@ -233,7 +221,7 @@ int runWatch(int argc, char** argv) {
     if (*count > 0 && ++received >= *count) break;
   }
   context.TryCancel();
-  g_stop = true;
+  requestStop();
   canceller.join();
   return 0;
 }

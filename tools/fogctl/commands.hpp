@@ -11,8 +11,4 @@ int runSplit(int argc, char** argv);
 int runWatch(int argc, char** argv);
 int runDemo(int argc, char** argv);
 
-// SIGINT/SIGTERM set a flag that long-running commands poll.
-void installStopHandlers();
-bool stopRequested();
-
 }  // namespace fogmap::cli

@@ -24,6 +24,11 @@ struct Cluster {
   std::vector<RunningNode> nodes;
 };
 
+// SIGINT/SIGTERM set a flag that long-running commands poll (bounded waits everywhere).
+void installStopHandlers();
+bool stopRequested();
+void requestStop();
+
 // The directory holding fogctl, where the service binaries live too.
 std::filesystem::path binaryDir();
 

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <iostream>
 #include <memory>
 #include <algorithm>
 #include <random>
@@ -227,6 +228,22 @@ TEST(AggregatorService, PushFromTwoChildrenPublishesTheMergedGlobalMap) {
   ASSERT_TRUE(received.has_value());
   const std::vector<Map> maps{epoch2[0].map, epoch2[1].map};
   EXPECT_EQ(received->map, mergeAll(maps).map);
+  {
+    const Map& r = received->map; const Map e = mergeAll(maps).map;
+    std::cerr << "objects " << r.objects.size() << " vs " << e.objects.size() << "\n";
+    for (std::size_t i = 0; i < std::min(r.objects.size(), e.objects.size()); ++i) {
+      const auto& ro = r.objects[i]; const auto& eo = e.objects[i];
+      if (!(ro.box == eo.box)) std::cerr << "box " << i << " " << ro.box.min.transpose() << " | " << eo.box.min.transpose() << " / " << ro.box.max.transpose() << " | " << eo.box.max.transpose() << "\n";
+      if (ro.ellipsoids.size() != eo.ellipsoids.size()) { std::cerr << "size " << i << "\n"; continue; }
+      for (std::size_t k = 0; k < ro.ellipsoids.size(); ++k) {
+        const auto& a = ro.ellipsoids[k]; const auto& b = eo.ellipsoids[k];
+        if (!(a.id == b.id)) std::cerr << "id " << i << "\n";
+        if (a.center != b.center) std::cerr << "center " << i << "\n";
+        if (a.shape != b.shape) std::cerr << "shape " << i << "\n" << a.shape - b.shape << "\n";
+        if (a.point_count != b.point_count) std::cerr << "count " << i << "\n";
+      }
+    }
+  }
   EXPECT_EQ(received->header.node, kRoot);
   EXPECT_EQ(received->header.contributing_nodes, (std::vector<std::uint32_t>{1, 2}));
   EXPECT_TRUE(received->header.missing_nodes.empty());

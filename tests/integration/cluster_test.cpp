@@ -1,0 +1,253 @@
+// Integration: real edge-cluster and merge-aggregator processes on 127.0.0.1, replaying the
+// bundled real KITTI frames; the test subscribes to the root like any client.
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <thread>
+
+#include "common/map.hpp"
+#include "tools/fogctl/cluster_run.hpp"
+#include "tools/fogctl/launcher.hpp"
+
+namespace fogmap {
+namespace {
+
+using namespace std::chrono_literals;
+using cli::RunOptions;
+using cli::RunResult;
+
+std::filesystem::path dataDir() { return std::filesystem::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a"; }
+constexpr std::size_t kScans = 5;  // bundled frames: epoch e replays scan e mod 5
+
+std::filesystem::path scratchDir(const std::string& name) {
+  const auto dir = std::filesystem::temp_directory_path() / ("fogmap-it-" + std::to_string(::getpid()) + "-" + name);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+TopologyConfig topology(const std::string& shape, int edges, int base_port, Mode mode, std::uint64_t frames) {
+  TopologyConfig t = shape == "star" ? makeStarTopology(edges, dataDir(), base_port) : makeTreeTopology(edges, dataDir(), base_port);
+  t.mode = mode;
+  t.name = std::string(modeName(mode)) + "-" + t.name;
+  t.deadline_ms = 500.0;  // generous: a loaded CI machine must not turn slow epochs into partial ones
+  for (auto& n : t.nodes) {
+    if (n.sensor) n.sensor->frames = frames;
+  }
+  return t;
+}
+
+std::vector<std::uint64_t> completeEpochs(const RunResult& run) {
+  std::vector<std::uint64_t> out;
+  for (const auto& [e, g] : run.epochs) {
+    if (g.header.missing_nodes.empty()) out.push_back(e);
+  }
+  return out;
+}
+
+// The same map with every ellipsoid's frame replaced: maps of different epochs that replayed the
+// same scan are then comparable.
+Map withFrame(const Map& map, std::uint64_t frame) {
+  Map out = map;
+  for (auto& o : out.objects) {
+    for (auto& e : o.ellipsoids) e.id.frame = frame;
+  }
+  return out;
+}
+
+// Runs the cluster and checks every complete epoch's global map against MERGE of the local maps
+// recomputed in-process (as the parent decodes them). Returns the global maps by scan index.
+std::map<std::size_t, Map> runAndCheckAgainstInProcessMerge(const TopologyConfig& t, const std::string& name) {
+  RunOptions options;
+  options.frames = 12;
+  options.timeout = 90s;
+  const auto run = cli::runCluster(scratchDir(name), t, options);
+  EXPECT_TRUE(run.ok()) << (run.ok() ? "" : run.error().message);
+  if (!run.ok()) return {};
+  const auto epochs = completeEpochs(*run);
+  EXPECT_GE(epochs.size(), 3U) << name << ": too few complete epochs (" << run->epochs.size() << " published)";
+  const auto views = cli::recomputeEdges(t, epochs);
+  EXPECT_TRUE(views.ok()) << (views.ok() ? "" : views.error().message);
+  if (!views.ok()) return {};
+  std::map<std::size_t, Map> by_scan;
+  for (const auto e : epochs) {
+    const GlobalMapMessage& global = run->epochs.at(e);
+    const Map expected = mergeAll(views->at(e).local_maps).map;
+    EXPECT_GT(expected.objects.size(), 20U);
+    EXPECT_EQ(global.map, expected) << name << " epoch " << e << ": " << global.map.objects.size() << " objects, expected "
+                                    << expected.objects.size();
+    EXPECT_EQ(global.header.contributing_nodes.size(), views->at(e).local_maps.size());
+    by_scan[e % kScans] = withFrame(global.map, e % kScans);
+  }
+  return by_scan;
+}
+
+TEST(Cluster, StarOfThreeGlobalMapEqualsInProcessMerge) {
+  runAndCheckAgainstInProcessMerge(topology("star", 3, 41000, Mode::kMadc, 12), "star3");
+}
+
+TEST(Cluster, StarAndTreeOfSevenGiveTheSameGlobalMap) {
+  const auto tree = runAndCheckAgainstInProcessMerge(topology("tree", 7, 41500, Mode::kMadc, 12), "tree7");
+  const auto star = runAndCheckAgainstInProcessMerge(topology("star", 7, 42000, Mode::kMadc, 12), "star7");
+  std::size_t compared = 0;
+  for (const auto& [scan, map] : tree) {
+    const auto it = star.find(scan);
+    if (it == star.end()) continue;
+    EXPECT_EQ(map, it->second) << "scan " << scan;
+    ++compared;
+  }
+  EXPECT_GE(compared, 2U) << "star and tree shared too few complete scans";
+}
+
+TEST(Cluster, MadcAgreesWithBaselineRandIndexAtLeast095) {
+  RunOptions options;
+  options.frames = 10;
+  options.timeout = 90s;
+  const auto madc = cli::runCluster(scratchDir("ri-madc"), topology("star", 3, 42500, Mode::kMadc, 10), options);
+  ASSERT_TRUE(madc.ok()) << madc.error().message;
+  options.point_labels = true;
+  const auto baseline = cli::runCluster(scratchDir("ri-base"), topology("star", 3, 43000, Mode::kBaseline, 10), options);
+  ASSERT_TRUE(baseline.ok()) << baseline.error().message;
+  std::map<std::size_t, const GlobalMapMessage*> baseline_by_scan;
+  for (const auto& [e, g] : baseline->epochs) {
+    if (g.header.missing_nodes.empty()) baseline_by_scan[e % kScans] = &g;
+  }
+  std::vector<std::uint64_t> epochs;
+  for (const auto e : completeEpochs(*madc)) {
+    if (baseline_by_scan.count(e % kScans) > 0) epochs.push_back(e);
+  }
+  ASSERT_GE(epochs.size(), 3U);
+  const auto views = cli::recomputeEdges(topology("star", 3, 42500, Mode::kMadc, 10), epochs);
+  ASSERT_TRUE(views.ok()) << views.error().message;
+  for (const auto e : epochs) {
+    const auto a = cli::accuracy(madc->epochs.at(e), *baseline_by_scan.at(e % kScans), views->at(e));
+    ASSERT_TRUE(a.ok) << a.problem;
+    std::printf("epoch %lu (scan %zu): Rand index %.4f (ARI %.4f) over local clusters, %.4f over points\n",
+                static_cast<unsigned long>(e), static_cast<std::size_t>(e % kScans), a.clusters.rand_index,
+                a.clusters.adjusted_rand_index, a.points.rand_index);
+    EXPECT_GE(a.clusters.rand_index, 0.95);
+    EXPECT_GE(a.points.rand_index, 0.95);
+  }
+  // And the savings the system exists for.
+  const double madc_bytes = madc->bytes_moved / static_cast<double>(madc->epochs.size());
+  const double baseline_bytes = baseline->bytes_moved / static_cast<double>(baseline->epochs.size());
+  std::printf("bytes per frame: MAD-C %.0f, baseline %.0f (%.0fx)\n", madc_bytes, baseline_bytes, baseline_bytes / madc_bytes);
+  EXPECT_GT(baseline_bytes, 20.0 * madc_bytes);
+}
+
+std::int64_t wallNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+TEST(Cluster, KillingAnEdgeLeavesTheOthersFlowingAndListsItMissing) {
+  TopologyConfig t = topology("star", 3, 43500, Mode::kMadc, 60);
+  t.deadline_ms = 150.0;
+  RunOptions options;
+  options.frames = 40;
+  options.timeout = 60s;
+  std::int64_t killed_at_ns = 0;
+  const auto run = cli::runCluster(scratchDir("kill"), t, options, [&](const cli::Cluster& cluster) {
+    std::this_thread::sleep_for(1500ms);
+    for (const auto& n : cluster.nodes) {
+      if (n.name == "edge-2") {
+        killed_at_ns = wallNs();
+        ::kill(n.pid, SIGKILL);
+      }
+    }
+  });
+  ASSERT_TRUE(run.ok()) << run.error().message;
+  ASSERT_GT(killed_at_ns, 0);
+  const std::int64_t period_ns = 100'000'000;
+  const std::int64_t deadline_ns = static_cast<std::int64_t>(t.deadline_ms * 1e6);
+  std::size_t after = 0;
+  for (const auto& [e, g] : run->epochs) {
+    // Epochs captured a full period after the kill cannot contain node 2.
+    if (g.header.sensor_time_ns < killed_at_ns + period_ns) continue;
+    ++after;
+    EXPECT_EQ(g.header.missing_nodes, std::vector<std::uint32_t>{2}) << "epoch " << e;
+    EXPECT_EQ(g.header.contributing_nodes, (std::vector<std::uint32_t>{1, 3})) << "epoch " << e;
+    EXPECT_GT(g.map.objects.size(), 10U);
+    // The missing node is reported within one deadline of the epoch's data.
+    EXPECT_LE(g.published_time_ns - g.header.sensor_time_ns, deadline_ns + period_ns) << "epoch " << e;
+  }
+  EXPECT_GE(after, 10U) << "the surviving edges stopped flowing";
+}
+
+// Runs a command; its exit code and output.
+std::pair<int, std::string> run(const std::string& command) {
+  std::string output;
+  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
+  if (pipe == nullptr) return {-1, ""};
+  char buffer[4096];
+  while (std::fgets(buffer, sizeof buffer, pipe) != nullptr) output += buffer;
+  const int status = ::pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+}
+
+TEST(Cluster, PrometheusScrapesEveryServiceAndPromtoolFindsNoProblems) {
+  ASSERT_EQ(run("prometheus --version").first, 0) << "the Debian package prometheus is required (tools/install-deps.sh)";
+  const TopologyConfig t = topology("star", 3, 44000, Mode::kMadc, 100);
+  const auto dir = scratchDir("prometheus");
+  RunOptions options;
+  options.frames = 1;  // the checks run while the cluster is up
+  options.timeout = 30s;
+  const auto result = cli::runCluster(dir, t, options, [&](const cli::Cluster&) {
+    for (const auto& n : t.nodes) {
+      const auto text = cli::httpGet(n.host, n.metrics_port, "/metrics", 2000ms);
+      ASSERT_TRUE(text.ok()) << n.name;
+      std::ofstream(dir / (n.name + ".prom")) << *text;
+      const auto [code, problems] = run("promtool check metrics < " + (dir / (n.name + ".prom")).string());
+      EXPECT_EQ(code, 0) << n.name << ": " << problems;
+      EXPECT_EQ(problems, "") << n.name;
+    }
+    std::ofstream config(dir / "prometheus.yml");
+    config << "global:\n  scrape_interval: 1s\nscrape_configs:\n  - job_name: fogmap\n    static_configs:\n      - targets: [";
+    for (std::size_t i = 0; i < t.nodes.size(); ++i) {
+      config << (i ? ", " : "") << "'" << t.nodes[i].host << ":" << t.nodes[i].metrics_port << "'";
+    }
+    config << "]\n";
+    config.close();
+    const std::uint16_t web_port = 44900;
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+      const std::string cfg = "--config.file=" + (dir / "prometheus.yml").string();
+      const std::string storage = "--storage.tsdb.path=" + (dir / "tsdb").string();
+      const std::string web = "--web.listen-address=127.0.0.1:" + std::to_string(web_port);
+      std::freopen((dir / "prometheus.log").c_str(), "w", stderr);
+      ::execlp("prometheus", "prometheus", cfg.c_str(), storage.c_str(), web.c_str(), static_cast<char*>(nullptr));
+      ::_exit(127);
+    }
+    ASSERT_GT(pid, 0);
+    // Poll the query API until every service's samples are there (bounded: 40 s).
+    std::string answer;
+    std::size_t series = 0;
+    for (int attempt = 0; attempt < 80; ++attempt) {
+      std::this_thread::sleep_for(500ms);
+      const auto body = cli::httpGet("127.0.0.1", web_port, "/api/v1/query?query=count(up==1)", 1000ms);
+      const auto bytes = cli::httpGet("127.0.0.1", web_port, "/api/v1/query?query=fogmap_bytes_sent_total", 1000ms);
+      if (!body.ok() || !bytes.ok()) continue;
+      answer = *bytes;
+      const auto value = body->rfind("\"");
+      series = 0;
+      if (body->find("\"result\":[{") != std::string::npos && value != std::string::npos) {
+        const auto open = body->rfind("\"", value - 1);
+        series = static_cast<std::size_t>(std::atoi(body->substr(open + 1, value - open - 1).c_str()));
+      }
+      if (series == t.nodes.size() && answer.find("fogmap_bytes_sent_total") != std::string::npos) break;
+    }
+    ::kill(pid, SIGTERM);
+    ::waitpid(pid, nullptr, 0);
+    EXPECT_EQ(series, t.nodes.size()) << "targets up in Prometheus";
+    EXPECT_NE(answer.find("\"result\":[{"), std::string::npos) << answer;
+    EXPECT_NE(answer.find("fogmap_bytes_sent_total"), std::string::npos) << answer;
+  });
+  ASSERT_TRUE(result.ok()) << result.error().message;
+}
+
+}  // namespace
+}  // namespace fogmap
