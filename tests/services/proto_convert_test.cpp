@@ -11,12 +11,14 @@
 #include <string>
 
 #include <Eigen/Geometry>
+#include <google/protobuf/descriptor.h>
+#include <google/protobuf/unknown_field_set.h>
 
 namespace fogmap {
 namespace {
 
 // Symmetric positive definite, and exactly symmetric as withAura produces them (the wire carries
-// the upper triangle only).
+// the upper triangle only). In double precision: see roundedToFloat.
 Eigen::Matrix3d randomShape(std::mt19937_64& rng) {
   std::uniform_real_distribution<double> axis(0.1, 3.0);
   std::normal_distribution<double> normal;
@@ -27,8 +29,32 @@ Eigen::Matrix3d randomShape(std::mt19937_64& rng) {
   return 0.5 * (m + m.transpose());
 }
 
+// The wire carries centres and shapes as float32: a round trip is exact for geometry whose values
+// are floats, and rounds every other value to the nearest float once.
+enum class Geometry { kFloat, kDouble };
+
+// The ellipsoid with every centre and shape value rounded to the nearest float (element by
+// element, so an exactly symmetric shape stays exactly symmetric).
+Ellipsoid roundedToFloat(Ellipsoid e) {
+  e.center = e.center.cast<float>().cast<double>();
+  e.shape = e.shape.cast<float>().cast<double>();
+  return e;
+}
+
+constexpr std::uint64_t kSampleEpoch = 123456789012ULL;
+
+// Union of the ellipsoids' delimiting boxes: what an object's box must be.
+Box unionOfDelimitingBoxes(const std::vector<Ellipsoid>& ellipsoids) {
+  Box box;
+  for (const auto& e : ellipsoids) box.extend(delimitingBox(e));
+  return box;
+}
+
 // A map of `objects` objects with 1..3 ellipsoids each, from several nodes, in canonical form.
-Map randomMap(std::mt19937_64& rng, int objects) {
+// Each object's first ellipsoid has frame `epoch` (the frame the wire leaves out in a message of
+// that epoch), the others a frame of their own.
+Map randomMap(std::mt19937_64& rng, int objects, Geometry geometry = Geometry::kFloat,
+              std::uint64_t epoch = kSampleEpoch) {
   std::uniform_real_distribution<double> pos(-50.0, 50.0);
   std::vector<Ellipsoid> ellipsoids;
   std::vector<std::size_t> object_of;
@@ -36,12 +62,14 @@ Map randomMap(std::mt19937_64& rng, int objects) {
     const int n = 1 + o % 3;
     for (int k = 0; k < n; ++k) {
       Ellipsoid e;
-      e.id = {static_cast<std::uint32_t>(1 + k), 1000 + static_cast<std::uint64_t>(o), static_cast<std::uint32_t>(o)};
-      // Values with no short decimal form, so a float or text round trip would show.
+      e.id = {static_cast<std::uint32_t>(1 + k), k == 0 ? epoch : 1000 + static_cast<std::uint64_t>(o),
+              static_cast<std::uint32_t>(o)};
+      // Values with no short decimal form, so a text round trip would show (and, in double
+      // geometry, values no float holds: the 1e-9 / 3 is far below a float's resolution).
       e.center = {pos(rng) + 1e-9 / 3.0, pos(rng), pos(rng) / 7.0};
       e.shape = randomShape(rng);
       e.point_count = 5 + static_cast<std::uint64_t>(o * 3 + k);
-      ellipsoids.push_back(e);
+      ellipsoids.push_back(geometry == Geometry::kFloat ? roundedToFloat(e) : e);
       object_of.push_back(static_cast<std::size_t>(o));
     }
   }
@@ -51,7 +79,7 @@ Map randomMap(std::mt19937_64& rng, int objects) {
 MapHeader sampleHeader() {
   MapHeader h;
   h.node = 7;
-  h.epoch = 123456789012ULL;
+  h.epoch = kSampleEpoch;
   h.sensor_time_ns = 1700000000123456789LL;
   h.contributing_nodes = {1, 2, 5};
   h.missing_nodes = {3};
@@ -90,6 +118,8 @@ bool samePoints(const Cloud& a, const Cloud& b) {
 
 // ---- round trips -----------------------------------------------------------------------------
 
+// Float geometry (randomMap's default) round-trips exactly, ids with and without a frame on the
+// wire included; double geometry is rounded (DoubleGeometryIsRoundedToFloatOnceThenRoundTripsExactly).
 TEST(ProtoConvert, MapRoundTripIsExact) {
   std::mt19937_64 rng(1);
   for (int trial = 0; trial < 50; ++trial) {
@@ -110,14 +140,177 @@ TEST(ProtoConvert, MapRoundTripSurvivesSerialisation) {
   EXPECT_EQ(*back, m);
 }
 
-TEST(ProtoConvert, MapBoxesAreRecomputedNotTrusted) {
-  const MapMessage m = sampleMapMessage();
-  v1::Map wire = toProto(m);
-  wire.mutable_objects(0)->mutable_box()->mutable_min()->set_x(-1e9);
-  wire.mutable_objects(1)->clear_box();
-  const auto back = fromProto(wire);
+TEST(ProtoConvert, DoubleGeometryIsRoundedToFloatOnceThenRoundTripsExactly) {
+  std::mt19937_64 rng(6);
+  const MapMessage m{sampleHeader(), randomMap(rng, 20, Geometry::kDouble)};
+  const auto once = fromProto(toProto(m));
+  ASSERT_TRUE(once.ok()) << once.error().message;
+  EXPECT_EQ(once->header, m.header);
+  ASSERT_EQ(once->map.objects.size(), m.map.objects.size());
+  int rounded = 0;
+  for (std::size_t o = 0; o < m.map.objects.size(); ++o) {
+    const auto& sent = m.map.objects[o].ellipsoids;
+    const auto& got = once->map.objects[o].ellipsoids;
+    ASSERT_EQ(got.size(), sent.size()) << "object " << o;
+    for (std::size_t k = 0; k < sent.size(); ++k) {
+      const Ellipsoid& a = sent[k];
+      const Ellipsoid& b = got[k];
+      EXPECT_EQ(b.id, a.id);
+      EXPECT_EQ(b.point_count, a.point_count);
+      // Each value is the nearest float to the original, so within float rounding of it.
+      for (int i = 0; i < 3; ++i) {
+        EXPECT_EQ(b.center[i], static_cast<double>(static_cast<float>(a.center[i])));
+        EXPECT_LE(std::abs(b.center[i] - a.center[i]), 1e-7 * std::abs(a.center[i])) << "centre " << i;
+        rounded += b.center[i] != a.center[i] ? 1 : 0;
+      }
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+          EXPECT_EQ(b.shape(i, j), static_cast<double>(static_cast<float>(a.shape(i, j))));
+          EXPECT_LE(std::abs(b.shape(i, j) - a.shape(i, j)), 1e-7 * std::abs(a.shape(i, j))) << "shape " << i << j;
+          rounded += b.shape(i, j) != a.shape(i, j) ? 1 : 0;
+        }
+      }
+      EXPECT_EQ(b.shape, b.shape.transpose()) << "still exactly symmetric";
+    }
+    EXPECT_EQ(once->map.objects[o].box, unionOfDelimitingBoxes(got)) << "the box of the rounded ellipsoids";
+  }
+  EXPECT_GT(rounded, 0) << "double geometry should not all be floats, or this test shows nothing";
+
+  // Rounded once, the map is float geometry: the second round trip is exact (also as bytes).
+  const auto twice = fromProto(toProto(*once));
+  ASSERT_TRUE(twice.ok()) << twice.error().message;
+  EXPECT_EQ(*twice, *once);
+  v1::Map parsed;
+  ASSERT_TRUE(parsed.ParseFromString(toProto(*once).SerializeAsString()));
+  const auto parsed_back = fromProto(parsed);
+  ASSERT_TRUE(parsed_back.ok()) << parsed_back.error().message;
+  EXPECT_EQ(*parsed_back, *once);
+
+  // The same for a global map.
+  GlobalMapMessage g;
+  g.header = sampleHeader();
+  g.map = randomMap(rng, 15, Geometry::kDouble);
+  const auto g_once = fromProto(toProto(g));
+  ASSERT_TRUE(g_once.ok()) << g_once.error().message;
+  EXPECT_NE(g_once->map, g.map);
+  const auto g_twice = fromProto(toProto(*g_once));
+  ASSERT_TRUE(g_twice.ok()) << g_twice.error().message;
+  EXPECT_EQ(*g_twice, *g_once);
+}
+
+// The wire id of the ellipsoid (node, index) in `objects`; fails the test when there is none.
+template <class Objects>
+const v1::EllipsoidId& wireId(const Objects& objects, std::uint32_t node, std::uint32_t index) {
+  for (const auto& o : objects) {
+    for (const auto& e : o.ellipsoids()) {
+      if (e.id().node() == node && e.id().index() == index) return e.id();
+    }
+  }
+  ADD_FAILURE() << "no ellipsoid " << node << "/" << index << " on the wire";
+  return v1::EllipsoidId::default_instance();
+}
+
+Ellipsoid ballAt(const EllipsoidId& id, double x) {
+  Ellipsoid e;
+  e.id = id;
+  e.center = {x, 0.5, -1.25};
+  e.shape = Eigen::Matrix3d::Identity() * 0.25;
+  e.point_count = 3;
+  return e;
+}
+
+TEST(ProtoConvert, FrameIsLeftOutWhenItIsTheEpoch) {
+  const std::uint64_t epoch = 42;
+  MapMessage m;
+  m.header.node = 9;
+  m.header.epoch = epoch;
+  m.map = localMap({ballAt({3, epoch, 0}, 0.0), ballAt({3, epoch - 1, 1}, 4.0), ballAt({4, 0, 2}, 8.0),
+                    ballAt({5, epoch + 1, 0}, 12.0)});
+  const v1::Map wire = toProto(m);
+  EXPECT_FALSE(wireId(wire.objects(), 3, 0).has_frame()) << "frame == epoch is left out";
+  ASSERT_TRUE(wireId(wire.objects(), 3, 1).has_frame());
+  EXPECT_EQ(wireId(wire.objects(), 3, 1).frame(), epoch - 1);
+  ASSERT_TRUE(wireId(wire.objects(), 4, 2).has_frame()) << "frame 0 is a value, not absence";
+  EXPECT_EQ(wireId(wire.objects(), 4, 2).frame(), 0U);
+  ASSERT_TRUE(wireId(wire.objects(), 5, 0).has_frame());
+  EXPECT_EQ(wireId(wire.objects(), 5, 0).frame(), epoch + 1);
+
+  // Decoded: an absent frame is the epoch, a present one is kept (also through bytes).
+  v1::Map parsed;
+  ASSERT_TRUE(parsed.ParseFromString(wire.SerializeAsString()));
+  EXPECT_FALSE(wireId(parsed.objects(), 3, 0).has_frame());
+  EXPECT_TRUE(wireId(parsed.objects(), 4, 2).has_frame());
+  const auto back = fromProto(parsed);
   ASSERT_TRUE(back.ok()) << back.error().message;
   EXPECT_EQ(*back, m);
+
+  // An absent frame means the epoch of the message it arrives in.
+  v1::Map moved = wire;
+  moved.mutable_header()->set_epoch(77);
+  const auto in_77 = fromProto(moved);
+  ASSERT_TRUE(in_77.ok()) << in_77.error().message;
+  std::vector<EllipsoidId> ids;
+  for (const auto& o : in_77->map.objects) {
+    for (const auto& e : o.ellipsoids) ids.push_back(e.id);
+  }
+  std::sort(ids.begin(), ids.end());
+  EXPECT_EQ(ids, (std::vector<EllipsoidId>{{3, 41, 1}, {3, 77, 0}, {4, 0, 2}, {5, 43, 0}}));
+
+  // An explicit frame equal to the epoch (an encoder that always sends it) decodes the same.
+  v1::Map explicit_frame = wire;
+  for (auto& o : *explicit_frame.mutable_objects()) {
+    for (auto& e : *o.mutable_ellipsoids()) {
+      if (!e.id().has_frame()) e.mutable_id()->set_frame(epoch);
+    }
+  }
+  const auto explicit_back = fromProto(explicit_frame);
+  ASSERT_TRUE(explicit_back.ok()) << explicit_back.error().message;
+  EXPECT_EQ(*explicit_back, m);
+
+  // Global maps follow the same rule.
+  GlobalMapMessage g;
+  g.header = m.header;
+  g.map = m.map;
+  const v1::GlobalMap global_wire = toProto(g);
+  EXPECT_FALSE(wireId(global_wire.objects(), 3, 0).has_frame());
+  ASSERT_TRUE(wireId(global_wire.objects(), 3, 1).has_frame());
+  EXPECT_EQ(wireId(global_wire.objects(), 3, 1).frame(), epoch - 1);
+  const auto global_back = fromProto(global_wire);
+  ASSERT_TRUE(global_back.ok()) << global_back.error().message;
+  EXPECT_EQ(*global_back, g);
+}
+
+TEST(ProtoConvert, WireObjectsCarryNoBoxAndBoxesAreRecomputed) {
+  // The box is gone from the schema; its field number is reserved.
+  const google::protobuf::Descriptor* object_type = v1::MapObject::descriptor();
+  EXPECT_EQ(object_type->field_count(), 1);
+  EXPECT_EQ(object_type->FindFieldByName("box"), nullptr);
+  EXPECT_EQ(object_type->FindFieldByNumber(2), nullptr);
+  EXPECT_TRUE(object_type->IsReservedNumber(2));
+
+  const MapMessage m = sampleMapMessage();
+  v1::Map wire = toProto(m);
+  for (const auto& o : wire.objects()) {
+    EXPECT_TRUE(o.GetReflection()->GetUnknownFields(o).empty()) << "nothing but ellipsoids is sent";
+  }
+  // A box from an old sender (field 2) is skipped as an unknown field, never trusted.
+  v1::Box bogus;
+  bogus.mutable_min()->set_x(-1e9);
+  bogus.mutable_max()->set_x(-1e9 + 1);
+  v1::MapObject* first = wire.mutable_objects(0);
+  first->GetReflection()->MutableUnknownFields(first)->AddLengthDelimited(2, bogus.SerializeAsString());
+  v1::Map parsed;
+  ASSERT_TRUE(parsed.ParseFromString(wire.SerializeAsString()));
+
+  const auto back = fromProto(parsed);
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  EXPECT_EQ(*back, m);
+  ASSERT_FALSE(back->map.objects.empty());
+  for (std::size_t o = 0; o < back->map.objects.size(); ++o) {
+    const MapObject& object = back->map.objects[o];
+    EXPECT_FALSE(object.box.empty());
+    EXPECT_EQ(object.box, unionOfDelimitingBoxes(object.ellipsoids)) << "object " << o;
+  }
 }
 
 TEST(ProtoConvert, MapIsRebuiltInCanonicalForm) {
@@ -224,20 +417,30 @@ TEST(ProtoConvert, RejectsEllipsoidWithoutCenter) {
   expectRejected(fromProto(wire), {"object 1", "ellipsoid 1", "center"});
 }
 
+TEST(ProtoConvert, RejectsCenterWithoutThreeValues) {
+  for (const int n : {0, 2, 4}) {
+    v1::Map wire = sampleProtoMap();
+    auto* center = wire.mutable_objects(1)->mutable_ellipsoids(1)->mutable_center();
+    center->Clear();
+    for (int i = 0; i < n; ++i) center->Add(1.0F);
+    expectRejected(fromProto(wire), {"object 1", "ellipsoid 1", "center", std::to_string(n) + " values"});
+  }
+}
+
 TEST(ProtoConvert, RejectsShapeWithoutSixValues) {
   for (const int n : {0, 5, 7, 9}) {
     v1::Map wire = sampleProtoMap();
     auto* shape = wire.mutable_objects(3)->mutable_ellipsoids(0)->mutable_shape();
     shape->Clear();
-    for (int i = 0; i < n; ++i) shape->Add(1.0);
+    for (int i = 0; i < n; ++i) shape->Add(1.0F);
     expectRejected(fromProto(wire), {"object 3", "ellipsoid 0", "shape", std::to_string(n) + " values"});
   }
 }
 
 TEST(ProtoConvert, RejectsNonFiniteNumbers) {
-  for (const double bad : {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+  for (const float bad : {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity()}) {
     v1::Map wire = sampleProtoMap();
-    wire.mutable_objects(4)->mutable_ellipsoids(0)->mutable_center()->set_y(bad);
+    wire.mutable_objects(4)->mutable_ellipsoids(0)->set_center(1, bad);
     expectRejected(fromProto(wire), {"object 4", "center", "finite"});
 
     wire = sampleProtoMap();
@@ -247,11 +450,11 @@ TEST(ProtoConvert, RejectsNonFiniteNumbers) {
 }
 
 TEST(ProtoConvert, RejectsShapeNotPositiveDefinite) {
-  const std::vector<std::array<double, 6>> bad = {
-      {0.0, 0.0, 0.0, 0.0, 0.0, 0.0},    // zero
-      {1.0, 0.0, 0.0, -1.0, 0.0, 1.0},   // negative diagonal
-      {1.0, 2.0, 0.0, 1.0, 0.0, 1.0},    // positive diagonal, indefinite
-      {1.0, 1.0, 1.0, 1.0, 1.0, 1.0},    // singular (rank 1)
+  const std::vector<std::array<float, 6>> bad = {
+      {0.0F, 0.0F, 0.0F, 0.0F, 0.0F, 0.0F},    // zero
+      {1.0F, 0.0F, 0.0F, -1.0F, 0.0F, 1.0F},   // negative diagonal
+      {1.0F, 2.0F, 0.0F, 1.0F, 0.0F, 1.0F},    // positive diagonal, indefinite
+      {1.0F, 1.0F, 1.0F, 1.0F, 1.0F, 1.0F},    // singular (rank 1)
   };
   for (const auto& values : bad) {
     v1::Map wire = sampleProtoMap();

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <fstream>
 #include <mutex>
+#include <optional>
 #include <sstream>
 #include <thread>
 
@@ -84,11 +85,24 @@ Expected<RunResult> runCluster(const std::filesystem::path& dir, const TopologyC
     return cluster.error();
   }
   if (during) during(*cluster);
-  // Wait for every epoch (the edges stop after `frames` frames) or the deadline.
+  // Wait for every epoch, or until the edges have finished their frames and the last epoch had
+  // time to drain (one deadline and a margin), or the timeout.
+  std::optional<std::chrono::steady_clock::time_point> edges_done;
+  const auto drain = std::chrono::milliseconds(static_cast<long>(topology.deadline_ms) + 1000);
   while (std::chrono::steady_clock::now() < deadline && !stopRequested()) {
     {
       std::lock_guard lock(mutex);
       if (result.epochs.size() >= frames) break;
+    }
+    if (!edges_done) {
+      bool any_edge = false;
+      for (const auto& n : cluster->nodes) {
+        const NodeConfig* config = topology.find(n.name);
+        any_edge = any_edge || (config != nullptr && config->role == Role::kEdge && isRunning(n.pid));
+      }
+      if (!any_edge) edges_done = std::chrono::steady_clock::now();
+    } else if (std::chrono::steady_clock::now() > *edges_done + drain) {
+      break;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }

@@ -64,7 +64,9 @@ Expected<pid_t> spawn(const std::filesystem::path& binary, const std::vector<std
   return pid;
 }
 
-bool running(pid_t pid) {
+}  // namespace
+
+bool isRunning(pid_t pid) {
   int status = 0;
   const pid_t r = ::waitpid(pid, &status, WNOHANG);
   if (r == 0) return true;
@@ -72,6 +74,8 @@ bool running(pid_t pid) {
   return ::kill(pid, 0) == 0;  // not our child (stopRecorded): probe it
 }
 
+namespace {
+bool running(pid_t pid) { return isRunning(pid); }
 }  // namespace
 
 Expected<std::string> httpGet(const std::string& host, std::uint16_t port, const std::string& path,

@@ -41,6 +41,8 @@ Expected<Cluster> startCluster(const std::filesystem::path& topology_file, const
 void stopCluster(const Cluster& cluster, std::chrono::milliseconds grace);
 // Stops the processes recorded in state_dir/pids by another fogctl invocation.
 Status stopRecorded(const std::filesystem::path& state_dir, std::chrono::milliseconds grace);
+// True while the process runs (reaps it when it has exited).
+bool isRunning(pid_t pid);
 // True when every process of the cluster is still running.
 bool allRunning(const Cluster& cluster);
 
