@@ -123,7 +123,10 @@ Expected<std::map<std::uint64_t, EdgeView>> recomputeEdges(const TopologyConfig&
   std::map<std::uint64_t, EdgeView> views;
   for (const auto& n : topology.nodes) {
     if (n.role != Role::kEdge) continue;
-    auto source = ScanSource::open(*n.sensor);
+    SensorConfig sensor = *n.sensor;  // any epoch, however many frames the run was limited to
+    sensor.frames.reset();
+    sensor.loop = true;
+    auto source = ScanSource::open(sensor);
     if (!source) return source.error();
     EdgeConfig config = edgeConfigFor(topology, n);
     config.mode = Mode::kExt;
