@@ -65,6 +65,22 @@ Expected<Eigen::Vector4d> fitPriorPlane(std::span<const Point> points, const Gro
     const Point& p = points[i];
     if (isFinitePoint(p)) cloud->push_back(pcl::PointXYZ(p.x, p.y, p.z));
   }
+  // The ground is the lowest large surface: keep the sample near its bottom (from the 5th
+  // percentile of z, robust to spurious deep returns) so that a bridge deck, a ceiling or a flat
+  // roof with more returns than the road cannot win the RANSAC vote.
+  if (cloud->size() >= 20) {
+    std::vector<float> z;
+    z.reserve(cloud->size());
+    for (const auto& p : *cloud) z.push_back(p.z);
+    auto nth = z.begin() + static_cast<std::ptrdiff_t>(z.size() / 20);
+    std::nth_element(z.begin(), nth, z.end());
+    const float top = *nth + static_cast<float>(params.prior_band_m);
+    pcl::PointCloud<pcl::PointXYZ>::Ptr low(new pcl::PointCloud<pcl::PointXYZ>);
+    for (const auto& p : *cloud) {
+      if (p.z <= top) low->push_back(p);
+    }
+    if (low->size() >= 3) cloud = low;
+  }
   if (cloud->size() < 3) {
     return invalidArgument("ground removal needs at least 3 finite points, got " + std::to_string(cloud->size()));
   }

@@ -8,8 +8,10 @@
 
 namespace fogmap {
 
-// Doubles travel as doubles and points as little-endian float32, so fromProto(toProto(x)) == x
-// for every valid x in canonical form (point intensity is not transmitted and comes back as 0).
+// Ellipsoid geometry and points travel as little-endian float32: a double value is rounded once,
+// so fromProto(toProto(x)) == x for x whose geometry is float-representable (every map that came
+// off the wire) and the second round trip is always exact. Point intensity is not transmitted.
+// An ellipsoid id's frame is left out when it equals the header epoch.
 v1::Map toProto(const MapMessage& message);
 v1::PointChunk toProto(const PointChunk& chunk);
 v1::GlobalMap toProto(const GlobalMapMessage& message);
@@ -20,8 +22,8 @@ v1::Geofence toProto(const Geofence& fence);
 // finite values of a symmetric positive definite matrix, non-finite centres or points, empty
 // objects, duplicate ellipsoid ids, xyz size not a multiple of 12, labels not 4 bytes per point,
 // chunk_count 0, chunk index >= chunk count, points beyond total_points, unknown modes, geofences
-// that validateGeofence rejects. Object boxes on the wire are ignored: the map is rebuilt in
-// canonical form with boxes recomputed from the ellipsoids. Header node lists come back sorted.
+// that validateGeofence rejects. Boxes do not travel: the map is rebuilt in canonical
+// form with boxes computed from the ellipsoids. Header node lists come back sorted.
 Expected<MapMessage> fromProto(const v1::Map& message);
 Expected<PointChunk> fromProto(const v1::PointChunk& chunk);
 Expected<GlobalMapMessage> fromProto(const v1::GlobalMap& message);

@@ -145,13 +145,15 @@ int run(const Flags& flags) {
   while (!stopRequested() && !source->done()) {
     waitUntil(SteadyClock::now() + std::chrono::nanoseconds(epoch * period_ns - wallClockNs()));
     if (stopRequested()) break;
-    const std::int64_t sensor_time_ns = wallClockNs();
     const auto this_epoch = static_cast<std::uint64_t>(epoch);
     // After a stall (slow disk, a frame longer than the period) skip to the next window instead
     // of bursting to catch up: a burst would stamp old data with new times.
-    epoch = std::max(epoch + 1, sensor_time_ns / period_ns + 1);
+    epoch = std::max(epoch + 1, wallClockNs() / period_ns + 1);
 
     fogmap::Expected<fogmap::ScanFrame> scan = source->at(this_epoch);
+    // The sensor timestamp is when the scan is in memory, as a live sensor delivers it: reading and
+    // cutting a recorded scan into a virtual LiDAR is the replay's cost, not the pipeline's.
+    const std::int64_t sensor_time_ns = wallClockNs();
     if (!scan) {
       metrics.malformed("scan");
       if (reported_bad_files.insert(scan.error().message).second) {
