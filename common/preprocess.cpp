@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <cstdint>
 #include <limits>
 #include <numbers>
@@ -55,7 +56,7 @@ bool voxelIndicesOverflow(const Eigen::Array3f& lo, const Eigen::Array3f& hi, fl
 
 // The global plane the local ground is measured from. Errors when there are fewer than 3 finite
 // points or no plane within max_tilt_deg of horizontal.
-Expected<Eigen::Vector4d> fitPriorPlane(std::span<const Point> points, const GroundParams& params) {
+Expected<std::optional<Eigen::Vector4d>> fitPriorPlane(std::span<const Point> points, const GroundParams& params) {
   // The prior only anchors the local ground, so an evenly strided sample is enough and keeps
   // RANSAC at a few milliseconds on a full scan (all points: 50 to 350 ms).
   const std::size_t stride = std::max<std::size_t>(1, points.size() / std::max<std::size_t>(params.prior_sample_points, 3));
@@ -100,10 +101,8 @@ Expected<Eigen::Vector4d> fitPriorPlane(std::span<const Point> points, const Gro
   pcl::PointIndices inliers;
   pcl::ModelCoefficients coefficients;
   segmentation.segment(inliers, coefficients);
-  if (inliers.indices.empty() || coefficients.values.size() != 4) {
-    return invalidArgument("no ground plane found within " + str(params.max_tilt_deg) +
-                           " degrees of horizontal among " + std::to_string(points.size()) + " points");
-  }
+  // A view of walls only (a virtual LiDAR facing a building) has no ground to remove.
+  if (inliers.indices.empty() || coefficients.values.size() != 4) return std::optional<Eigen::Vector4d>{};
 
   Eigen::Vector4d plane(coefficients.values[0], coefficients.values[1], coefficients.values[2],
                         coefficients.values[3]);
@@ -113,7 +112,7 @@ Expected<Eigen::Vector4d> fitPriorPlane(std::span<const Point> points, const Gro
   }
   plane /= normal_length;
   if (plane.z() < 0.0) plane = -plane;
-  return plane;
+  return std::optional<Eigen::Vector4d>(plane);
 }
 
 // Height of the local ground above the prior plane on a flat x-y grid.
@@ -314,8 +313,18 @@ Expected<GroundRemoval> removeGround(std::span<const Point> points, const Ground
                            " m above");
   }
 
-  const Expected<Eigen::Vector4d> plane = fitPriorPlane(points, params);
-  if (!plane) return plane.error();
+  const Expected<std::optional<Eigen::Vector4d>> prior = fitPriorPlane(points, params);
+  if (!prior) return prior.error();
+  if (!prior->has_value()) {
+    GroundRemoval none;
+    none.ground_found = false;
+    for (const Point& p : points) {
+      if (isFinitePoint(p)) none.non_ground.push_back(p);
+    }
+    none.ground_points = points.size() - none.non_ground.size();
+    return none;
+  }
+  const Eigen::Vector4d* plane = &**prior;
 
   // Heights above the prior; NaN for non-finite points, which then fail every comparison below.
   std::vector<float> height(points.size());

@@ -29,8 +29,8 @@ struct GroundParams {
   double distance_threshold_m = 0.20;  // points at most this far above the local ground (or below it) are ground;
                                        // also the inlier distance of the prior plane's RANSAC fit
   double max_tilt_deg = 15.0;          // the prior plane's normal is within this angle of +z
-  int max_iterations = 100;            // RANSAC iterations for the prior plane (50 % inliers: 35 give p = 0.99)
-  std::size_t prior_sample_points = 8192;  // the prior is fitted on an evenly strided sample of about this size
+  int max_iterations = 50;            // RANSAC iterations for the prior plane (50 % inliers: 35 give p = 0.99)
+  std::size_t prior_sample_points = 4096;  // the prior is fitted on an evenly strided sample of about this size
   double prior_band_m = 2.5;           // ... of the points at most this far above the sample's 5th percentile of z
   double cell_m = 1.0;                 // edge of the square x-y cells of the local ground grid
   int neighbourhood_cells = 1;         // a cell's ground is the lowest estimate within this many cells (1: 3 x 3)
@@ -43,11 +43,13 @@ struct GroundRemoval {
   Cloud non_ground;                           // the input order is kept
   Eigen::Vector4d plane{0.0, 0.0, 1.0, 0.0};  // prior plane a x + b y + c z + d = 0, unit normal up (c > 0)
   std::size_t ground_points = 0;              // removed points, non-finite ones included
+  bool ground_found = true;                   // false: no near-horizontal plane, nothing but non-finite points removed
 };
 // Removes the ground and everything below it: a global near-horizontal RANSAC plane (the prior),
 // refined per x-y cell to the lowest point within [-max_below, +max_above] of the prior found in the
 // cell's neighbourhood (the prior where the neighbourhood has none). Non-finite points are removed.
-// Errors on invalid parameters, fewer than 3 finite points, no prior plane, or a grid over the
+// Without a near-horizontal plane (a view of walls) nothing else is removed and ground_found is false.
+// Errors on invalid parameters, fewer than 3 finite points, or a grid over the
 // points of more than 2^24 cells (crop the cloud first).
 Expected<GroundRemoval> removeGround(std::span<const Point> points, const GroundParams& params);
 

@@ -40,6 +40,17 @@ std::vector<const NodeConfig*> TopologyConfig::children(const std::string& node_
   return out;
 }
 
+int TopologyConfig::aggregatorLevels(const std::string& node_name) const {
+  std::function<int(const std::string&, std::size_t)> levels = [&](const std::string& at, std::size_t depth) {
+    const NodeConfig* n = find(at);
+    if (n == nullptr || n->role == Role::kEdge || depth > nodes.size()) return 0;  // cycles are rejected at parse time
+    int below = 0;
+    for (const auto* c : children(at)) below = std::max(below, levels(c->name, depth + 1));
+    return below + 1;
+  };
+  return levels(node_name, 0);
+}
+
 std::vector<std::uint32_t> TopologyConfig::sensorsBelow(const std::string& node_name) const {
   std::vector<std::uint32_t> out;
   std::function<void(const std::string&, int)> walk = [&](const std::string& at, int depth) {

@@ -61,6 +61,8 @@ struct TopologyConfig {
   const NodeConfig* find(std::uint32_t id) const;
   const NodeConfig* root() const;
   std::vector<const NodeConfig*> children(const std::string& name) const;
+  // Levels of aggregators in the subtree of `name`: 1 when its children are edges, 0 for an edge.
+  int aggregatorLevels(const std::string& name) const;
   // Sensor (edge) node ids in the subtree of `name` (itself if it is an edge), sorted.
   std::vector<std::uint32_t> sensorsBelow(const std::string& name) const;
 };

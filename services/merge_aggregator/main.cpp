@@ -73,7 +73,9 @@ int run(const Args& args, const sigset_t& stop_signals) {
   config.node = self->id;
   config.mode = topology->mode;
   config.is_root = self->parent.empty();
-  config.deadline_ms = topology->deadline_ms;
+  // Deadlines nest: an aggregator with aggregators below waits one deadline per level, so a
+  // child's late-but-complete map (sent at its own deadline) still makes it into the epoch.
+  config.deadline_ms = topology->deadline_ms * topology->aggregatorLevels(self->name);
   config.madc = topology->madc;
   for (const NodeConfig* child : topology->children(self->name)) {
     config.children.push_back({child->id, topology->sensorsBelow(child->name)});
