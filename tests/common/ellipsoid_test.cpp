@@ -12,26 +12,16 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
+#include "tests/common/random_geometry.hpp"
+
 namespace fogmap {
 namespace {
 
 // ---------------------------------------------------------------------------------------------
 // Helpers.
 
-Eigen::Matrix3d randomRotation(std::mt19937_64& rng) {
-  std::normal_distribution<double> normal;
-  Eigen::Quaterniond q(normal(rng), normal(rng), normal(rng), normal(rng));
-  return q.normalized().toRotationMatrix();
-}
-
-Eigen::Vector3d randomUnitVector(std::mt19937_64& rng) {
-  std::normal_distribution<double> normal;
-  Eigen::Vector3d v;
-  do {
-    v = {normal(rng), normal(rng), normal(rng)};
-  } while (v.norm() < 1e-6);
-  return v.normalized();
-}
+using testing::randomRotation;
+using testing::randomUnitVector;
 
 // Shape matrix R diag(semi_axes^2) R^T.
 Eigen::Matrix3d shapeOf(const Eigen::Matrix3d& rotation, const Eigen::Vector3d& semi_axes) {

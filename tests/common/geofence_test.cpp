@@ -10,6 +10,8 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
+#include "tests/common/random_geometry.hpp"
+
 namespace fogmap {
 namespace {
 
@@ -245,20 +247,8 @@ struct RandomCase {
   Geofence fence;
 };
 
-Eigen::Matrix3d randomRotation(std::mt19937_64& rng) {
-  std::normal_distribution<double> normal;
-  Eigen::Quaterniond q(normal(rng), normal(rng), normal(rng), normal(rng));
-  return q.normalized().toRotationMatrix();
-}
-
-Eigen::Vector3d randomUnitVector(std::mt19937_64& rng) {
-  std::normal_distribution<double> normal;
-  Eigen::Vector3d v;
-  do {
-    v = {normal(rng), normal(rng), normal(rng)};
-  } while (v.norm() < 1e-6);
-  return v.normalized();
-}
+using testing::randomRotation;
+using testing::randomUnitVector;
 
 RandomCase randomCase(std::mt19937_64& rng) {
   std::uniform_real_distribution<double> axis(0.1, 3.0);
