@@ -37,8 +37,17 @@ void Emitter::run() {
     lock.unlock();
     pollOnce();
     lock.lock();
-    wake_.wait_for(lock, period_, [this] { return stopping_; });
+    wake_.wait_for(lock, period_, [this] { return stopping_ || woken_; });
+    woken_ = false;
   }
+}
+
+void Emitter::wake() {
+  {
+    std::lock_guard lock(mutex_);
+    woken_ = true;
+  }
+  wake_.notify_one();
 }
 
 std::size_t Emitter::pollOnce() {

@@ -55,6 +55,8 @@ class Emitter {
   // Polls every `period` on a thread until stop().
   void start();
   void stop();
+  // Polls now (from any thread): called when an upload arrives that may complete an epoch.
+  void wake();
   // One poll: emits every due epoch to the sinks, updates metrics; returns how many it emitted.
   std::size_t pollOnce();
 
@@ -69,6 +71,7 @@ class Emitter {
   std::mutex mutex_;
   std::condition_variable wake_;
   bool stopping_ = false;
+  bool woken_ = false;
   std::thread thread_;
 };
 

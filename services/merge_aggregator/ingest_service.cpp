@@ -99,6 +99,7 @@ bool IngestService::handleMap(const MapMessage& map) {
   } else {
     ++accepted_;
     if (metrics_ != nullptr) metrics_->mapsIn();
+    if (on_arrival_) on_arrival_();
   }
   return true;
 }
@@ -117,6 +118,7 @@ bool IngestService::handlePoints(PointChunk chunk) {
   }
   ++accepted_;
   if (metrics_ != nullptr) metrics_->pointsIn(points);
+  if (on_arrival_) on_arrival_();
   // Relayed outside the core's lock: the parent link only queues, but need not hold up others.
   if (outcome->arrival == Arrival::kRelay && outcome->relay && relay_) {
     v1::Upload upload;

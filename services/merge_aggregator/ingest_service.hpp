@@ -39,10 +39,14 @@ class IngestService final : public v1::MapIngest::Service {
   grpc::Status Push(grpc::ServerContext* context, grpc::ServerReaderWriter<v1::Ack, v1::Upload>* stream) override;
 
   IngestCounters counters() const;
+  // Called after every accepted map or chunk, so the emitter can publish a completed epoch at
+  // once instead of at its next poll. Set before the server starts.
+  void onArrival(std::function<void()> callback) { on_arrival_ = std::move(callback); }
 
  private:
   // Hand one converted upload to the core; true when it is to be acknowledged.
   bool handleMap(const MapMessage& map);
+  std::function<void()> on_arrival_;
   bool handlePoints(PointChunk chunk);
   void countMalformed(const std::string& what);
 

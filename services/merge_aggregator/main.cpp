@@ -117,6 +117,7 @@ int run(const Args& args, const sigset_t& stop_signals) {
     sinks.to_parent = to_parent;
   }
   Emitter emitter(aggregator, std::move(sinks), &metrics);
+  ingest.onArrival([&emitter] { emitter.wake(); });
 
   grpc::ServerBuilder builder;
   configureServer(builder, topology->max_message_bytes);
