@@ -66,21 +66,29 @@ Expected<std::optional<Eigen::Vector4d>> fitPriorPlane(std::span<const Point> po
     const Point& p = points[i];
     if (isFinitePoint(p)) cloud->push_back(pcl::PointXYZ(p.x, p.y, p.z));
   }
-  // The ground is the lowest large surface: keep the sample near its bottom (from the 5th
-  // percentile of z, robust to spurious deep returns) so that a bridge deck, a ceiling or a flat
-  // roof with more returns than the road cannot win the RANSAC vote.
+  // Where the ground is roughly known (a mounted sensor: its height), fit only near it, so that
+  // walls, roofs and car bodies cannot win the RANSAC vote; else keep the sample near its bottom
+  // (from the 5th percentile of z, robust to spurious deep returns).
   if (cloud->size() >= 20) {
-    std::vector<float> z;
-    z.reserve(cloud->size());
-    for (const auto& p : *cloud) z.push_back(p.z);
-    auto nth = z.begin() + static_cast<std::ptrdiff_t>(z.size() / 20);
-    std::nth_element(z.begin(), nth, z.end());
-    const float top = *nth + static_cast<float>(params.prior_band_m);
-    pcl::PointCloud<pcl::PointXYZ>::Ptr low(new pcl::PointCloud<pcl::PointXYZ>);
-    for (const auto& p : *cloud) {
-      if (p.z <= top) low->push_back(p);
+    float lo = 0.0F;
+    float hi = 0.0F;
+    if (params.ground_z_hint_m) {
+      lo = static_cast<float>(*params.ground_z_hint_m - params.hint_band_m);
+      hi = static_cast<float>(*params.ground_z_hint_m + params.hint_band_m);
+    } else {
+      std::vector<float> z;
+      z.reserve(cloud->size());
+      for (const auto& p : *cloud) z.push_back(p.z);
+      auto nth = z.begin() + static_cast<std::ptrdiff_t>(z.size() / 20);
+      std::nth_element(z.begin(), nth, z.end());
+      lo = -std::numeric_limits<float>::infinity();
+      hi = *nth + static_cast<float>(params.prior_band_m);
     }
-    if (low->size() >= 3) cloud = low;
+    pcl::PointCloud<pcl::PointXYZ>::Ptr near(new pcl::PointCloud<pcl::PointXYZ>);
+    for (const auto& p : *cloud) {
+      if (p.z >= lo && p.z <= hi) near->push_back(p);
+    }
+    if (near->size() >= 3) cloud = near;
   }
   if (cloud->size() < 3) {
     return invalidArgument("ground removal needs at least 3 finite points, got " + std::to_string(cloud->size()));

@@ -31,7 +31,9 @@ struct GroundParams {
   double max_tilt_deg = 15.0;          // the prior plane's normal is within this angle of +z
   int max_iterations = 50;            // RANSAC iterations for the prior plane (50 % inliers: 35 give p = 0.99)
   std::size_t prior_sample_points = 4096;  // the prior is fitted on an evenly strided sample of about this size
-  double prior_band_m = 2.5;           // ... of the points at most this far above the sample's 5th percentile of z
+  double prior_band_m = 2.5;           // ... of the points at most this far above the sample's 5th percentile of z,
+  std::optional<double> ground_z_hint_m;  // ... or, when the ground height in the common frame is known
+  double hint_band_m = 0.6;               // (a mounted sensor), of the points this close to it
   double cell_m = 1.0;                 // edge of the square x-y cells of the local ground grid
   int neighbourhood_cells = 1;         // a cell's ground is the lowest estimate within this many cells (1: 3 x 3)
   double max_below_prior_m = 1.5;      // points further below the prior plane are spurious returns:

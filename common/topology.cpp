@@ -272,6 +272,12 @@ Expected<TopologyConfig> parseTopology(const std::string& yaml_text, const std::
       if (!(*tilt > 0.0 && *tilt < 90.0)) return bad("preprocess.ground.max_tilt_deg", "must be in (0, 90)");
       ground.distance_threshold_m = *threshold;
       ground.max_tilt_deg = *tilt;
+      if (g["ground_z_hint_m"]) {
+        const auto hint = scalar<double>(g, "ground_z_hint_m", "preprocess.ground", 0.0);
+        if (!hint) return hint.error();
+        if (!std::isfinite(*hint)) return bad("preprocess.ground.ground_z_hint_m", "must be finite");
+        ground.ground_z_hint_m = *hint;
+      }
       t.preprocess.ground = ground;
     }
   }
@@ -342,6 +348,9 @@ TopologyConfig baseTopology(const std::string& name) {
   t.name = name;
   t.preprocess.crop = CropBox{{-40.0, -40.0, -3.0}, {40.0, 40.0, 3.0}};
   t.preprocess.ground = GroundParams{};
+  // The ready-made topologies replay KITTI: the HDL-64E sits 1.73 m above the road, so the ground
+  // lies near z = -1.73 m in the common (first sensor's) frame.
+  t.preprocess.ground->ground_z_hint_m = -1.73;
   return t;
 }
 
@@ -430,7 +439,11 @@ std::string toYaml(const TopologyConfig& t) {
   if (t.preprocess.ground) {
     out << YAML::Key << "ground" << YAML::Value << YAML::BeginMap << YAML::Key << "distance_threshold_m" << YAML::Value
         << t.preprocess.ground->distance_threshold_m << YAML::Key << "max_tilt_deg" << YAML::Value
-        << t.preprocess.ground->max_tilt_deg << YAML::EndMap;
+        << t.preprocess.ground->max_tilt_deg;
+    if (t.preprocess.ground->ground_z_hint_m) {
+      out << YAML::Key << "ground_z_hint_m" << YAML::Value << *t.preprocess.ground->ground_z_hint_m;
+    }
+    out << YAML::EndMap;
   }
   out << YAML::EndMap;
   out << YAML::Key << "nodes" << YAML::Value << YAML::BeginSeq;
