@@ -157,7 +157,7 @@ Clustering euclideanClusters(std::span<const Point> points, const ClusteringPara
   auto boxGap2 = [](const float* lo_hi, const float* p) {
     float g = 0.0F;
     for (int a = 0; a < 3; ++a) {
-      const float d = std::max({lo_hi[a] - p[a], p[a] - lo_hi[3 + a], 0.0F});
+      const float d = std::max(std::max(lo_hi[a] - p[a], p[a] - lo_hi[3 + a]), 0.0F);
       g += d * d;
     }
     return g;
@@ -165,7 +165,7 @@ Clustering euclideanClusters(std::span<const Point> points, const ClusteringPara
   auto boxesGap2 = [](const std::array<float, 6>& x, const std::array<float, 6>& y) {
     float g = 0.0F;
     for (int a = 0; a < 3; ++a) {
-      const float d = std::max({x[a] - y[3 + a], y[a] - x[3 + a], 0.0F});
+      const float d = std::max(std::max(x[a] - y[3 + a], y[a] - x[3 + a]), 0.0F);
       g += d * d;
     }
     return g;
@@ -181,32 +181,30 @@ Clustering euclideanClusters(std::span<const Point> points, const ClusteringPara
     return false;
   };
 
-  // Neighbour cells two or fewer cells away per axis, forward half only (each unordered pair
-  // once). In the packed key a neighbour offset is a constant, so for each offset the neighbours
-  // of consecutive cells lie at non-decreasing positions of the sorted key list: one cursor per
-  // offset walks it once (a merge join of the list with itself), with no hashing.
-  struct Offset {
-    std::int64_t shift;  // key(neighbour column, same z) - key(cell)
-    std::size_t cursor;
-  };
-  std::vector<Offset> offsets;
-  for (std::int64_t dx = 0; dx <= 2; ++dx) {
-    for (std::int64_t dy = -2; dy <= 2; ++dy) {
-      if (dx == 0 && dy < 0) continue;
-      offsets.push_back({dx * (std::int64_t{1} << (by + bz)) + dy * (std::int64_t{1} << bz), 0});
-    }
-  }
+  // Neighbour cells lie at most two cells away per axis; only the forward half is visited (each
+  // unordered pair once). In key order the cells of columns (x + dx, y - 2 .. y + 2) form one
+  // contiguous run, whose bounds are the cell's key plus constants, so for each dx the runs of
+  // consecutive cells start at non-decreasing positions: one cursor per dx walks the sorted keys
+  // once (a merge join of the list with itself), with no hashing; a z test drops the cells of
+  // the middle columns that are more than two cells above or below.
+  const std::int64_t x_unit = std::int64_t{1} << (by + bz);
+  const std::int64_t y_unit = std::int64_t{1} << bz;
+  const std::uint64_t z_mask = (std::uint64_t{1} << bz) - 1;
+  std::array<std::size_t, 3> cursor{};
   DisjointSets sets(cells);
   for (std::size_t c = 0; c < cells; ++c) {
     const auto key = static_cast<std::int64_t>(cell_key[c]);
-    for (auto& off : offsets) {
-      // Same column: only the cells above; other columns: z from two below to two above.
-      const std::int64_t lo = off.shift == 0 ? key + 1 : key + off.shift - 2;
-      const std::int64_t hi = key + off.shift + 2;
-      auto o = off.cursor;
+    const auto cz = static_cast<std::int64_t>(cell_key[c] & z_mask);
+    for (std::int64_t dx = 0; dx <= 2; ++dx) {
+      // dx = 0: the cells above in the same column, then columns y + 1 and y + 2.
+      const std::int64_t lo = dx == 0 ? key + 1 : key + dx * x_unit - 2 * y_unit - 2;
+      const std::int64_t hi = key + dx * x_unit + 2 * y_unit + 2;
+      auto o = cursor[static_cast<std::size_t>(dx)];
       while (o < cells && static_cast<std::int64_t>(cell_key[o]) < lo) ++o;
-      off.cursor = o;
+      cursor[static_cast<std::size_t>(dx)] = o;
       for (; o < cells && static_cast<std::int64_t>(cell_key[o]) <= hi; ++o) {
+        const auto oz = static_cast<std::int64_t>(cell_key[o] & z_mask);
+        if (oz < cz - 2 || oz > cz + 2) continue;
         if (boxesGap2(cell_box[c], cell_box[o]) > gap_limit) continue;
         if (sets.find(c) == sets.find(o)) continue;
         if (closeCells(c, o)) sets.unite(c, o);
