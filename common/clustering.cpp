@@ -195,6 +195,8 @@ Clustering euclideanClusters(std::span<const Point> points, const ClusteringPara
   for (std::size_t c = 0; c < cells; ++c) {
     const auto key = static_cast<std::int64_t>(cell_key[c]);
     const auto cz = static_cast<std::int64_t>(cell_key[c] & z_mask);
+    const std::array<float, 6> box = cell_box[c];
+    std::size_t root = sets.find(c);
     for (std::int64_t dx = 0; dx <= 2; ++dx) {
       // dx = 0: the cells above in the same column, then columns y + 1 and y + 2.
       const std::int64_t lo = dx == 0 ? key + 1 : key + dx * x_unit - 2 * y_unit - 2;
@@ -205,9 +207,12 @@ Clustering euclideanClusters(std::span<const Point> points, const ClusteringPara
       for (; o < cells && static_cast<std::int64_t>(cell_key[o]) <= hi; ++o) {
         const auto oz = static_cast<std::int64_t>(cell_key[o] & z_mask);
         if (oz < cz - 2 || oz > cz + 2) continue;
-        if (boxesGap2(cell_box[c], cell_box[o]) > gap_limit) continue;
-        if (sets.find(c) == sets.find(o)) continue;
-        if (closeCells(c, o)) sets.unite(c, o);
+        if (boxesGap2(box, cell_box[o]) > gap_limit) continue;
+        if (sets.find(o) == root) continue;
+        if (closeCells(c, o)) {
+          sets.unite(c, o);
+          root = sets.find(c);
+        }
       }
     }
   }

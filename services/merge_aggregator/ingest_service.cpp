@@ -74,7 +74,8 @@ grpc::Status IngestService::Push(grpc::ServerContext* /*context*/,
         return toGrpcStatus(connected.error());
       }
       child = *connected;
-      peer = std::to_string(*child);
+      const auto name = peer_names_.find(*child);
+      peer = name != peer_names_.end() ? name->second : std::to_string(*child);
     }
     if (metrics_ != nullptr) metrics_->bytesReceived(peer, kindOf(upload), bytes);
 

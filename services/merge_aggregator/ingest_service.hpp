@@ -14,6 +14,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <string>
 
 #include "fogmap/v1/fogmap.grpc.pb.h"
@@ -42,11 +43,15 @@ class IngestService final : public v1::MapIngest::Service {
   // Called after every accepted map or chunk, so the emitter can publish a completed epoch at
   // once instead of at its next poll. Set before the server starts.
   void onArrival(std::function<void()> callback) { on_arrival_ = std::move(callback); }
+  // Names for the `peer` label of the byte counters (child id -> node name), so that they match the
+  // sender's own label; unnamed children are labelled by id. Set before the server starts.
+  void peerNames(std::map<std::uint32_t, std::string> names) { peer_names_ = std::move(names); }
 
  private:
   // Hand one converted upload to the core; true when it is to be acknowledged.
   bool handleMap(const MapMessage& map);
   std::function<void()> on_arrival_;
+  std::map<std::uint32_t, std::string> peer_names_;
   bool handlePoints(PointChunk chunk);
   void countMalformed(const std::string& what);
 

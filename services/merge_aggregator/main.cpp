@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <exception>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -118,6 +119,9 @@ int run(const Args& args, const sigset_t& stop_signals) {
   }
   Emitter emitter(aggregator, std::move(sinks), &metrics);
   ingest.onArrival([&emitter] { emitter.wake(); });
+  std::map<std::uint32_t, std::string> peer_names;
+  for (const NodeConfig* child : topology->children(self->name)) peer_names[child->id] = child->name;
+  ingest.peerNames(std::move(peer_names));
 
   grpc::ServerBuilder builder;
   configureServer(builder, topology->max_message_bytes);
