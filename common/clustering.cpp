@@ -4,7 +4,6 @@
 #include <array>
 #include <bit>
 #include <cmath>
-#include <cstring>
 #include <deque>
 #include <memory>
 
@@ -46,6 +45,13 @@ inline float squaredDistance(const float* a, const float* b) {
   d = a[2] - b[2];
   r += d * d;
   return r;
+}
+
+pcl::PointCloud<pcl::PointXYZ>::Ptr toPcl(std::span<const Point> points) {
+  auto cloud = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
+  cloud->resize(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) (*cloud)[i] = pcl::PointXYZ(points[i].x, points[i].y, points[i].z);
+  return cloud;
 }
 
 int bitsFor(std::uint64_t span) { return span == 0 ? 1 : static_cast<int>(std::bit_width(span)); }
@@ -244,9 +250,7 @@ Clustering euclideanClusters(std::span<const Point> points, const ClusteringPara
 }
 
 Clustering pclEuclideanClusters(std::span<const Point> points, const ClusteringParams& params, bool sorted_search) {
-  auto cloud = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
-  cloud->resize(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i) (*cloud)[i] = pcl::PointXYZ(points[i].x, points[i].y, points[i].z);
+  const auto cloud = toPcl(points);
   std::vector<std::int32_t> labels(points.size(), -1);
   if (points.empty()) return {};
   auto tree = std::make_shared<pcl::search::KdTree<pcl::PointXYZ>>(sorted_search);
@@ -277,9 +281,7 @@ Clustering clusterPoints(std::span<const Point> points, const ClusteringParams& 
 Clustering dbscan(std::span<const Point> points, const DbscanParams& params) {
   const std::size_t n = points.size();
   if (n == 0) return {};
-  auto cloud = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
-  cloud->resize(n);
-  for (std::size_t i = 0; i < n; ++i) (*cloud)[i] = pcl::PointXYZ(points[i].x, points[i].y, points[i].z);
+  const auto cloud = toPcl(points);
   pcl::search::KdTree<pcl::PointXYZ> tree(false);
   tree.setInputCloud(cloud);
 

@@ -1,8 +1,8 @@
 #pragma once
 // Euclidean clustering with exactly the semantics of PCL's EuclideanClusterExtraction (points
 // closer than eps, strictly, are connected; connected components with fewer than min_points or
-// more than max_points points are noise), computed fast on a hashed voxel grid; PCL itself as
-// the reference; DBSCAN.
+// more than max_points points are noise), computed fast on a sorted voxel grid; PCL itself as the
+// reference; DBSCAN.
 #include <cstdint>
 #include <limits>
 #include <span>

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <map>
 #include <numeric>
 
 namespace fogmap {
@@ -124,41 +125,24 @@ MergeResult mergeMaps(std::span<const Map* const> maps) {
     }
   }
 
-  // All-pairs count: every cross-node pair of ellipsoids from different maps.
+  // All-pairs count: pairs from different maps and different nodes =
+  // all pairs - pairs within a map - pairs within a node + pairs within both.
   {
-    std::vector<std::pair<std::size_t, std::uint32_t>> map_node;  // (map, node) per item, sorted
-    map_node.reserve(items.size());
-    for (const auto& it : items) map_node.emplace_back(it.map, it.ellipsoid->node());
-    std::sort(map_node.begin(), map_node.end());
-    std::vector<std::uint64_t> per_map(maps.size(), 0);
-    for (const auto& [m, node] : map_node) ++per_map[m];
-    std::uint64_t cross_maps = 0;
-    std::uint64_t seen = 0;
-    for (const auto c : per_map) {
-      cross_maps += seen * c;
-      seen += c;
+    auto pairsWithin = [](const auto& counts) {
+      std::uint64_t p = 0;
+      for (const auto& [key, c] : counts) p += c * (c - 1) / 2;
+      return p;
+    };
+    std::map<std::size_t, std::uint64_t> per_map;
+    std::map<std::uint32_t, std::uint64_t> per_node;
+    std::map<std::pair<std::size_t, std::uint32_t>, std::uint64_t> per_both;
+    for (const auto& it : items) {
+      ++per_map[it.map];
+      ++per_node[it.ellipsoid->node()];
+      ++per_both[{it.map, it.ellipsoid->node()}];
     }
-    // Subtract pairs from different maps but the same node (a node can feed several maps).
-    std::vector<std::pair<std::uint32_t, std::size_t>> node_map;
-    for (const auto& [m, node] : map_node) node_map.emplace_back(node, m);
-    std::sort(node_map.begin(), node_map.end());
-    std::uint64_t same_node = 0;
-    for (std::size_t i = 0; i < node_map.size();) {
-      std::size_t j = i;
-      std::uint64_t node_total = 0;
-      std::uint64_t node_pairs_same_map = 0;
-      while (j < node_map.size() && node_map[j].first == node_map[i].first) {
-        std::size_t k = j;
-        while (k < node_map.size() && node_map[k] == node_map[j]) ++k;
-        const auto c = static_cast<std::uint64_t>(k - j);
-        node_pairs_same_map += c * (c - 1) / 2;
-        node_total += c;
-        j = k;
-      }
-      same_node += node_total * (node_total - 1) / 2 - node_pairs_same_map;
-      i = j;
-    }
-    result.stats.pairs_all = cross_maps - same_node;
+    const auto n = static_cast<std::uint64_t>(items.size());
+    result.stats.pairs_all = n * (n - (n > 0 ? 1 : 0)) / 2 - pairsWithin(per_map) - pairsWithin(per_node) + pairsWithin(per_both);
   }
 
   // Sort-and-sweep over the ellipsoids' delimiting boxes along x (ellipsoid boxes prune better
