@@ -4,8 +4,10 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <cstring>
 #include <deque>
 #include <memory>
+#include <optional>
 
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
@@ -34,19 +36,6 @@ Clustering canonicalize(std::span<const std::int32_t> labels) {
 
 namespace {
 
-// Squared distance exactly as FLANN's L2_Simple computes it (float, x then y then z), so that the
-// strict "closer than eps" decision matches PCL's radius search bit for bit.
-inline float squaredDistance(const float* a, const float* b) {
-  float r = 0.0F;
-  float d = a[0] - b[0];
-  r += d * d;
-  d = a[1] - b[1];
-  r += d * d;
-  d = a[2] - b[2];
-  r += d * d;
-  return r;
-}
-
 pcl::PointCloud<pcl::PointXYZ>::Ptr toPcl(std::span<const Point> points) {
   auto cloud = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
   cloud->resize(points.size());
@@ -56,42 +45,77 @@ pcl::PointCloud<pcl::PointXYZ>::Ptr toPcl(std::span<const Point> points) {
 
 int bitsFor(std::uint64_t span) { return span == 0 ? 1 : static_cast<int>(std::bit_width(span)); }
 
-// LSD radix sort of (key, payload) pairs by key, 11 bits a pass, only over the bits in use.
-void radixSort(std::vector<std::uint64_t>& keys, std::vector<std::uint32_t>& payload, int key_bits) {
-  constexpr int kDigitBits = 11;
-  constexpr std::size_t kBuckets = std::size_t{1} << kDigitBits;
-  std::vector<std::uint64_t> keys_tmp(keys.size());
-  std::vector<std::uint32_t> payload_tmp(payload.size());
-  std::vector<std::uint32_t> offsets(kBuckets);
-  for (int shift = 0; shift < key_bits; shift += kDigitBits) {
-    std::fill(offsets.begin(), offsets.end(), 0U);
-    for (const auto k : keys) ++offsets[(k >> shift) & (kBuckets - 1)];
+// LSD radix sort of 64-bit words by their bits [shift, shift + key_bits): as few passes of at
+// most 11 bits as cover the key, every histogram counted in one read.
+void radixSort(std::vector<std::uint64_t>& words, int shift, int key_bits) {
+  constexpr int kMaxDigitBits = 11;
+  const int passes = (key_bits + kMaxDigitBits - 1) / kMaxDigitBits;
+  const int digit_bits = (key_bits + passes - 1) / passes;
+  const std::size_t buckets = std::size_t{1} << digit_bits;
+  const std::uint64_t digit_mask = buckets - 1;
+  std::vector<std::uint32_t> offsets(buckets * static_cast<std::size_t>(passes), 0U);
+  for (const auto w : words) {
+    for (int p = 0; p < passes; ++p) {
+      ++offsets[static_cast<std::size_t>(p) * buckets + ((w >> (shift + p * digit_bits)) & digit_mask)];
+    }
+  }
+  std::vector<std::uint64_t> tmp(words.size());
+  for (int p = 0; p < passes; ++p) {
+    std::uint32_t* offset = &offsets[static_cast<std::size_t>(p) * buckets];
     std::uint32_t sum = 0;
-    for (auto& o : offsets) {
-      const auto c = o;
-      o = sum;
-      sum += c;
+    for (std::size_t d = 0; d < buckets; ++d) {
+      const auto count = offset[d];
+      offset[d] = sum;
+      sum += count;
     }
-    for (std::size_t i = 0; i < keys.size(); ++i) {
-      const auto pos = offsets[(keys[i] >> shift) & (kBuckets - 1)]++;
-      keys_tmp[pos] = keys[i];
-      payload_tmp[pos] = payload[i];
-    }
-    keys.swap(keys_tmp);
-    payload.swap(payload_tmp);
+    const int digit_shift = shift + p * digit_bits;
+    for (const auto w : words) tmp[offset[(w >> digit_shift) & digit_mask]++] = w;
+    words.swap(tmp);
   }
 }
 
-}  // namespace
+// Four lanes of a 128-bit register (GCC/Clang vector extension; plain SSE2 or NEON code).
+using Floats4 = float __attribute__((vector_size(16)));
+using Ints4 = std::int32_t __attribute__((vector_size(16)));
+constexpr std::size_t kLanes = 4;
+constexpr std::size_t kChunk = 2 * kLanes;  // cells filtered at once
 
-Clustering euclideanClusters(std::span<const Point> points, const ClusteringParams& params) {
+template <typename V, typename T>
+V loadLanes(const T* p) {
+  V v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+
+Floats4 gapLanes(Floats4 lo, Floats4 hi, Floats4 other_lo, Floats4 other_hi) {
+  const Floats4 a = lo - other_hi;
+  const Floats4 b = other_lo - hi;
+  const Floats4 g = a > b ? a : b;
+  return g > Floats4{} ? g : Floats4{};
+}
+
+// The points sorted into grid cells, cells into (x, y) columns, in key order (x, then y, then z).
+struct SortedGrid {
+  int z_bits = 0;
+  int y_bits = 0;
+  std::vector<std::uint64_t> words;  // per sorted point: cell key << index_bits | input index
+  std::uint64_t index_mask = 0;
+  std::vector<float> x, y, z;        // per sorted point, padded by a lane group
+  std::vector<std::uint32_t> cell_begin;  // cells as runs of sorted points, plus the end
+  std::vector<std::int32_t> cell_z;       // z index per cell, padded by a chunk
+  std::array<std::vector<float>, 6> box;  // tight box per cell (lo xyz, hi xyz), padded by a chunk
+  std::vector<std::uint32_t> column_begin;  // columns as runs of cells, plus the end
+  std::vector<std::uint64_t> column_key;    // (x, y) per column, plus a sentinel
+  std::size_t cells() const { return cell_z.size() - kChunk; }
+  std::size_t columns() const { return column_key.size() - 1; }
+};
+
+// Cell edge slightly under eps/sqrt(3): any two points of one cell are closer than eps, so a
+// cell is connected for free. Points closer than eps are then at most two cells apart per axis.
+// Returns nothing when the scene is too wide for one 64-bit word per point.
+std::optional<SortedGrid> sortIntoGrid(std::span<const Point> points, double eps) {
   const std::size_t n = points.size();
-  if (n == 0) return {};
-  // Cell edge slightly under eps/sqrt(3): any two points of one cell are closer than eps, so a
-  // cell is connected for free. Points closer than eps are then at most two cells apart per axis.
-  const double cell = params.eps_m / std::sqrt(3.0) * (1.0 - 1e-5);
-  const auto eps2 = static_cast<float>(params.eps_m * params.eps_m);
-
+  const double cell = eps / std::sqrt(3.0) * (1.0 - 1e-5);
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   Eigen::Vector3d hi = -lo;
   for (const auto& p : points) {
@@ -101,138 +125,186 @@ Clustering euclideanClusters(std::span<const Point> points, const ClusteringPara
   }
   // Two cells of margin so that neighbour offsets never leave the coordinate range.
   const Eigen::Vector3d origin = lo - Eigen::Vector3d::Constant(2.0 * cell);
-  std::array<std::uint64_t, 3> span{};
-  for (int a = 0; a < 3; ++a) span[a] = static_cast<std::uint64_t>(std::floor((hi[a] - origin[a]) / cell)) + 3;
-  const int bz = bitsFor(span[2]);
-  const int by = bitsFor(span[1]);
-  const int bx = bitsFor(span[0]);
-  if (bx + by + bz > 63) {
-    // A scene wider than ~10^5 km at this eps: no packed key fits, use the reference.
-    return pclEuclideanClusters(points, params, false);
-  }
-  auto cellKey = [&](const Point& p) {
-    const auto ix = static_cast<std::uint64_t>((p.x - origin[0]) / cell);
-    const auto iy = static_cast<std::uint64_t>((p.y - origin[1]) / cell);
-    const auto iz = static_cast<std::uint64_t>((p.z - origin[2]) / cell);
-    return (ix << (by + bz)) | (iy << bz) | iz;
-  };
+  std::array<int, 3> bits{};
+  for (int a = 0; a < 3; ++a) bits[a] = bitsFor(static_cast<std::uint64_t>(std::floor((hi[a] - origin[a]) / cell)) + 3);
+  const int key_bits = bits[0] + bits[1] + bits[2];
+  const int index_bits = bitsFor(n);
+  if (key_bits + index_bits > 64) return std::nullopt;
 
-  std::vector<std::uint64_t> keys(n);
-  std::vector<std::uint32_t> order(n);
+  SortedGrid g;
+  g.z_bits = bits[2];
+  g.y_bits = bits[1];
+  g.index_mask = (std::uint64_t{1} << index_bits) - 1;
+  const double inv_cell = 1.0 / cell;
+  g.words.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
-    keys[i] = cellKey(points[i]);
-    order[i] = static_cast<std::uint32_t>(i);
+    const auto& p = points[i];
+    const auto ix = static_cast<std::uint64_t>(static_cast<std::int64_t>((p.x - origin[0]) * inv_cell));
+    const auto iy = static_cast<std::uint64_t>(static_cast<std::int64_t>((p.y - origin[1]) * inv_cell));
+    const auto iz = static_cast<std::uint64_t>(static_cast<std::int64_t>((p.z - origin[2]) * inv_cell));
+    g.words[i] = (((ix << (bits[1] + bits[2])) | (iy << bits[2]) | iz) << index_bits) | i;
   }
-  radixSort(keys, order, bx + by + bz);
+  radixSort(g.words, index_bits, key_bits);
 
-  // Points in cell order, packed xyz for the closest-pair checks; cells as runs.
-  std::vector<float> xyz(3 * n);
-  std::vector<std::uint32_t> cell_begin;
+  g.x.assign(n + kLanes, 0.0F);
+  g.y.assign(n + kLanes, 0.0F);
+  g.z.assign(n + kLanes, 0.0F);
   std::vector<std::uint64_t> cell_key;
-  cell_begin.reserve(n / 2 + 1);
   cell_key.reserve(n / 2 + 1);
+  g.cell_begin.reserve(n / 2 + 1);
+  constexpr std::size_t kPrefetch = 16;
   for (std::size_t i = 0; i < n; ++i) {
-    const auto& p = points[order[i]];
-    xyz[3 * i] = p.x;
-    xyz[3 * i + 1] = p.y;
-    xyz[3 * i + 2] = p.z;
-    if (i == 0 || keys[i] != keys[i - 1]) {
-      cell_begin.push_back(static_cast<std::uint32_t>(i));
-      cell_key.push_back(keys[i]);
+    if (i + kPrefetch < n) __builtin_prefetch(&points[g.words[i + kPrefetch] & g.index_mask]);
+    const auto& p = points[g.words[i] & g.index_mask];
+    g.x[i] = p.x;
+    g.y[i] = p.y;
+    g.z[i] = p.z;
+    const auto key = g.words[i] >> index_bits;
+    if (i == 0 || key != cell_key.back()) {
+      g.cell_begin.push_back(static_cast<std::uint32_t>(i));
+      cell_key.push_back(key);
     }
   }
   const std::size_t cells = cell_key.size();
-  cell_begin.push_back(static_cast<std::uint32_t>(n));
+  g.cell_begin.push_back(static_cast<std::uint32_t>(n));
 
-  // Tight box of each cell's points: most neighbouring cells are too far apart to hold a close
-  // pair, and inside a pair check only points near the other cell's box can match.
-  std::vector<std::array<float, 6>> cell_box(cells);
+  const std::uint64_t z_mask = (std::uint64_t{1} << g.z_bits) - 1;
+  g.cell_z.assign(cells + kChunk, 0);
+  for (auto& b : g.box) b.assign(cells + kChunk, 0.0F);
   for (std::size_t c = 0; c < cells; ++c) {
-    auto& b = cell_box[c];
-    const float* p = &xyz[3 * cell_begin[c]];
-    b = {p[0], p[1], p[2], p[0], p[1], p[2]};
-    for (auto i = cell_begin[c] + 1; i < cell_begin[c + 1]; ++i) {
-      for (int a = 0; a < 3; ++a) {
-        b[a] = std::min(b[a], xyz[3 * i + a]);
-        b[3 + a] = std::max(b[3 + a], xyz[3 * i + a]);
-      }
+    g.cell_z[c] = static_cast<std::int32_t>(cell_key[c] & z_mask);
+    auto i = g.cell_begin[c];
+    std::array<float, 6> b{g.x[i], g.y[i], g.z[i], g.x[i], g.y[i], g.z[i]};
+    for (++i; i < g.cell_begin[c + 1]; ++i) {
+      b[0] = std::min(b[0], g.x[i]);
+      b[1] = std::min(b[1], g.y[i]);
+      b[2] = std::min(b[2], g.z[i]);
+      b[3] = std::max(b[3], g.x[i]);
+      b[4] = std::max(b[4], g.y[i]);
+      b[5] = std::max(b[5], g.z[i]);
+    }
+    for (int a = 0; a < 6; ++a) g.box[a][c] = b[a];
+  }
+  for (std::size_t c = 0; c < cells; ++c) {
+    const auto column = cell_key[c] >> g.z_bits;
+    if (c == 0 || column != g.column_key.back()) {
+      g.column_begin.push_back(static_cast<std::uint32_t>(c));
+      g.column_key.push_back(column);
     }
   }
-  // A box gap this large rules a pair out; the slack keeps rounding from ruling out a true pair.
-  const float gap_limit = eps2 * 1.0001F;
-  auto boxGap2 = [](const float* lo_hi, const float* p) {
-    float g = 0.0F;
-    for (int a = 0; a < 3; ++a) {
-      const float d = std::max(std::max(lo_hi[a] - p[a], p[a] - lo_hi[3 + a]), 0.0F);
-      g += d * d;
-    }
-    return g;
-  };
-  auto boxesGap2 = [](const std::array<float, 6>& x, const std::array<float, 6>& y) {
-    float g = 0.0F;
-    for (int a = 0; a < 3; ++a) {
-      const float d = std::max(std::max(x[a] - y[3 + a], y[a] - x[3 + a]), 0.0F);
-      g += d * d;
-    }
-    return g;
-  };
+  g.column_begin.push_back(static_cast<std::uint32_t>(cells));
+  g.column_key.push_back(std::numeric_limits<std::uint64_t>::max());
+  return g;
+}
 
+// Union-find over cells: every pair of cells holding two points closer than eps is joined.
+// Columns are visited in key order and only forward pairs are looked at (each unordered pair
+// once). The later cells that can hold a neighbour of a column's cells form three contiguous
+// runs in key order: the rest of the column and columns (x, y+1), (x, y+2); columns
+// (x+1, y-2 .. y+2); columns (x+2, y-2 .. y+2). Their bounds are the column key plus constants,
+// so five cursors walk the column list once (a merge join of the list with itself, no hashing).
+// Each run is filtered a chunk of cells at a time, branch-free: z index within two and box gap
+// under eps; the survivors get the union-find test and an early-exit closest-pair check.
+void joinCloseCells(const SortedGrid& g, float eps, DisjointSets& sets) {
+  const float eps2 = eps * eps;
+  const float gap_limit = eps2 * 1.0001F;  // slack so that rounding never drops a true pair
+  const auto& [lx, ly, lz, hx, hy, hz] = g.box;
+
+  // Squared distances exactly as FLANN's L2_Simple computes them (float, x then y then z), so that
+  // the strict "closer than eps" decision matches PCL's radius search bit for bit.
   auto closeCells = [&](std::size_t a, std::size_t b) {
-    for (auto i = cell_begin[a]; i < cell_begin[a + 1]; ++i) {
-      if (boxGap2(cell_box[b].data(), &xyz[3 * i]) > gap_limit) continue;
-      for (auto j = cell_begin[b]; j < cell_begin[b + 1]; ++j) {
-        if (squaredDistance(&xyz[3 * i], &xyz[3 * j]) < eps2) return true;
+    for (auto i = g.cell_begin[a]; i < g.cell_begin[a + 1]; ++i) {
+      const float gx = std::max(std::max(lx[b] - g.x[i], g.x[i] - hx[b]), 0.0F);
+      const float gy = std::max(std::max(ly[b] - g.y[i], g.y[i] - hy[b]), 0.0F);
+      const float gz = std::max(std::max(lz[b] - g.z[i], g.z[i] - hz[b]), 0.0F);
+      if (gx * gx + gy * gy + gz * gz > gap_limit) continue;
+      for (auto j = g.cell_begin[b]; j < g.cell_begin[b + 1]; ++j) {
+        float r = 0.0F;
+        float d = g.x[i] - g.x[j];
+        r += d * d;
+        d = g.y[i] - g.y[j];
+        r += d * d;
+        d = g.z[i] - g.z[j];
+        r += d * d;
+        if (r < eps2) return true;
       }
     }
     return false;
   };
 
-  // Neighbour cells lie at most two cells away per axis; only the forward half is visited (each
-  // unordered pair once). In key order the cells of columns (x + dx, y - 2 .. y + 2) form one
-  // contiguous run, whose bounds are the cell's key plus constants, so for each dx the runs of
-  // consecutive cells start at non-decreasing positions: one cursor per dx walks the sorted keys
-  // once (a merge join of the list with itself), with no hashing; a z test drops the cells of
-  // the middle columns that are more than two cells above or below.
-  const std::int64_t x_unit = std::int64_t{1} << (by + bz);
-  const std::int64_t y_unit = std::int64_t{1} << bz;
-  const std::uint64_t z_mask = (std::uint64_t{1} << bz) - 1;
-  std::array<std::size_t, 3> cursor{};
-  DisjointSets sets(cells);
-  for (std::size_t c = 0; c < cells; ++c) {
-    const auto key = static_cast<std::int64_t>(cell_key[c]);
-    const auto cz = static_cast<std::int64_t>(cell_key[c] & z_mask);
-    const std::array<float, 6> box = cell_box[c];
-    std::size_t root = sets.find(c);
-    for (std::int64_t dx = 0; dx <= 2; ++dx) {
-      // dx = 0: the cells above in the same column, then columns y + 1 and y + 2.
-      const std::int64_t lo = dx == 0 ? key + 1 : key + dx * x_unit - 2 * y_unit - 2;
-      const std::int64_t hi = key + dx * x_unit + 2 * y_unit + 2;
-      auto o = cursor[static_cast<std::size_t>(dx)];
-      while (o < cells && static_cast<std::int64_t>(cell_key[o]) < lo) ++o;
-      cursor[static_cast<std::size_t>(dx)] = o;
-      for (; o < cells && static_cast<std::int64_t>(cell_key[o]) <= hi; ++o) {
-        const auto oz = static_cast<std::int64_t>(cell_key[o] & z_mask);
-        if (oz < cz - 2 || oz > cz + 2) continue;
-        if (boxesGap2(box, cell_box[o]) > gap_limit) continue;
-        if (sets.find(o) == root) continue;
-        if (closeCells(c, o)) {
-          sets.unite(c, o);
-          root = sets.find(c);
+  // Bit k set: cell base + k (k < count) is within two z cells of c and its box within eps.
+  auto candidates = [&](std::size_t c, std::size_t base, std::size_t count) {
+    const Floats4 cx0 = Floats4{} + lx[c], cy0 = Floats4{} + ly[c], cz0 = Floats4{} + lz[c];
+    const Floats4 cx1 = Floats4{} + hx[c], cy1 = Floats4{} + hy[c], cz1 = Floats4{} + hz[c];
+    unsigned mask = 0;
+    for (std::size_t h = 0; h < kChunk; h += kLanes) {
+      const std::size_t o = base + h;
+      const Floats4 gx = gapLanes(cx0, cx1, loadLanes<Floats4>(&lx[o]), loadLanes<Floats4>(&hx[o]));
+      const Floats4 gy = gapLanes(cy0, cy1, loadLanes<Floats4>(&ly[o]), loadLanes<Floats4>(&hy[o]));
+      const Floats4 gz = gapLanes(cz0, cz1, loadLanes<Floats4>(&lz[o]), loadLanes<Floats4>(&hz[o]));
+      const Ints4 dz = loadLanes<Ints4>(&g.cell_z[o]) - g.cell_z[c];
+      const Ints4 pass = (gx * gx + gy * gy + gz * gz <= gap_limit) & (dz >= -2) & (dz <= 2);
+      const Ints4 bit = pass & Ints4{1, 2, 4, 8};
+      mask |= static_cast<unsigned>(bit[0] | bit[1] | bit[2] | bit[3]) << h;
+    }
+    return count < kChunk ? mask & ((1U << count) - 1) : mask;
+  };
+
+  const std::uint64_t x_unit = std::uint64_t{1} << g.y_bits;
+  // First column at or after (x, y+3), (x+1, y-2), (x+1, y+3), (x+2, y-2), (x+2, y+3).
+  std::array<std::size_t, 5> cursor{};
+  auto firstCellFrom = [&](std::size_t& k, std::uint64_t column) {
+    while (g.column_key[k] < column) ++k;
+    return g.column_begin[k];
+  };
+  for (std::size_t col = 0; col < g.columns(); ++col) {
+    const auto key = g.column_key[col];
+    const std::array<std::uint32_t, 3> run_end{firstCellFrom(cursor[0], key + 3),
+                                               firstCellFrom(cursor[2], key + x_unit + 3),
+                                               firstCellFrom(cursor[4], key + 2 * x_unit + 3)};
+    const std::array<std::uint32_t, 2> run_begin{firstCellFrom(cursor[1], key + x_unit - 2),
+                                                 firstCellFrom(cursor[3], key + 2 * x_unit - 2)};
+    for (auto c = g.column_begin[col]; c < g.column_begin[col + 1]; ++c) {
+      std::size_t root = sets.find(c);
+      for (std::size_t r = 0; r < 3; ++r) {
+        const std::size_t begin = r == 0 ? c + 1 : run_begin[r - 1];
+        for (std::size_t base = begin; base < run_end[r]; base += kChunk) {
+          for (auto mask = candidates(c, base, run_end[r] - base); mask != 0; mask &= mask - 1) {
+            const std::size_t o = base + static_cast<std::size_t>(std::countr_zero(mask));
+            if (sets.find(o) == root || !closeCells(c, o)) continue;
+            sets.unite(c, o);
+            root = sets.find(c);
+          }
         }
       }
     }
   }
+}
+
+}  // namespace
+
+Clustering euclideanClusters(std::span<const Point> points, const ClusteringParams& params) {
+  const std::size_t n = points.size();
+  if (n == 0) return {};
+  const auto grid = sortIntoGrid(points, params.eps_m);
+  // A scene wider than ~10^4 km at this eps: no word fits, use the reference.
+  if (!grid) return pclEuclideanClusters(points, params, false);
+  const std::size_t cells = grid->cells();
+  DisjointSets sets(cells);
+  joinCloseCells(*grid, static_cast<float>(params.eps_m), sets);
 
   // Component sizes, then canonical labels in the order of each cluster's first point.
   std::vector<std::uint32_t> root_of(cells);
   std::vector<std::uint64_t> component_size(cells, 0);
   for (std::size_t c = 0; c < cells; ++c) {
     root_of[c] = static_cast<std::uint32_t>(sets.find(c));
-    component_size[root_of[c]] += cell_begin[c + 1] - cell_begin[c];
+    component_size[root_of[c]] += grid->cell_begin[c + 1] - grid->cell_begin[c];
   }
   std::vector<std::uint32_t> cell_of_point(n);
   for (std::size_t c = 0; c < cells; ++c) {
-    for (auto i = cell_begin[c]; i < cell_begin[c + 1]; ++i) cell_of_point[order[i]] = static_cast<std::uint32_t>(c);
+    for (auto i = grid->cell_begin[c]; i < grid->cell_begin[c + 1]; ++i) {
+      cell_of_point[grid->words[i] & grid->index_mask] = static_cast<std::uint32_t>(c);
+    }
   }
   std::vector<std::int32_t> label_of_root(cells, -2);  // -2: not yet decided
   Clustering out;
