@@ -8,6 +8,8 @@
 #include <deque>
 #include <memory>
 #include <optional>
+#include <thread>
+#include <utility>
 
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
@@ -79,6 +81,7 @@ using Floats4 = float __attribute__((vector_size(16)));
 using Ints4 = std::int32_t __attribute__((vector_size(16)));
 constexpr std::size_t kLanes = 4;
 constexpr std::size_t kChunk = 2 * kLanes;  // cells filtered at once
+constexpr std::size_t kMinCellsPerThread = 4096;  // below this a thread costs more than it saves
 
 template <typename V, typename T>
 V loadLanes(const T* p) {
@@ -205,7 +208,9 @@ std::optional<SortedGrid> sortIntoGrid(std::span<const Point> points, double eps
 // so five cursors walk the column list once (a merge join of the list with itself, no hashing).
 // Each run is filtered a chunk of cells at a time, branch-free: z index within two and box gap
 // under eps; the survivors get the union-find test and an early-exit closest-pair check.
-void joinCloseCells(const SortedGrid& g, float eps, DisjointSets& sets) {
+// Visits columns [first, last); every union made is also appended to `joined` when given.
+void joinCloseCells(const SortedGrid& g, float eps, std::size_t first, std::size_t last, DisjointSets& sets,
+                    std::vector<std::pair<std::uint32_t, std::uint32_t>>* joined) {
   const float eps2 = eps * eps;
   const float gap_limit = eps2 * 1.0001F;  // slack so that rounding never drops a true pair
   const auto& [lx, ly, lz, hx, hy, hz] = g.box;
@@ -253,11 +258,12 @@ void joinCloseCells(const SortedGrid& g, float eps, DisjointSets& sets) {
   const std::uint64_t x_unit = std::uint64_t{1} << g.y_bits;
   // First column at or after (x, y+3), (x+1, y-2), (x+1, y+3), (x+2, y-2), (x+2, y+3).
   std::array<std::size_t, 5> cursor{};
+  cursor.fill(first);
   auto firstCellFrom = [&](std::size_t& k, std::uint64_t column) {
     while (g.column_key[k] < column) ++k;
     return g.column_begin[k];
   };
-  for (std::size_t col = 0; col < g.columns(); ++col) {
+  for (std::size_t col = first; col < last; ++col) {
     const auto key = g.column_key[col];
     const std::array<std::uint32_t, 3> run_end{firstCellFrom(cursor[0], key + 3),
                                                firstCellFrom(cursor[2], key + x_unit + 3),
@@ -273,11 +279,40 @@ void joinCloseCells(const SortedGrid& g, float eps, DisjointSets& sets) {
             const std::size_t o = base + static_cast<std::size_t>(std::countr_zero(mask));
             if (sets.find(o) == root || !closeCells(c, o)) continue;
             sets.unite(c, o);
+            if (joined != nullptr) joined->emplace_back(c, static_cast<std::uint32_t>(o));
             root = sets.find(c);
           }
         }
       }
     }
+  }
+}
+
+// The columns split into `threads` ranges of about equal cell counts, one per thread. The first
+// range joins into `sets` directly; the others into sets of their own, whose unions are replayed
+// into `sets` afterwards (pairs across a range boundary belong to the range of their first cell).
+void joinCloseCellsParallel(const SortedGrid& g, float eps, std::size_t threads, DisjointSets& sets) {
+  const std::size_t columns = g.columns();
+  threads = std::clamp<std::size_t>(threads, 1, std::max<std::size_t>(1, g.cells() / kMinCellsPerThread));
+  std::vector<std::size_t> bounds{0};
+  for (std::size_t t = 1; t < threads; ++t) {
+    const auto cell = static_cast<std::uint32_t>(g.cells() * t / threads);
+    const auto it = std::lower_bound(g.column_begin.begin(), g.column_begin.begin() + static_cast<std::ptrdiff_t>(columns), cell);
+    bounds.push_back(std::max(bounds.back(), static_cast<std::size_t>(it - g.column_begin.begin())));
+  }
+  bounds.push_back(columns);
+  std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> joined(threads);
+  std::vector<std::thread> workers;
+  for (std::size_t t = 1; t < threads; ++t) {
+    workers.emplace_back([&, t] {
+      DisjointSets own(g.cells());
+      joinCloseCells(g, eps, bounds[t], bounds[t + 1], own, &joined[t]);
+    });
+  }
+  joinCloseCells(g, eps, bounds[0], bounds[1], sets, nullptr);
+  for (auto& w : workers) w.join();
+  for (const auto& edges : joined) {
+    for (const auto& [a, b] : edges) sets.unite(a, b);
   }
 }
 
@@ -291,7 +326,7 @@ Clustering euclideanClusters(std::span<const Point> points, const ClusteringPara
   if (!grid) return pclEuclideanClusters(points, params, false);
   const std::size_t cells = grid->cells();
   DisjointSets sets(cells);
-  joinCloseCells(*grid, static_cast<float>(params.eps_m), sets);
+  joinCloseCellsParallel(*grid, static_cast<float>(params.eps_m), params.threads, sets);
 
   // Component sizes, then canonical labels in the order of each cluster's first point.
   std::vector<std::uint32_t> root_of(cells);

@@ -17,6 +17,8 @@ struct ClusteringParams {
   double eps_m = 0.35;
   std::size_t min_points = 10;
   std::size_t max_points = std::numeric_limits<std::int32_t>::max();
+  // Threads for the neighbour search of euclideanClusters (the result does not depend on it).
+  std::size_t threads = 1;
 };
 
 // Labels in canonical form: -1 for noise, clusters numbered 0, 1, ... in the order of their

@@ -234,15 +234,19 @@ Expected<TopologyConfig> parseTopology(const std::string& yaml_text, const std::
     const auto eps = scalar<double>(m, "eps_m", "madc", t.madc.clustering.eps_m);
     const auto min_points = scalar<long long>(m, "min_points", "madc", static_cast<long long>(t.madc.clustering.min_points));
     const auto alpha = scalar<double>(m, "alpha", "madc", t.madc.alpha);
+    const auto threads = scalar<long long>(m, "threads", "madc", static_cast<long long>(t.madc.clustering.threads));
     if (!eps) return eps.error();
     if (!min_points) return min_points.error();
     if (!alpha) return alpha.error();
+    if (!threads) return threads.error();
     if (!(*eps > 0.0 && *eps < 100.0)) return bad("madc.eps_m", "must be in (0, 100)");
     if (*min_points < 1) return bad("madc.min_points", "must be at least 1");
     if (!(*alpha > 0.0 && *alpha < 10.0)) return bad("madc.alpha", "must be in (0, 10)");
+    if (*threads < 1 || *threads > 256) return bad("madc.threads", "must be in [1, 256]");
     t.madc.clustering.eps_m = *eps;
     t.madc.clustering.min_points = static_cast<std::size_t>(*min_points);
     t.madc.alpha = *alpha;
+    t.madc.clustering.threads = static_cast<std::size_t>(*threads);
   }
   if (const YAML::Node p = root["preprocess"]) {
     if (const YAML::Node crop = p["crop"]) {
@@ -423,7 +427,7 @@ std::string toYaml(const TopologyConfig& t) {
   out << YAML::Key << "max_message_bytes" << YAML::Value << t.max_message_bytes;
   out << YAML::Key << "madc" << YAML::Value << YAML::BeginMap << YAML::Key << "eps_m" << YAML::Value << t.madc.clustering.eps_m
       << YAML::Key << "min_points" << YAML::Value << t.madc.clustering.min_points << YAML::Key << "alpha" << YAML::Value
-      << t.madc.alpha << YAML::EndMap;
+      << t.madc.alpha << YAML::Key << "threads" << YAML::Value << t.madc.clustering.threads << YAML::EndMap;
   out << YAML::Key << "preprocess" << YAML::Value << YAML::BeginMap;
   auto list3 = [&](const Eigen::Vector3d& v) {
     out << YAML::Flow << YAML::BeginSeq << v.x() << v.y() << v.z() << YAML::EndSeq;

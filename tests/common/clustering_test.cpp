@@ -77,6 +77,24 @@ TEST(Clustering, EqualsBruteForceOnRandomClouds) {
   }
 }
 
+// Clouds with enough occupied cells that every thread gets a share of the columns; clusters
+// cross the boundaries between the threads' ranges.
+TEST(Clustering, ThreadedSearchEqualsBruteForce) {
+  std::mt19937_64 rng(99);
+  for (int trial = 0; trial < 4; ++trial) {
+    const Cloud cloud = randomScene(rng, 14000, 12.0, trial % 2 == 0 ? 0.0 : 300.0);
+    ClusteringParams params;
+    params.eps_m = 0.12 + 0.04 * trial;
+    params.min_points = 3;
+    const Clustering expected = bruteForceClusters(cloud, params);
+    for (const std::size_t threads : {1, 2, 3}) {
+      params.threads = threads;
+      const Clustering actual = euclideanClusters(cloud, params);
+      ASSERT_EQ(actual.labels, expected.labels) << "trial " << trial << ", " << threads << " threads";
+    }
+  }
+}
+
 TEST(Clustering, PointsExactlyEpsApartAreNotConnected) {
   // 0.5 is exact in float, so the squared distance equals eps^2 exactly: strict "<" separates.
   Cloud cloud;
@@ -138,6 +156,8 @@ TEST(Clustering, EqualsPclOnEveryBundledKittiScan) {
     EXPECT_GT(ours.cluster_count, 50) << path;
     EXPECT_EQ(ours.cluster_count, pcl.cluster_count) << path;
     EXPECT_EQ(ours.labels, pcl.labels) << path;
+    params.threads = 4;
+    EXPECT_EQ(euclideanClusters(scan->points, params).labels, pcl.labels) << path << ", 4 threads";
   }
 }
 

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <thread>
 #include <vector>
 
 #include "common/cloud_io.hpp"
@@ -34,8 +35,12 @@ Expected<ClusteringParams> clusteringParams(const Args& args) {
   if (!min_points) return min_points.error();
   if (!(*eps > 0.0)) return invalidArgument("--eps must be positive");
   if (*min_points < 1) return invalidArgument("--min-points must be at least 1");
+  const auto threads = args.getInt("threads", static_cast<long>(std::max(1U, std::thread::hardware_concurrency())));
+  if (!threads) return threads.error();
+  if (*threads < 1 || *threads > 256) return invalidArgument("--threads must be between 1 and 256");
   p.eps_m = *eps;
   p.min_points = static_cast<std::size_t>(*min_points);
+  p.threads = static_cast<std::size_t>(*threads);
   return p;
 }
 
@@ -58,7 +63,7 @@ double median(std::vector<double> v) {
 }
 
 int benchClustering(int argc, char** argv) {
-  const auto args = Args::parse(argc, argv, 3, {"input", "eps", "min-points", "repeat"}, {"remove-ground", "json"});
+  const auto args = Args::parse(argc, argv, 3, {"input", "eps", "min-points", "repeat", "threads"}, {"remove-ground", "json"});
   if (!args) return fail(args.error());
   const auto params = clusteringParams(*args);
   if (!params) return fail(params.error());
@@ -67,11 +72,13 @@ int benchClustering(int argc, char** argv) {
   const auto repeat = args->getInt("repeat", 5);
   if (!repeat || *repeat < 1) return fail(invalidArgument("--repeat expects a positive integer"));
 
-  auto timed = [&](ClusteringMethod method, long runs, Clustering* out) {
+  auto timed = [&](ClusteringMethod method, long runs, Clustering* out, std::size_t threads = 1) {
+    ClusteringParams p = *params;
+    p.threads = threads;
     std::vector<double> ms;
     for (long r = 0; r < runs; ++r) {
       const auto start = Clock::now();
-      *out = clusterPoints(*cloud, *params, method);
+      *out = clusterPoints(*cloud, p, method);
       ms.push_back(millisSince(start));
     }
     return median(ms);
@@ -79,32 +86,39 @@ int benchClustering(int argc, char** argv) {
   Clustering pcl_sorted;
   Clustering pcl_unsorted;
   Clustering ours;
+  Clustering ours_one;
   const double pcl_sorted_ms = timed(ClusteringMethod::kPcl, *repeat, &pcl_sorted);
   const double pcl_unsorted_ms = timed(ClusteringMethod::kPclUnsorted, *repeat, &pcl_unsorted);
-  const double ours_ms = timed(ClusteringMethod::kFogmap, *repeat * 4, &ours);
+  const double one_ms = timed(ClusteringMethod::kFogmap, *repeat * 4, &ours_one);
+  const double ours_ms = params->threads > 1 ? timed(ClusteringMethod::kFogmap, *repeat * 4, &ours, params->threads) : one_ms;
+  if (params->threads <= 1) ours = ours_one;
   const bool sorted_faster = pcl_sorted_ms <= pcl_unsorted_ms;
   const double pcl_ms = sorted_faster ? pcl_sorted_ms : pcl_unsorted_ms;
   const Clustering& reference = sorted_faster ? pcl_sorted : pcl_unsorted;
-  const bool identical = ours.labels == reference.labels;
-  const bool identical_both = ours.labels == pcl_sorted.labels && ours.labels == pcl_unsorted.labels;
+  const bool identical = ours.labels == reference.labels && ours_one.labels == reference.labels;
+  const bool identical_both = identical && ours.labels == pcl_sorted.labels && ours.labels == pcl_unsorted.labels;
   const double speedup = pcl_ms / ours_ms;
+  const double speedup_one = pcl_ms / one_ms;
 
   if (args->has("json")) {
     std::printf(
         "{\"input\": \"%s\", \"points\": %zu, \"eps\": %.4g, \"min_points\": %zu, \"remove_ground\": %s, "
         "\"clusters\": %d, \"pcl_sorted_ms\": %.3f, \"pcl_unsorted_ms\": %.3f, \"pcl_ms\": %.3f, "
-        "\"fogmap_ms\": %.3f, \"speedup\": %.2f, \"identical\": %s, \"identical_to_both_pcl\": %s}\n",
+        "\"threads\": %zu, \"fogmap_ms\": %.3f, \"speedup\": %.2f, \"fogmap_1thread_ms\": %.3f, \"speedup_1thread\": %.2f, "
+        "\"identical\": %s, \"identical_to_both_pcl\": %s}\n",
         args->get("input").c_str(), cloud->size(), params->eps_m, params->min_points,
         args->has("remove-ground") ? "true" : "false", ours.cluster_count, pcl_sorted_ms, pcl_unsorted_ms, pcl_ms,
-        ours_ms, speedup, identical ? "true" : "false", identical_both ? "true" : "false");
+        params->threads, ours_ms, speedup, one_ms, speedup_one, identical ? "true" : "false", identical_both ? "true" : "false");
   } else {
     std::printf("points            %zu%s\n", cloud->size(), args->has("remove-ground") ? " (ground removed)" : "");
     std::printf("clusters          %d (eps %.3g m, min %zu points)\n", ours.cluster_count, params->eps_m, params->min_points);
     std::printf("pcl sorted        %9.2f ms (median of %ld)\n", pcl_sorted_ms, *repeat);
     std::printf("pcl unsorted      %9.2f ms (median of %ld)\n", pcl_unsorted_ms, *repeat);
-    std::printf("fogmap            %9.2f ms (median of %ld)\n", ours_ms, *repeat * 4);
-    std::printf("speed-up          %9.1fx against the faster PCL setting\n", speedup);
-    std::printf("identical         %s\n", identical ? "yes (same partition as PCL)" : "NO");
+    std::printf("fogmap, 1 thread  %9.2f ms (median of %ld), %.1fx against the faster PCL setting\n", one_ms, *repeat * 4, speedup_one);
+    if (params->threads > 1) {
+      std::printf("fogmap, %zu threads %8.2f ms (median of %ld), %.1fx against the faster PCL setting\n", params->threads, ours_ms, *repeat * 4, speedup);
+    }
+    std::printf("identical         %s\n", identical ? "yes (same partition as PCL, every thread count)" : "NO");
   }
   return identical ? 0 : 1;
 }
@@ -112,7 +126,7 @@ int benchClustering(int argc, char** argv) {
 }  // namespace
 
 int runCluster(int argc, char** argv) {
-  const auto args = Args::parse(argc, argv, 2, {"input", "eps", "min-points", "labels", "method"}, {"remove-ground"});
+  const auto args = Args::parse(argc, argv, 2, {"input", "eps", "min-points", "labels", "method", "threads"}, {"remove-ground"});
   if (!args) return fail(args.error());
   const auto params = clusteringParams(*args);
   if (!params) return fail(params.error());

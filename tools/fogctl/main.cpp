@@ -9,8 +9,8 @@ namespace {
 
 void usage() {
   std::cerr << "usage: fogctl <command> [flags]\n"
-               "  cluster --input SCAN [--eps 0.35] [--min-points 10] [--labels OUT.txt] [--method fogmap|pcl] [--remove-ground]\n"
-               "  bench clustering --input SCAN [--eps 0.35] [--min-points 10] [--remove-ground] [--repeat 5] [--json]\n"
+               "  cluster --input SCAN [--eps 0.35] [--min-points 10] [--labels OUT.txt] [--method fogmap|pcl] [--remove-ground] [--threads N]\n"
+               "  bench clustering --input SCAN [--eps 0.35] [--min-points 10] [--remove-ground] [--repeat 5] [--threads N] [--json]\n"
                "  demo [--input DIR] [--nodes 4] [--topology star|tree] [--frames 20] [--report FILE] [--png FILE] [--alpha 1.5]\n"
                "  up TOPOLOGY.yaml [--detach] [--state DIR]       start every service as a local process\n"
                "  down TOPOLOGY.yaml | --state DIR                stop a detached cluster\n"

@@ -1,0 +1,225 @@
+#include "common/topology.hpp"
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+namespace fogmap {
+namespace {
+
+namespace fs = std::filesystem;
+
+const fs::path kSourceDir = FOGMAP_SOURCE_DIR;
+
+// Field-by-field equality of everything the services read from a topology.
+void expectSameTopology(const TopologyConfig& a, const TopologyConfig& b) {
+  EXPECT_EQ(a.name, b.name);
+  EXPECT_EQ(a.mode, b.mode);
+  EXPECT_DOUBLE_EQ(a.deadline_ms, b.deadline_ms);
+  EXPECT_DOUBLE_EQ(a.period_ms, b.period_ms);
+  EXPECT_EQ(a.max_message_bytes, b.max_message_bytes);
+  EXPECT_DOUBLE_EQ(a.madc.clustering.eps_m, b.madc.clustering.eps_m);
+  EXPECT_EQ(a.madc.clustering.min_points, b.madc.clustering.min_points);
+  EXPECT_EQ(a.madc.clustering.threads, b.madc.clustering.threads);
+  EXPECT_DOUBLE_EQ(a.madc.alpha, b.madc.alpha);
+  ASSERT_EQ(a.preprocess.crop.has_value(), b.preprocess.crop.has_value());
+  if (a.preprocess.crop) {
+    EXPECT_EQ(a.preprocess.crop->min_m, b.preprocess.crop->min_m);
+    EXPECT_EQ(a.preprocess.crop->max_m, b.preprocess.crop->max_m);
+  }
+  EXPECT_EQ(a.preprocess.voxel_leaf_m, b.preprocess.voxel_leaf_m);
+  ASSERT_EQ(a.preprocess.ground.has_value(), b.preprocess.ground.has_value());
+  if (a.preprocess.ground) {
+    EXPECT_DOUBLE_EQ(a.preprocess.ground->distance_threshold_m, b.preprocess.ground->distance_threshold_m);
+    EXPECT_DOUBLE_EQ(a.preprocess.ground->max_tilt_deg, b.preprocess.ground->max_tilt_deg);
+    EXPECT_EQ(a.preprocess.ground->ground_z_hint_m, b.preprocess.ground->ground_z_hint_m);
+  }
+  ASSERT_EQ(a.nodes.size(), b.nodes.size());
+  for (std::size_t i = 0; i < a.nodes.size(); ++i) {
+    const NodeConfig& x = a.nodes[i];
+    const NodeConfig& y = b.nodes[i];
+    SCOPED_TRACE("node " + x.name);
+    EXPECT_EQ(x.id, y.id);
+    EXPECT_EQ(x.name, y.name);
+    EXPECT_EQ(x.role, y.role);
+    EXPECT_EQ(x.parent, y.parent);
+    EXPECT_EQ(x.host, y.host);
+    EXPECT_EQ(x.port, y.port);
+    EXPECT_EQ(x.metrics_port, y.metrics_port);
+    ASSERT_EQ(x.sensor.has_value(), y.sensor.has_value());
+    if (!x.sensor) continue;
+    EXPECT_EQ(x.sensor->source.lexically_normal(), y.sensor->source.lexically_normal());
+    EXPECT_DOUBLE_EQ(x.sensor->rate_hz, y.sensor->rate_hz);
+    EXPECT_EQ(x.sensor->loop, y.sensor->loop);
+    EXPECT_EQ(x.sensor->frames, y.sensor->frames);
+    ASSERT_EQ(x.sensor->split.has_value(), y.sensor->split.has_value());
+    if (x.sensor->split) {
+      EXPECT_EQ(x.sensor->split->views, y.sensor->split->views);
+      EXPECT_EQ(x.sensor->split->index, y.sensor->split->index);
+      EXPECT_DOUBLE_EQ(x.sensor->split->overlap_deg, y.sensor->split->overlap_deg);
+    }
+    EXPECT_TRUE(x.sensor->pose.isApprox(y.sensor->pose, 1e-9)) << x.sensor->pose.matrix() << "\n" << y.sensor->pose.matrix();
+  }
+}
+
+// Non-default values everywhere, so a field that toYaml or the parser drops shows up.
+void customize(TopologyConfig& t) {
+  t.mode = Mode::kExt;
+  t.deadline_ms = 45.5;
+  t.period_ms = 50.0;
+  t.max_message_bytes = 8U << 20;
+  t.madc.clustering.eps_m = 0.55;
+  t.madc.clustering.min_points = 7;
+  t.madc.clustering.threads = 4;
+  t.madc.alpha = 2.25;
+  t.preprocess.voxel_leaf_m = 0.125;
+  t.preprocess.ground->distance_threshold_m = 0.3;
+  t.preprocess.ground->max_tilt_deg = 20.0;
+  auto& edge = t.nodes.back();
+  edge.host = "10.0.0.7";
+  edge.sensor->rate_hz = 5.0;
+  edge.sensor->loop = false;
+  edge.sensor->frames = 42;
+  edge.sensor->pose.translation() = Eigen::Vector3d(1.5, -2.0, 0.25);
+  edge.sensor->pose.linear() = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+}
+
+TEST(Topology, StarRoundTripsThroughYaml) {
+  TopologyConfig star = makeStarTopology(4, "scans", 51000);
+  customize(star);
+  const Expected<TopologyConfig> parsed = parseTopology(toYaml(star), "");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  expectSameTopology(*parsed, star);
+  EXPECT_EQ(parsed->root()->name, "sink");
+  EXPECT_EQ(parsed->children("sink").size(), 4U);
+  EXPECT_EQ(parsed->sensorsBelow("sink"), (std::vector<std::uint32_t>{1, 2, 3, 4}));
+}
+
+TEST(Topology, TreeRoundTripsThroughYaml) {
+  TopologyConfig tree = makeTreeTopology(7, "scans", 52000);
+  customize(tree);
+  const Expected<TopologyConfig> parsed = parseTopology(toYaml(tree), "");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  expectSameTopology(*parsed, tree);
+  EXPECT_EQ(parsed->nodes.size(), 13U);  // 7 edges under 6 binary aggregators
+  EXPECT_EQ(parsed->aggregatorLevels("sink"), 3);
+  EXPECT_EQ(parsed->sensorsBelow("sink"), (std::vector<std::uint32_t>{1, 2, 3, 4, 5, 6, 7}));
+}
+
+TEST(Topology, RelativeSensorSourceResolvesAgainstBaseDir) {
+  const Expected<TopologyConfig> parsed = parseTopology(toYaml(makeStarTopology(2, "scans", 53000)), "base");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  EXPECT_EQ(parsed->find("edge-1")->sensor->source, fs::path("base") / "scans");
+}
+
+TEST(Topology, BundledTopologiesLoadAndMatchTheirGenerators) {
+  int files = 0;
+  for (const auto& entry : fs::directory_iterator(kSourceDir / "topologies")) {
+    if (entry.path().extension() != ".yaml") continue;
+    ++files;
+    SCOPED_TRACE(entry.path().filename().string());
+    const Expected<TopologyConfig> loaded = loadTopology(entry.path());
+    ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+    EXPECT_EQ(loaded->name, entry.path().stem().string());
+    const auto edges = static_cast<int>(loaded->sensorsBelow(loaded->root()->name).size());
+    const fs::path source = loaded->nodes.back().sensor->source;
+    EXPECT_TRUE(fs::is_directory(source)) << source;
+    const bool star = loaded->name.starts_with("star-");
+    const TopologyConfig expected = star ? makeStarTopology(edges, source, loaded->root()->port)
+                                         : makeTreeTopology(edges, source, loaded->root()->port);
+    expectSameTopology(*loaded, expected);
+  }
+  EXPECT_GE(files, 6);
+}
+
+TEST(Topology, MissingFileIsNotFound) {
+  const Expected<TopologyConfig> loaded = loadTopology(kSourceDir / "topologies" / "no-such-topology.yaml");
+  ASSERT_FALSE(loaded.ok());
+  EXPECT_EQ(loaded.error().code, ErrorCode::kNotFound);
+}
+
+// A small valid topology; `globals` and `madc` lines are spliced in, `nodes` replaces the node list.
+const std::string kNodes =
+    "  - {name: sink, id: 100, role: aggregator, port: 50000, metrics_port: 50200}\n"
+    "  - {name: edge-1, id: 1, role: edge, parent: sink, metrics_port: 50101, sensor: {source: scans}}\n";
+
+std::string topologyYaml(const std::string& globals, const std::string& madc = "", const std::string& nodes = kNodes) {
+  return "name: t\n" + globals + "madc:\n  eps_m: 0.35\n" + madc + "nodes:\n" + nodes;
+}
+
+void expectRejected(const std::string& yaml, const std::string& field) {
+  const Expected<TopologyConfig> parsed = parseTopology(yaml, "");
+  ASSERT_FALSE(parsed.ok()) << "accepted:\n" << yaml;
+  EXPECT_EQ(parsed.error().code, ErrorCode::kInvalidArgument);
+  EXPECT_NE(parsed.error().message.find(field), std::string::npos)
+      << "'" << parsed.error().message << "' does not name " << field << "\n" << yaml;
+}
+
+TEST(Topology, ValidSmallTopologyAndBoundsAreAccepted) {
+  for (const std::string& globals : {std::string(), std::string("period_ms: 0.5\n"),
+                                     std::string("max_message_bytes: 1048576\n"),
+                                     std::string("max_message_bytes: 1073741824\n")}) {
+    const Expected<TopologyConfig> parsed = parseTopology(topologyYaml(globals), "");
+    EXPECT_TRUE(parsed.ok()) << globals << (parsed.ok() ? "" : parsed.error().message);
+  }
+  const Expected<TopologyConfig> defaults = parseTopology(topologyYaml(""), "");
+  ASSERT_TRUE(defaults.ok()) << defaults.error().message;
+  EXPECT_EQ(defaults->madc.clustering.threads, 1U);
+  for (int threads : {1, 256}) {
+    const Expected<TopologyConfig> parsed = parseTopology(topologyYaml("", "  threads: " + std::to_string(threads) + "\n"), "");
+    ASSERT_TRUE(parsed.ok()) << threads << ": " << parsed.error().message;
+    EXPECT_EQ(parsed->madc.clustering.threads, static_cast<std::size_t>(threads));
+  }
+}
+
+TEST(Topology, OutOfRangeValuesNameTheirField) {
+  for (const char* v : {"0", "-5"}) expectRejected(topologyYaml(std::string("period_ms: ") + v + "\n"), "period_ms");
+  for (const char* v : {"1048575", "1073741825", "-1"}) {
+    expectRejected(topologyYaml(std::string("max_message_bytes: ") + v + "\n"), "max_message_bytes");
+  }
+  for (const char* v : {"0", "-0.1"}) {
+    expectRejected("name: t\nmadc: {eps_m: " + std::string(v) + "}\nnodes:\n" + kNodes, "madc.eps_m");
+  }
+  expectRejected(topologyYaml("", "  min_points: 0\n"), "madc.min_points");
+  for (const char* v : {"0", "10", "-1"}) expectRejected(topologyYaml("", std::string("  alpha: ") + v + "\n"), "madc.alpha");
+  for (const char* v : {"0", "257", "1000", "-1"}) {
+    expectRejected(topologyYaml("", std::string("  threads: ") + v + "\n"), "madc.threads");
+  }
+}
+
+TEST(Topology, NonNumbersNameTheirField) {
+  expectRejected(topologyYaml("period_ms: fast\n"), "period_ms");
+  expectRejected(topologyYaml("max_message_bytes: [1, 2]\n"), "max_message_bytes");
+  expectRejected("name: t\nmadc: {eps_m: wide}\nnodes:\n" + kNodes, "madc.eps_m");
+  expectRejected(topologyYaml("", "  min_points: 2.5\n"), "madc.min_points");
+  expectRejected(topologyYaml("", "  threads: four\n"), "madc.threads");
+}
+
+TEST(Topology, BadParentsAndDuplicateNamesAreRejected) {
+  const std::string sink = "  - {name: sink, id: 100, role: aggregator, port: 50000, metrics_port: 50200}\n";
+  expectRejected(topologyYaml("", "", kNodes + "  - {name: edge-2, id: 2, role: edge, parent: ghost, metrics_port: 50102, "
+                                              "sensor: {source: scans}}\n"),
+                 "ghost");
+  expectRejected(topologyYaml("", "", sink +
+                                          "  - {name: agg-a, id: 101, role: aggregator, parent: agg-b, port: 50001, metrics_port: 50201}\n"
+                                          "  - {name: agg-b, id: 102, role: aggregator, parent: agg-a, port: 50002, metrics_port: 50202}\n"),
+                 "cycle");
+  expectRejected(topologyYaml("", "", sink +
+                                          "  - {name: agg-a, id: 101, role: aggregator, parent: agg-a, port: 50001, metrics_port: 50201}\n"),
+                 "cycle");
+  expectRejected(topologyYaml("", "", kNodes + "  - {name: edge-1, id: 2, role: edge, parent: sink, metrics_port: 50102, "
+                                              "sensor: {source: scans}}\n"),
+                 "duplicate node name");
+}
+
+TEST(Topology, MalformedYamlIsRejected) {
+  expectRejected("name: t\nnodes: [unclosed\n", "not valid YAML");
+  expectRejected("name: t\n  period_ms: : 3\n\t- x\n", "not valid YAML");
+  expectRejected("- just\n- a list\n", "mapping");
+}
+
+}  // namespace
+}  // namespace fogmap
