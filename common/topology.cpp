@@ -6,6 +6,7 @@
 #include <functional>
 #include <set>
 #include <sstream>
+#include <string_view>
 
 #include <yaml-cpp/yaml.h>
 
@@ -80,6 +81,18 @@ Expected<T> scalar(const YAML::Node& node, const std::string& key, const std::st
   }
 }
 
+// A section must be a mapping of known keys: a misspelt key is an error, not a silent default.
+Status checkSection(const YAML::Node& node, const std::string& where, std::initializer_list<std::string_view> keys) {
+  if (!node.IsMap()) return bad(where.empty() ? "the document" : where, "must be a mapping");
+  for (const auto& entry : node) {
+    const std::string key = entry.first.IsScalar() ? entry.first.Scalar() : std::string("?");
+    if (std::find(keys.begin(), keys.end(), key) == keys.end()) {
+      return bad(where.empty() ? key : where + "." + key, "unknown key");
+    }
+  }
+  return {};
+}
+
 Expected<Eigen::Vector3d> vec3(const YAML::Node& node, const std::string& key, const std::string& where,
                                const Eigen::Vector3d& fallback) {
   const YAML::Node v = node[key];
@@ -107,6 +120,7 @@ Expected<Mode> parseMode(const std::string& s) {
 Expected<Eigen::Isometry3d> parsePose(const YAML::Node& node, const std::string& where) {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   if (!node) return pose;
+  if (const Status s = checkSection(node, where, {"translation_m", "rpy_deg"}); !s) return s.error();
   const auto t = vec3(node, "translation_m", where, Eigen::Vector3d::Zero());
   if (!t) return t.error();
   const auto rpy = vec3(node, "rpy_deg", where, Eigen::Vector3d::Zero());
@@ -120,6 +134,9 @@ Expected<Eigen::Isometry3d> parsePose(const YAML::Node& node, const std::string&
 }
 
 Expected<SensorConfig> parseSensor(const YAML::Node& node, const std::string& where, const std::filesystem::path& base_dir) {
+  if (const Status st = checkSection(node, where, {"source", "rate_hz", "loop", "frames", "split", "pose"}); !st) {
+    return st.error();
+  }
   SensorConfig s;
   const auto source = scalar<std::string>(node, "source", where, "");
   if (!source) return source.error();
@@ -139,6 +156,7 @@ Expected<SensorConfig> parseSensor(const YAML::Node& node, const std::string& wh
     s.frames = static_cast<std::uint64_t>(*frames);
   }
   if (const YAML::Node split = node["split"]) {
+    if (const Status st = checkSection(split, where + ".split", {"views", "index", "overlap_deg"}); !st) return st.error();
     SectorSplit sp;
     const auto views = scalar<int>(split, "views", where + ".split", sp.views);
     const auto index = scalar<int>(split, "index", where + ".split", sp.index);
@@ -198,16 +216,13 @@ Status validate(const TopologyConfig& t) {
   return {};
 }
 
-}  // namespace
-
-Expected<TopologyConfig> parseTopology(const std::string& yaml_text, const std::filesystem::path& base_dir) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::Exception& e) {
-    return invalidArgument(std::string("topology: not valid YAML: ") + e.what());
-  }
+Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesystem::path& base_dir) {
   if (!root.IsMap()) return invalidArgument("topology: the document must be a mapping with 'nodes'");
+  if (const Status s = checkSection(root, "", {"name", "mode", "deadline_ms", "period_ms", "max_message_bytes", "madc",
+                                               "preprocess", "nodes"});
+      !s) {
+    return s.error();
+  }
   TopologyConfig t;
   const auto name = scalar<std::string>(root, "name", "", "topology");
   if (!name) return name.error();
@@ -231,6 +246,7 @@ Expected<TopologyConfig> parseTopology(const std::string& yaml_text, const std::
   t.max_message_bytes = static_cast<std::size_t>(*max_bytes);
 
   if (const YAML::Node m = root["madc"]) {
+    if (const Status s = checkSection(m, "madc", {"eps_m", "min_points", "alpha", "threads"}); !s) return s.error();
     const auto eps = scalar<double>(m, "eps_m", "madc", t.madc.clustering.eps_m);
     const auto min_points = scalar<long long>(m, "min_points", "madc", static_cast<long long>(t.madc.clustering.min_points));
     const auto alpha = scalar<double>(m, "alpha", "madc", t.madc.alpha);
@@ -249,7 +265,9 @@ Expected<TopologyConfig> parseTopology(const std::string& yaml_text, const std::
     t.madc.clustering.threads = static_cast<std::size_t>(*threads);
   }
   if (const YAML::Node p = root["preprocess"]) {
+    if (const Status s = checkSection(p, "preprocess", {"crop", "voxel_leaf_m", "ground"}); !s) return s.error();
     if (const YAML::Node crop = p["crop"]) {
+      if (const Status s = checkSection(crop, "preprocess.crop", {"min_m", "max_m"}); !s) return s.error();
       CropBox box;
       const auto lo = vec3(crop, "min_m", "preprocess.crop", box.min_m);
       const auto hi = vec3(crop, "max_m", "preprocess.crop", box.max_m);
@@ -267,6 +285,9 @@ Expected<TopologyConfig> parseTopology(const std::string& yaml_text, const std::
       t.preprocess.voxel_leaf_m = *leaf;
     }
     if (const YAML::Node g = p["ground"]) {
+      if (const Status s = checkSection(g, "preprocess.ground", {"distance_threshold_m", "max_tilt_deg", "ground_z_hint_m"}); !s) {
+        return s.error();
+      }
       GroundParams ground;
       const auto threshold = scalar<double>(g, "distance_threshold_m", "preprocess.ground", ground.distance_threshold_m);
       const auto tilt = scalar<double>(g, "max_tilt_deg", "preprocess.ground", ground.max_tilt_deg);
@@ -292,6 +313,9 @@ Expected<TopologyConfig> parseTopology(const std::string& yaml_text, const std::
     const YAML::Node n = nodes[i];
     const std::string where = "nodes[" + std::to_string(i) + "]";
     if (!n.IsMap()) return bad(where, "each node must be a mapping");
+    if (const Status s = checkSection(n, where, {"name", "id", "role", "parent", "host", "port", "metrics_port", "sensor"}); !s) {
+      return s.error();
+    }
     NodeConfig node;
     const auto node_name = scalar<std::string>(n, "name", where, "");
     if (!node_name) return node_name.error();
@@ -333,6 +357,16 @@ Expected<TopologyConfig> parseTopology(const std::string& yaml_text, const std::
   }
   if (const Status s = validate(t); !s) return s.error();
   return t;
+}
+
+}  // namespace
+
+Expected<TopologyConfig> parseTopology(const std::string& yaml_text, const std::filesystem::path& base_dir) {
+  try {
+    return parseDocument(YAML::Load(yaml_text), base_dir);
+  } catch (const YAML::Exception& e) {
+    return invalidArgument(std::string("topology: not valid YAML: ") + e.what());
+  }
 }
 
 Expected<TopologyConfig> loadTopology(const std::filesystem::path& path) {

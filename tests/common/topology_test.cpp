@@ -221,5 +221,30 @@ TEST(Topology, MalformedYamlIsRejected) {
   expectRejected("- just\n- a list\n", "mapping");
 }
 
+TEST(Topology, SectionsThatAreNotMappingsAreRejectedNotThrown) {
+  expectRejected("name: t\nmadc: 5\nnodes:\n" + kNodes, "madc");
+  expectRejected("name: t\nmadc: [1, 2]\nnodes:\n" + kNodes, "madc");
+  expectRejected("name: t\npreprocess: 5\nnodes:\n" + kNodes, "preprocess");
+  expectRejected("name: t\npreprocess: {crop: 5}\nnodes:\n" + kNodes, "preprocess.crop");
+  expectRejected("name: t\npreprocess: {ground: 5}\nnodes:\n" + kNodes, "preprocess.ground");
+  const std::string sink = "  - {name: sink, id: 100, role: aggregator, port: 50000, metrics_port: 50200}\n";
+  expectRejected(topologyYaml("", "", sink + "  - {name: e, id: 1, role: edge, parent: sink, sensor: scans}\n"), "sensor");
+  expectRejected(topologyYaml("", "", sink + "  - {name: e, id: 1, role: edge, parent: sink, sensor: {source: s, split: 3}}\n"),
+                 "sensor.split");
+  expectRejected(topologyYaml("", "", sink + "  - {name: e, id: 1, role: edge, parent: sink, sensor: {source: s, pose: 3}}\n"),
+                 "sensor.pose");
+}
+
+TEST(Topology, MisspeltKeysAreRejected) {
+  expectRejected(topologyYaml("", "  thread: 4\n"), "madc.thread");
+  expectRejected(topologyYaml("periodms: 100\n"), "periodms");
+  expectRejected("name: t\npreprocess: {ground: {max_tilt: 5}}\nnodes:\n" + kNodes, "preprocess.ground.max_tilt");
+  const std::string sink = "  - {name: sink, id: 100, role: aggregator, port: 50000, metrics_port: 50200}\n";
+  expectRejected(topologyYaml("", "", sink + "  - {name: e, id: 1, role: edge, parent: sink, prot: 5, sensor: {source: s}}\n"),
+                 "prot");
+  expectRejected(topologyYaml("", "", sink + "  - {name: e, id: 1, role: edge, parent: sink, sensor: {source: s, rate: 5}}\n"),
+                 "sensor.rate");
+}
+
 }  // namespace
 }  // namespace fogmap
