@@ -206,11 +206,12 @@ std::optional<SortedGrid> sortIntoGrid(std::span<const Point> points, double eps
 // runs in key order: the rest of the column and columns (x, y+1), (x, y+2); columns
 // (x+1, y-2 .. y+2); columns (x+2, y-2 .. y+2). Their bounds are the column key plus constants,
 // so five cursors walk the column list once (a merge join of the list with itself, no hashing).
-// Each run is filtered a chunk of cells at a time, branch-free: z index within two and box gap
-// under eps; the survivors get the union-find test and an early-exit closest-pair check.
+// Each run is filtered a chunk of cells at a time, branch-free: z index within two, box gap under
+// eps, and not already known to be joined (`known`: a snapshot of the sets' roots, one per cell,
+// padded by a chunk); the survivors get the union-find test and an early-exit closest-pair check.
 // Visits columns [first, last); every union made is also appended to `joined` when given.
-void joinCloseCells(const SortedGrid& g, float eps, std::size_t first, std::size_t last, DisjointSets& sets,
-                    std::vector<std::pair<std::uint32_t, std::uint32_t>>* joined) {
+void joinCloseCells(const SortedGrid& g, std::span<const std::int32_t> known, float eps, std::size_t first,
+                    std::size_t last, DisjointSets& sets, std::vector<std::pair<std::uint32_t, std::uint32_t>>* joined) {
   const float eps2 = eps * eps;
   const float gap_limit = eps2 * 1.0001F;  // slack so that rounding never drops a true pair
   const auto& [lx, ly, lz, hx, hy, hz] = g.box;
@@ -237,7 +238,8 @@ void joinCloseCells(const SortedGrid& g, float eps, std::size_t first, std::size
     return false;
   };
 
-  // Bit k set: cell base + k (k < count) is within two z cells of c and its box within eps.
+  // Bit k set: cell base + k (k < count) is within two z cells of c, its box within eps, and it
+  // is not known to be joined with c.
   auto candidates = [&](std::size_t c, std::size_t base, std::size_t count) {
     const Floats4 cx0 = Floats4{} + lx[c], cy0 = Floats4{} + ly[c], cz0 = Floats4{} + lz[c];
     const Floats4 cx1 = Floats4{} + hx[c], cy1 = Floats4{} + hy[c], cz1 = Floats4{} + hz[c];
@@ -248,7 +250,8 @@ void joinCloseCells(const SortedGrid& g, float eps, std::size_t first, std::size
       const Floats4 gy = gapLanes(cy0, cy1, loadLanes<Floats4>(&ly[o]), loadLanes<Floats4>(&hy[o]));
       const Floats4 gz = gapLanes(cz0, cz1, loadLanes<Floats4>(&lz[o]), loadLanes<Floats4>(&hz[o]));
       const Ints4 dz = loadLanes<Ints4>(&g.cell_z[o]) - g.cell_z[c];
-      const Ints4 pass = (gx * gx + gy * gy + gz * gz <= gap_limit) & (dz >= -2) & (dz <= 2);
+      const Ints4 pass = (gx * gx + gy * gy + gz * gz <= gap_limit) & (dz >= -2) & (dz <= 2) &
+                         (loadLanes<Ints4>(&known[o]) != known[c]);
       const Ints4 bit = pass & Ints4{1, 2, 4, 8};
       mask |= static_cast<unsigned>(bit[0] | bit[1] | bit[2] | bit[3]) << h;
     }
@@ -291,7 +294,8 @@ void joinCloseCells(const SortedGrid& g, float eps, std::size_t first, std::size
 // The columns split into `threads` ranges of about equal cell counts, one per thread. The first
 // range joins into `sets` directly; the others into sets of their own, whose unions are replayed
 // into `sets` afterwards (pairs across a range boundary belong to the range of their first cell).
-void joinCloseCellsParallel(const SortedGrid& g, float eps, std::size_t threads, DisjointSets& sets) {
+void joinCloseCellsParallel(const SortedGrid& g, std::span<const std::int32_t> known, float eps, std::size_t threads,
+                            DisjointSets& sets) {
   const std::size_t columns = g.columns();
   threads = std::clamp<std::size_t>(threads, 1, std::max<std::size_t>(1, g.cells() / kMinCellsPerThread));
   std::vector<std::size_t> bounds{0};
@@ -305,11 +309,11 @@ void joinCloseCellsParallel(const SortedGrid& g, float eps, std::size_t threads,
   std::vector<std::thread> workers;
   for (std::size_t t = 1; t < threads; ++t) {
     workers.emplace_back([&, t] {
-      DisjointSets own(g.cells());
-      joinCloseCells(g, eps, bounds[t], bounds[t + 1], own, &joined[t]);
+      DisjointSets own = sets;
+      joinCloseCells(g, known, eps, bounds[t], bounds[t + 1], own, &joined[t]);
     });
   }
-  joinCloseCells(g, eps, bounds[0], bounds[1], sets, nullptr);
+  joinCloseCells(g, known, eps, bounds[0], bounds[1], sets, nullptr);
   for (auto& w : workers) w.join();
   for (const auto& edges : joined) {
     for (const auto& [a, b] : edges) sets.unite(a, b);
@@ -325,8 +329,31 @@ Clustering euclideanClusters(std::span<const Point> points, const ClusteringPara
   // A scene wider than ~10^4 km at this eps: no word fits, use the reference.
   if (!grid) return pclEuclideanClusters(points, params, false);
   const std::size_t cells = grid->cells();
+  std::vector<std::uint32_t> cell_of_point(n);
+  for (std::size_t c = 0; c < cells; ++c) {
+    for (auto i = grid->cell_begin[c]; i < grid->cell_begin[c + 1]; ++i) {
+      cell_of_point[grid->words[i] & grid->index_mask] = static_cast<std::uint32_t>(c);
+    }
+  }
+  // Scans arrive in acquisition order, where consecutive points are mostly neighbours: joining
+  // those first is exact (they are closer than eps) and lets the search skip most pairs of cells
+  // already joined. Distances as FLANN computes them (float, x then y then z).
   DisjointSets sets(cells);
-  joinCloseCellsParallel(*grid, static_cast<float>(params.eps_m), params.threads, sets);
+  const auto eps2 = static_cast<float>(params.eps_m * params.eps_m);
+  for (std::size_t i = 0; i + 1 < n; ++i) {
+    if (cell_of_point[i] == cell_of_point[i + 1]) continue;
+    float r = 0.0F;
+    float d = points[i].x - points[i + 1].x;
+    r += d * d;
+    d = points[i].y - points[i + 1].y;
+    r += d * d;
+    d = points[i].z - points[i + 1].z;
+    r += d * d;
+    if (r < eps2) sets.unite(cell_of_point[i], cell_of_point[i + 1]);
+  }
+  std::vector<std::int32_t> known(cells + kChunk, -1);
+  for (std::size_t c = 0; c < cells; ++c) known[c] = static_cast<std::int32_t>(sets.find(c));
+  joinCloseCellsParallel(*grid, known, static_cast<float>(params.eps_m), params.threads, sets);
 
   // Component sizes, then canonical labels in the order of each cluster's first point.
   std::vector<std::uint32_t> root_of(cells);
@@ -334,12 +361,6 @@ Clustering euclideanClusters(std::span<const Point> points, const ClusteringPara
   for (std::size_t c = 0; c < cells; ++c) {
     root_of[c] = static_cast<std::uint32_t>(sets.find(c));
     component_size[root_of[c]] += grid->cell_begin[c + 1] - grid->cell_begin[c];
-  }
-  std::vector<std::uint32_t> cell_of_point(n);
-  for (std::size_t c = 0; c < cells; ++c) {
-    for (auto i = grid->cell_begin[c]; i < grid->cell_begin[c + 1]; ++i) {
-      cell_of_point[grid->words[i] & grid->index_mask] = static_cast<std::uint32_t>(c);
-    }
   }
   std::vector<std::int32_t> label_of_root(cells, -2);  // -2: not yet decided
   Clustering out;
