@@ -4,6 +4,7 @@
 #include <cmath>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <set>
 #include <sstream>
 #include <string_view>
@@ -195,6 +196,7 @@ Status validate(const TopologyConfig& t) {
     if (n.metrics_port == 0) return bad(where, "metrics_port is required");
     if (n.role == Role::kAggregator && n.port == 0) return bad(where, "an aggregator needs a port");
     if (n.role == Role::kEdge && !n.sensor) return bad(where, "an edge needs a sensor");
+    if (n.role == Role::kAggregator && n.sensor) return bad(where + ".sensor", "only edges have a sensor");
     if (n.role == Role::kEdge && n.parent.empty()) return bad(where, "an edge needs a parent aggregator");
     if (n.parent.empty()) {
       ++roots;
@@ -238,7 +240,7 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
   t.deadline_ms = *deadline;
   const auto period = scalar<double>(root, "period_ms", "", t.period_ms);
   if (!period) return period.error();
-  if (!(*period > 0.0)) return bad("period_ms", "must be positive");
+  if (!(*period > 0.0 && *period <= 60000.0)) return bad("period_ms", "must be in (0, 60000]");
   t.period_ms = *period;
   const auto max_bytes = scalar<long long>(root, "max_message_bytes", "", static_cast<long long>(t.max_message_bytes));
   if (!max_bytes) return max_bytes.error();
@@ -256,7 +258,9 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
     if (!alpha) return alpha.error();
     if (!threads) return threads.error();
     if (!(*eps > 0.0 && *eps < 100.0)) return bad("madc.eps_m", "must be in (0, 100)");
-    if (*min_points < 1) return bad("madc.min_points", "must be at least 1");
+    if (*min_points < 1 || *min_points > std::numeric_limits<std::int32_t>::max()) {
+      return bad("madc.min_points", "must be in [1, 2^31)");
+    }
     if (!(*alpha > 0.0 && *alpha < 10.0)) return bad("madc.alpha", "must be in (0, 10)");
     if (*threads < 1 || *threads > 256) return bad("madc.threads", "must be in [1, 256]");
     t.madc.clustering.eps_m = *eps;

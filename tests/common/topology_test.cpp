@@ -235,6 +235,16 @@ TEST(Topology, SectionsThatAreNotMappingsAreRejectedNotThrown) {
                  "sensor.pose");
 }
 
+TEST(Topology, LimitsAndRolesAreChecked) {
+  expectRejected(topologyYaml("period_ms: .inf\n"), "period_ms");
+  expectRejected(topologyYaml("period_ms: 60001\n"), "period_ms");
+  expectRejected(topologyYaml("", "  min_points: 3000000000\n"), "madc.min_points");
+  expectRejected(topologyYaml("", "",
+                              "  - {name: sink, id: 100, role: aggregator, port: 50000, metrics_port: 50200, sensor: {source: s}}\n"
+                              "  - {name: e, id: 1, role: edge, parent: sink, metrics_port: 50101, sensor: {source: s}}\n"),
+                 "only edges have a sensor");
+}
+
 TEST(Topology, MisspeltKeysAreRejected) {
   expectRejected(topologyYaml("", "  thread: 4\n"), "madc.thread");
   expectRejected(topologyYaml("periodms: 100\n"), "periodms");
