@@ -306,12 +306,10 @@ void joinCloseCellsParallel(const SortedGrid& g, std::span<const std::int32_t> k
   }
   bounds.push_back(columns);
   std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> joined(threads);
+  std::vector<DisjointSets> own(threads - 1, sets);  // copied before any thread writes to `sets`
   std::vector<std::thread> workers;
   for (std::size_t t = 1; t < threads; ++t) {
-    workers.emplace_back([&, t] {
-      DisjointSets own = sets;
-      joinCloseCells(g, known, eps, bounds[t], bounds[t + 1], own, &joined[t]);
-    });
+    workers.emplace_back([&, t] { joinCloseCells(g, known, eps, bounds[t], bounds[t + 1], own[t - 1], &joined[t]); });
   }
   joinCloseCells(g, known, eps, bounds[0], bounds[1], sets, nullptr);
   for (auto& w : workers) w.join();
