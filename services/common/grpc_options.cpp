@@ -58,4 +58,15 @@ grpc::Status toGrpcStatus(const Error& error) {
   return {grpc::StatusCode::INTERNAL, error.message};
 }
 
+Error fromGrpcStatus(const grpc::Status& status, const std::string& call) {
+  const std::string message = call + ": " + status.error_message();
+  switch (status.error_code()) {
+    case grpc::StatusCode::INVALID_ARGUMENT: return invalidArgument(message);
+    case grpc::StatusCode::NOT_FOUND: return notFound(message);
+    case grpc::StatusCode::UNAVAILABLE:
+    case grpc::StatusCode::DEADLINE_EXCEEDED: return ioError(message);
+    default: return Error{ErrorCode::kInternal, message};
+  }
+}
+
 }  // namespace fogmap

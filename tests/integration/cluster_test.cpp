@@ -9,8 +9,10 @@
 #include <chrono>
 #include <cstdio>
 #include <fstream>
+#include <sstream>
 #include <thread>
 
+#include "common/geofence.hpp"
 #include "common/map.hpp"
 #include "tools/fogctl/cluster_run.hpp"
 #include "tools/fogctl/launcher.hpp"
@@ -189,6 +191,54 @@ std::pair<int, std::string> run(const std::string& command) {
   while (std::fgets(buffer, sizeof buffer, pipe) != nullptr) output += buffer;
   const int status = ::pclose(pipe);
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+}
+
+// fogctl geofence against a running root: the intrusions it prints are exactly those of the
+// global map of the epoch it names, as the root published it, recomputed in-process.
+TEST(Cluster, FogctlGeofenceReportsTheIntrusionsOfThePublishedGlobalMap) {
+  const TopologyConfig t = topology("star", 3, 44500, Mode::kMadc, 40);
+  const std::string target = t.root()->host + ":" + std::to_string(t.root()->port);
+  const std::string fogctl = (cli::binaryDir() / "fogctl").string() + " geofence ";
+  const Geofence fence = boxGeofence("front", {0, -4, -3}, {20, 4, 3});
+  std::pair<int, std::string> set, query, unknown;
+  RunOptions options;
+  options.frames = 30;
+  options.timeout = 60s;
+  const auto result = cli::runCluster(scratchDir("geofence"), t, options, [&](const cli::Cluster&) {
+    std::this_thread::sleep_for(1500ms);
+    set = run(fogctl + "set --target " + target + " --name front --box 0,-4,-3,20,4,3");
+    query = run(fogctl + "query --target " + target + " --name front");
+    unknown = run(fogctl + "query --target " + target + " --name nowhere");
+  });
+  ASSERT_TRUE(result.ok()) << result.error().message;
+  EXPECT_EQ(set.first, 0) << set.second;
+  ASSERT_EQ(query.first, 0) << query.second;
+  EXPECT_EQ(unknown.first, 1) << unknown.second;
+  EXPECT_NE(unknown.second.find("no geofence named 'nowhere'"), std::string::npos) << unknown.second;
+
+  std::istringstream lines(query.second);
+  std::string line;
+  unsigned long epoch = 0;
+  ASSERT_TRUE(std::getline(lines, line));
+  ASSERT_EQ(std::sscanf(line.c_str(), "epoch %lu:", &epoch), 1) << query.second;
+  std::vector<std::pair<std::size_t, std::string>> printed;
+  while (std::getline(lines, line)) {
+    unsigned index = 0;
+    char containment[16] = {};
+    if (std::sscanf(line.c_str(), "front object %u %15s", &index, containment) == 2) printed.emplace_back(index, containment);
+  }
+  ASSERT_EQ(result->epochs.count(epoch), 1U) << "the subscriber did not receive epoch " << epoch;
+  std::vector<std::pair<std::size_t, std::string>> expected;
+  for (const auto& hit : intrusions(result->epochs.at(epoch).map, fence)) {
+    expected.emplace_back(hit.object_index, containmentName(hit.containment));
+  }
+  EXPECT_GT(expected.size(), 3U);
+  EXPECT_EQ(printed, expected) << query.second;
+
+  // Bad flags are usage errors, before any call.
+  EXPECT_EQ(run(fogctl + "set --target " + target + " --name x --box 1,2,3").first, 2);
+  EXPECT_EQ(run(fogctl + "set --target " + target + " --name x --box 1,2,3,0,5,6").first, 2);
+  EXPECT_EQ(run(fogctl + "set --target " + target + " --name x --box 1,2,3,4,5,six").first, 2);
 }
 
 TEST(Cluster, PrometheusScrapesEveryServiceAndPromtoolFindsNoProblems) {

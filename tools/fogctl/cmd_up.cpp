@@ -5,6 +5,8 @@
 #include <atomic>
 #include <cmath>
 #include <set>
+#include <cstdlib>
+#include <sstream>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
@@ -14,6 +16,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include "common/cloud_io.hpp"
+#include "common/geofence.hpp"
 #include "common/topology.hpp"
 #include "common/virtual_lidar.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
@@ -32,6 +35,41 @@ int fail(const Error& e) {
 }
 
 std::filesystem::path defaultStateDir(const TopologyConfig& t) { return std::filesystem::path(".fogmap") / t.name; }
+
+// The root aggregator's address: --target HOST:PORT, or the root of the topology file given.
+Expected<std::string> rootTarget(const Args& args, const std::string& usage) {
+  if (args.has("target")) return args.get("target");
+  if (args.positional().size() != 1) return invalidArgument("usage: " + usage);
+  const auto topology = loadTopology(args.positional()[0]);
+  if (!topology) return topology.error();
+  return topology->root()->host + ":" + std::to_string(topology->root()->port);
+}
+
+// "a,b,c,d,e,f": exactly `count` finite numbers separated by commas.
+Expected<std::vector<double>> numberList(const std::string& text, std::size_t count, const std::string& flag) {
+  std::vector<double> out;
+  std::stringstream in(text);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    char* end = nullptr;
+    const double v = std::strtod(item.c_str(), &end);
+    if (item.empty() || end != item.c_str() + item.size() || !std::isfinite(v)) {
+      return invalidArgument(flag + ": '" + item + "' is not a number");
+    }
+    out.push_back(v);
+  }
+  if (out.size() != count) return invalidArgument(flag + " expects " + std::to_string(count) + " numbers separated by commas");
+  return out;
+}
+
+const char* containmentText(v1::Containment c) {
+  switch (c) {
+    case v1::CONTAINMENT_INSIDE: return "inside";
+    case v1::CONTAINMENT_CROSSING: return "crossing";
+    case v1::CONTAINMENT_OUTSIDE: return "outside";
+    default: return "unknown";
+  }
+}
 
 }  // namespace
 
@@ -163,13 +201,9 @@ int runSplit(int argc, char** argv) {
 int runWatch(int argc, char** argv) {
   const auto args = Args::parse(argc, argv, 2, {"target", "count", "objects"}, {});
   if (!args) return fail(args.error());
-  std::string target = args->get("target");
-  if (target.empty() && args->positional().size() == 1) {
-    const auto topology = loadTopology(args->positional()[0]);
-    if (!topology) return fail(topology.error());
-    target = topology->root()->host + ":" + std::to_string(topology->root()->port);
-  }
-  if (target.empty()) return fail(invalidArgument("usage: fogctl watch TOPOLOGY.yaml | --target HOST:PORT [--count N] [--objects 10]"));
+  const auto target_or = rootTarget(*args, "fogctl watch TOPOLOGY.yaml | --target HOST:PORT [--count N] [--objects 10]");
+  if (!target_or) return fail(target_or.error());
+  const std::string target = *target_or;
   const auto count = args->getInt("count", 0);
   const auto shown = args->getInt("objects", 10);
   if (!count || *count < 0 || !shown || *shown < 0) return fail(invalidArgument("--count and --objects must be non-negative"));
@@ -223,6 +257,55 @@ int runWatch(int argc, char** argv) {
   context.TryCancel();
   requestStop();
   canceller.join();
+  return 0;
+}
+
+int runGeofence(int argc, char** argv) {
+  const std::string usage =
+      "fogctl geofence set TOPOLOGY.yaml | --target HOST:PORT --name NAME --box XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX\n"
+      "       fogctl geofence query TOPOLOGY.yaml | --target HOST:PORT [--name NAME]";
+  if (argc < 3 || (std::string(argv[2]) != "set" && std::string(argv[2]) != "query")) {
+    return fail(invalidArgument("usage: " + usage));
+  }
+  const bool set = std::string(argv[2]) == "set";
+  const auto args = Args::parse(argc, argv, 3, {"target", "name", "box"}, {});
+  if (!args) return fail(args.error());
+  const auto target = rootTarget(*args, usage);
+  if (!target) return fail(target.error());
+  auto stub = v1::GlobalMapService::NewStub(makeChannel(*target, 64U << 20));
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+
+  if (set) {
+    if (!args->has("name") || !args->has("box")) return fail(invalidArgument("usage: " + usage));
+    const auto box = numberList(args->get("box"), 6, "--box");
+    if (!box) return fail(box.error());
+    const Eigen::Vector3d lo((*box)[0], (*box)[1], (*box)[2]);
+    const Eigen::Vector3d hi((*box)[3], (*box)[4], (*box)[5]);
+    if ((lo.array() >= hi.array()).any()) return fail(invalidArgument("--box: the minimum must be below the maximum on every axis"));
+    v1::SetGeofenceReply reply;
+    const grpc::Status status = stub->SetGeofence(&context, toProto(boxGeofence(args->get("name"), lo, hi)), &reply);
+    if (!status.ok()) return fail(fromGrpcStatus(status, "SetGeofence at " + *target));
+    std::printf("geofence '%s' set on %s (%u geofences)\n", args->get("name").c_str(), target->c_str(), reply.geofence_count());
+    return 0;
+  }
+  v1::GeofenceQuery query;
+  query.set_name(args->get("name"));
+  v1::GeofenceReport report;
+  const grpc::Status status = stub->QueryGeofences(&context, query, &report);
+  if (!status.ok()) return fail(fromGrpcStatus(status, "QueryGeofences at " + *target));
+  if (report.epoch() == 0) {
+    std::printf("no global map yet\n");
+    return 0;
+  }
+  std::printf("epoch %lu: %d intrusions\n", static_cast<unsigned long>(report.epoch()), report.intrusions_size());
+  for (const auto& hit : report.intrusions()) {
+    const auto& lo = hit.box().min();
+    const auto& hi = hit.box().max();
+    std::printf("%s object %u %s box [%.2f %.2f %.2f]..[%.2f %.2f %.2f] ellipsoids %d\n", hit.geofence().c_str(),
+                hit.object_index(), containmentText(hit.containment()), lo.x(), lo.y(), lo.z(), hi.x(), hi.y(), hi.z(),
+                hit.ellipsoids_size());
+  }
   return 0;
 }
 

@@ -9,6 +9,7 @@ int runDown(int argc, char** argv);
 int runTopology(int argc, char** argv);
 int runSplit(int argc, char** argv);
 int runWatch(int argc, char** argv);
+int runGeofence(int argc, char** argv);
 int runDemo(int argc, char** argv);
 
 }  // namespace fogmap::cli

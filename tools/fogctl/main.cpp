@@ -15,6 +15,8 @@ void usage() {
                "  up TOPOLOGY.yaml [--detach] [--state DIR]       start every service as a local process\n"
                "  down TOPOLOGY.yaml | --state DIR                stop a detached cluster\n"
                "  watch TOPOLOGY.yaml | --target HOST:PORT [--count N] [--objects 10]   print the live global map\n"
+               "  geofence set TOPOLOGY.yaml | --target HOST:PORT --name NAME --box XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX\n"
+               "  geofence query TOPOLOGY.yaml | --target HOST:PORT [--name NAME]   objects of the global map in the geofences\n"
                "  topology star|tree --edges K --source DIR [--base-port P] [--mode madc|baseline|ext] [--frames N] [--out FILE]\n"
                "  split --input SCAN --views K [--overlap-deg 10] --out DIR   cut a scan into virtual LiDARs\n";
 }
@@ -34,6 +36,7 @@ int main(int argc, char** argv) {
   if (command == "topology") return fogmap::cli::runTopology(argc, argv);
   if (command == "split") return fogmap::cli::runSplit(argc, argv);
   if (command == "watch") return fogmap::cli::runWatch(argc, argv);
+  if (command == "geofence") return fogmap::cli::runGeofence(argc, argv);
   if (command == "demo") return fogmap::cli::runDemo(argc, argv);
   std::cerr << "fogctl: unknown command '" << command << "'\n";
   usage();
