@@ -318,11 +318,36 @@ void joinCloseCellsParallel(const SortedGrid& g, std::span<const std::int32_t> k
   }
 }
 
+bool isFinite(const Point& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
+
+// Non-finite points are noise and connect to nothing (PCL's KdTree asserts on them): when there
+// are any, `cluster` runs on the finite points alone and their labels are put back in place.
+template <typename ClusterFn>
+std::optional<Clustering> withoutNonFinite(std::span<const Point> points, ClusterFn&& cluster) {
+  if (std::all_of(points.begin(), points.end(), isFinite)) return std::nullopt;
+  Cloud finite;
+  std::vector<std::size_t> index;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!isFinite(points[i])) continue;
+    finite.push_back(points[i]);
+    index.push_back(i);
+  }
+  const Clustering inner = cluster(std::span<const Point>(finite));
+  Clustering out;
+  out.cluster_count = inner.cluster_count;  // relative order kept: the labels stay canonical
+  out.labels.assign(points.size(), -1);
+  for (std::size_t k = 0; k < index.size(); ++k) out.labels[index[k]] = inner.labels[k];
+  return out;
+}
+
 }  // namespace
 
 Clustering euclideanClusters(std::span<const Point> points, const ClusteringParams& params) {
   const std::size_t n = points.size();
   if (n == 0) return {};
+  if (auto r = withoutNonFinite(points, [&](std::span<const Point> finite) { return euclideanClusters(finite, params); })) {
+    return std::move(*r);
+  }
   const auto grid = sortIntoGrid(points, params.eps_m);
   // A scene wider than ~10^4 km at this eps: no word fits, use the reference.
   if (!grid) return pclEuclideanClusters(points, params, false);
@@ -376,6 +401,11 @@ Clustering euclideanClusters(std::span<const Point> points, const ClusteringPara
 }
 
 Clustering pclEuclideanClusters(std::span<const Point> points, const ClusteringParams& params, bool sorted_search) {
+  if (auto r = withoutNonFinite(points, [&](std::span<const Point> finite) {
+        return pclEuclideanClusters(finite, params, sorted_search);
+      })) {
+    return std::move(*r);
+  }
   const auto cloud = toPcl(points);
   std::vector<std::int32_t> labels(points.size(), -1);
   if (points.empty()) return {};
@@ -407,6 +437,9 @@ Clustering clusterPoints(std::span<const Point> points, const ClusteringParams& 
 Clustering dbscan(std::span<const Point> points, const DbscanParams& params) {
   const std::size_t n = points.size();
   if (n == 0) return {};
+  if (auto r = withoutNonFinite(points, [&](std::span<const Point> finite) { return dbscan(finite, params); })) {
+    return std::move(*r);
+  }
   const auto cloud = toPcl(points);
   pcl::search::KdTree<pcl::PointXYZ> tree(false);
   tree.setInputCloud(cloud);

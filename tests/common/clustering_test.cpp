@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <random>
 
 #include "common/cloud_io.hpp"
@@ -91,6 +92,45 @@ TEST(Clustering, ThreadedSearchEqualsBruteForce) {
       params.threads = threads;
       const Clustering actual = euclideanClusters(cloud, params);
       ASSERT_EQ(actual.labels, expected.labels) << "trial " << trial << ", " << threads << " threads";
+    }
+  }
+}
+
+TEST(Clustering, NonFinitePointsAreNoiseAndConnectNothing) {
+  std::mt19937_64 rng(5);
+  const Cloud finite = randomScene(rng, 2000, 5.0, 0.0);
+  Cloud cloud;
+  std::vector<bool> bad;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  for (std::size_t i = 0; i < finite.size(); ++i) {
+    if (i % 97 == 0) {
+      cloud.push_back({i % 2 == 0 ? nan : finite[i].x, finite[i].y, i % 2 == 0 ? finite[i].z : -inf, 0.0F});
+      bad.push_back(true);
+    }
+    cloud.push_back(finite[i]);
+    bad.push_back(false);
+  }
+  ClusteringParams params;
+  params.min_points = 3;
+  const Clustering expected = bruteForceClusters(finite, params);
+  for (const Clustering& actual : {euclideanClusters(cloud, params), pclEuclideanClusters(cloud, params, false)}) {
+    ASSERT_EQ(actual.labels.size(), cloud.size());
+    EXPECT_EQ(actual.cluster_count, expected.cluster_count);
+    std::vector<std::int32_t> finite_labels;
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+      if (bad[i]) {
+        EXPECT_EQ(actual.labels[i], -1) << "point " << i;
+      } else {
+        finite_labels.push_back(actual.labels[i]);
+      }
+    }
+    EXPECT_EQ(finite_labels, expected.labels);
+  }
+  const Clustering db = dbscan(cloud, DbscanParams{});
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    if (bad[i]) {
+      EXPECT_EQ(db.labels[i], -1) << "point " << i;
     }
   }
 }
