@@ -344,4 +344,22 @@ Expected<Geofence> fromProto(const v1::Geofence& fence) {
   return out;
 }
 
+v1::Containment toProto(Containment containment) {
+  switch (containment) {
+    case Containment::kOutside: return v1::CONTAINMENT_OUTSIDE;
+    case Containment::kCrossing: return v1::CONTAINMENT_CROSSING;
+    case Containment::kInside: return v1::CONTAINMENT_INSIDE;
+  }
+  return v1::CONTAINMENT_UNSPECIFIED;
+}
+
+Expected<Containment> fromProto(v1::Containment containment) {
+  switch (containment) {
+    case v1::CONTAINMENT_OUTSIDE: return Containment::kOutside;
+    case v1::CONTAINMENT_CROSSING: return Containment::kCrossing;
+    case v1::CONTAINMENT_INSIDE: return Containment::kInside;
+    default: return invalidArgument("containment: unknown value " + std::to_string(static_cast<int>(containment)));
+  }
+}
+
 }  // namespace fogmap

@@ -16,6 +16,7 @@ v1::Map toProto(const MapMessage& message);
 v1::PointChunk toProto(const PointChunk& chunk);
 v1::GlobalMap toProto(const GlobalMapMessage& message);
 v1::Geofence toProto(const Geofence& fence);
+v1::Containment toProto(Containment containment);
 
 // Every fromProto returns kInvalidArgument with the offending field (and object / ellipsoid /
 // point index) in the message. Rejects: missing ellipsoid ids or centres, shapes that are not 6
@@ -28,5 +29,6 @@ Expected<MapMessage> fromProto(const v1::Map& message);
 Expected<PointChunk> fromProto(const v1::PointChunk& chunk);
 Expected<GlobalMapMessage> fromProto(const v1::GlobalMap& message);
 Expected<Geofence> fromProto(const v1::Geofence& fence);
+Expected<Containment> fromProto(v1::Containment containment);  // rejects UNSPECIFIED and unknown values
 
 }  // namespace fogmap

@@ -11,16 +11,7 @@
 namespace fogmap {
 namespace {
 
-// The geofence report has no domain counterpart in proto_convert (yet); its conversion lives here.
-v1::Containment toProto(Containment c) {
-  switch (c) {
-    case Containment::kOutside: return v1::CONTAINMENT_OUTSIDE;
-    case Containment::kCrossing: return v1::CONTAINMENT_CROSSING;
-    case Containment::kInside: return v1::CONTAINMENT_INSIDE;
-  }
-  return v1::CONTAINMENT_UNSPECIFIED;
-}
-
+// The geofence report's domain type belongs to the aggregator core; its conversion lives here.
 v1::Vec3 toProto(const Eigen::Vector3d& v) {
   v1::Vec3 out;
   out.set_x(v.x());

@@ -581,5 +581,15 @@ TEST(ProtoConvert, RejectsInvalidGeofences) {
   expectRejected(fromProto(nan), {"half-space 4", "offset"});
 }
 
+TEST(ProtoConvert, ContainmentRoundTripsAndUnknownValuesAreRejected) {
+  for (const Containment c : {Containment::kOutside, Containment::kCrossing, Containment::kInside}) {
+    const auto back = fromProto(toProto(c));
+    ASSERT_TRUE(back.ok());
+    EXPECT_EQ(*back, c);
+  }
+  EXPECT_FALSE(fromProto(v1::CONTAINMENT_UNSPECIFIED).ok());
+  EXPECT_FALSE(fromProto(static_cast<v1::Containment>(42)).ok());
+}
+
 }  // namespace
 }  // namespace fogmap

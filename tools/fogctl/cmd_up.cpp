@@ -62,15 +62,6 @@ Expected<std::vector<double>> numberList(const std::string& text, std::size_t co
   return out;
 }
 
-const char* containmentText(v1::Containment c) {
-  switch (c) {
-    case v1::CONTAINMENT_INSIDE: return "inside";
-    case v1::CONTAINMENT_CROSSING: return "crossing";
-    case v1::CONTAINMENT_OUTSIDE: return "outside";
-    default: return "unknown";
-  }
-}
-
 }  // namespace
 
 int runUp(int argc, char** argv) {
@@ -300,10 +291,11 @@ int runGeofence(int argc, char** argv) {
   }
   std::printf("epoch %lu: %d intrusions\n", static_cast<unsigned long>(report.epoch()), report.intrusions_size());
   for (const auto& hit : report.intrusions()) {
+    const auto containment = fromProto(hit.containment());
     const auto& lo = hit.box().min();
     const auto& hi = hit.box().max();
     std::printf("%s object %u %s box [%.2f %.2f %.2f]..[%.2f %.2f %.2f] ellipsoids %d\n", hit.geofence().c_str(),
-                hit.object_index(), containmentText(hit.containment()), lo.x(), lo.y(), lo.z(), hi.x(), hi.y(), hi.z(),
+                hit.object_index(), containment ? containmentName(*containment) : "unknown", lo.x(), lo.y(), lo.z(), hi.x(), hi.y(), hi.z(),
                 hit.ellipsoids_size());
   }
   return 0;
