@@ -45,6 +45,19 @@ pcl::PointCloud<pcl::PointXYZ>::Ptr toPcl(std::span<const Point> points) {
   return cloud;
 }
 
+// Squared distance exactly as FLANN's L2_Simple computes it (float, x then y then z), so that the
+// strict "closer than eps" decision matches PCL's radius search bit for bit.
+inline float squaredDistance(float ax, float ay, float az, float bx, float by, float bz) {
+  float r = 0.0F;
+  float d = ax - bx;
+  r += d * d;
+  d = ay - by;
+  r += d * d;
+  d = az - bz;
+  r += d * d;
+  return r;
+}
+
 int bitsFor(std::uint64_t span) { return span == 0 ? 1 : static_cast<int>(std::bit_width(span)); }
 
 // LSD radix sort of 64-bit words by their bits [shift, shift + key_bits): as few passes of at
@@ -216,8 +229,6 @@ void joinCloseCells(const SortedGrid& g, std::span<const std::int32_t> known, fl
   const float gap_limit = eps2 * 1.0001F;  // slack so that rounding never drops a true pair
   const auto& [lx, ly, lz, hx, hy, hz] = g.box;
 
-  // Squared distances exactly as FLANN's L2_Simple computes them (float, x then y then z), so that
-  // the strict "closer than eps" decision matches PCL's radius search bit for bit.
   auto closeCells = [&](std::size_t a, std::size_t b) {
     for (auto i = g.cell_begin[a]; i < g.cell_begin[a + 1]; ++i) {
       const float gx = std::max(std::max(lx[b] - g.x[i], g.x[i] - hx[b]), 0.0F);
@@ -225,14 +236,7 @@ void joinCloseCells(const SortedGrid& g, std::span<const std::int32_t> known, fl
       const float gz = std::max(std::max(lz[b] - g.z[i], g.z[i] - hz[b]), 0.0F);
       if (gx * gx + gy * gy + gz * gz > gap_limit) continue;
       for (auto j = g.cell_begin[b]; j < g.cell_begin[b + 1]; ++j) {
-        float r = 0.0F;
-        float d = g.x[i] - g.x[j];
-        r += d * d;
-        d = g.y[i] - g.y[j];
-        r += d * d;
-        d = g.z[i] - g.z[j];
-        r += d * d;
-        if (r < eps2) return true;
+        if (squaredDistance(g.x[i], g.y[i], g.z[i], g.x[j], g.y[j], g.z[j]) < eps2) return true;
       }
     }
     return false;
@@ -360,19 +364,14 @@ Clustering euclideanClusters(std::span<const Point> points, const ClusteringPara
   }
   // Scans arrive in acquisition order, where consecutive points are mostly neighbours: joining
   // those first is exact (they are closer than eps) and lets the search skip most pairs of cells
-  // already joined. Distances as FLANN computes them (float, x then y then z).
+  // already joined.
   DisjointSets sets(cells);
   const auto eps2 = static_cast<float>(params.eps_m * params.eps_m);
   for (std::size_t i = 0; i + 1 < n; ++i) {
     if (cell_of_point[i] == cell_of_point[i + 1]) continue;
-    float r = 0.0F;
-    float d = points[i].x - points[i + 1].x;
-    r += d * d;
-    d = points[i].y - points[i + 1].y;
-    r += d * d;
-    d = points[i].z - points[i + 1].z;
-    r += d * d;
-    if (r < eps2) sets.unite(cell_of_point[i], cell_of_point[i + 1]);
+    const Point& a = points[i];
+    const Point& b = points[i + 1];
+    if (squaredDistance(a.x, a.y, a.z, b.x, b.y, b.z) < eps2) sets.unite(cell_of_point[i], cell_of_point[i + 1]);
   }
   std::vector<std::int32_t> known(cells + kChunk, -1);
   for (std::size_t c = 0; c < cells; ++c) known[c] = static_cast<std::int32_t>(sets.find(c));
