@@ -39,7 +39,19 @@ Error badFile(const fs::path& path, const std::string& problem) {
 
 bool isFinitePoint(const Point& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
 
-Expected<std::string> readWholeFile(const fs::path& path) {
+// Appends a decoded point, or counts it as non-finite and drops it unless the caller keeps them.
+void addPoint(LoadedCloud& loaded, const Point& p, const ReadLimits& limits) {
+  if (isFinitePoint(p)) {
+    loaded.points.push_back(p);
+  } else if (limits.keep_non_finite) {
+    loaded.points.push_back(p);
+    ++loaded.kept_non_finite;
+  } else {
+    ++loaded.dropped_non_finite;
+  }
+}
+
+Expected<std::string> readWholeFile(const fs::path& path, const ReadLimits& limits) {
   std::error_code ec;
   const fs::file_status status = fs::status(path, ec);
   if (status.type() == fs::file_type::not_found) return notFound(path.string() + ": no such file");
@@ -47,6 +59,10 @@ Expected<std::string> readWholeFile(const fs::path& path) {
   if (!fs::is_regular_file(status)) return badFile(path, "not a regular file");
   const std::uintmax_t size = fs::file_size(path, ec);
   if (ec) return ioError(path.string() + ": cannot get the file size: " + ec.message());
+  if (size > limits.max_bytes) {
+    return badFile(path, "the file has " + std::to_string(size) + " bytes, more than the scan size bound of " +
+                             std::to_string(limits.max_bytes) + " bytes (topology max_scan_bytes)");
+  }
 
   std::ifstream in(path, std::ios::binary);
   if (!in) return ioError(path.string() + ": cannot open the file for reading");
@@ -60,8 +76,9 @@ Expected<std::string> readWholeFile(const fs::path& path) {
 }
 
 // Headerless float32 records whose first four floats are x, y, z, intensity (KITTI, nuScenes).
-Expected<LoadedCloud> readFloatRecords(const fs::path& path, std::size_t record_bytes, const char* format_name) {
-  Expected<std::string> bytes = readWholeFile(path);
+Expected<LoadedCloud> readFloatRecords(const fs::path& path, std::size_t record_bytes, const char* format_name,
+                                       const ReadLimits& limits) {
+  Expected<std::string> bytes = readWholeFile(path, limits);
   if (!bytes) return bytes.error();
   if (bytes->empty()) return badFile(path, "the file is empty (0 bytes)");
   if (bytes->size() % record_bytes != 0) {
@@ -78,11 +95,7 @@ Expected<LoadedCloud> readFloatRecords(const fs::path& path, std::size_t record_
   for (std::size_t i = 0; i < count; ++i, record += record_bytes) {
     Point p;
     std::memcpy(&p, record, sizeof(Point));
-    if (isFinitePoint(p)) {
-      loaded.points.push_back(p);
-    } else {
-      ++loaded.dropped_non_finite;
-    }
+    addPoint(loaded, p, limits);
   }
   return loaded;
 }
@@ -296,22 +309,33 @@ Expected<PcdHeader> parsePcdHeader(const fs::path& path, std::string_view text) 
   return header;
 }
 
-// Compares the bytes after the header with what the header declares.
-std::optional<Error> checkBinaryDataSize(const fs::path& path, std::uint64_t available, std::uint64_t expected,
-                                         std::uint64_t points, const char* what) {
+// Bytes after a PCD's declared data: zero padding (an export artefact PCL ignores) is counted and
+// accepted; any other byte is an error.
+Expected<std::size_t> trailingZeroBytes(const fs::path& path, std::string_view bytes, std::size_t data_end,
+                                        std::uint64_t points) {
+  const std::string_view tail = bytes.substr(data_end);
+  const std::size_t non_zero = tail.find_first_not_of('\0');
+  if (non_zero == std::string_view::npos) return tail.size();
+  return badFile(path, "PCD file has " + std::to_string(tail.size()) + " bytes of trailing data after the " +
+                           std::to_string(points) + " points the header declares, and byte " +
+                           std::to_string(data_end + non_zero) + " of the file is not zero (only zero padding is accepted)");
+}
+
+// Compares the bytes from `data_start` on with the `expected` bytes the header declares; returns the
+// number of trailing zero bytes.
+Expected<std::size_t> checkBinaryDataSize(const fs::path& path, std::string_view bytes, std::size_t data_start,
+                                          std::uint64_t expected, std::uint64_t points, const char* what) {
+  const std::uint64_t available = bytes.size() - data_start;
   if (available < expected) {
     return badFile(path, "PCD data is truncated: the header declares " + std::to_string(points) + " points (" +
                              std::to_string(expected) + " bytes of " + what + ") but the file holds only " +
                              std::to_string(available) + " bytes");
   }
-  if (available > expected) {
-    return badFile(path, "PCD file has " + std::to_string(available - expected) + " bytes of trailing data after the " +
-                             std::to_string(points) + " points the header declares");
-  }
-  return std::nullopt;
+  return trailingZeroBytes(path, bytes, data_start + static_cast<std::size_t>(expected), points);
 }
 
-std::optional<Error> checkPcdData(const fs::path& path, const PcdHeader& header, std::string_view bytes) {
+// Checks the data against the header; returns the number of trailing zero bytes.
+Expected<std::size_t> checkPcdData(const fs::path& path, const PcdHeader& header, std::string_view bytes) {
   const std::string_view body = bytes.substr(header.data_offset);
   const std::uint64_t step = header.pointStep();
   if (header.points > std::numeric_limits<std::uint64_t>::max() / std::max<std::uint64_t>(step, 1)) {
@@ -320,7 +344,7 @@ std::optional<Error> checkPcdData(const fs::path& path, const PcdHeader& header,
 
   switch (header.data) {
     case PcdData::kBinary:
-      return checkBinaryDataSize(path, body.size(), header.points * step, header.points, "point data");
+      return checkBinaryDataSize(path, bytes, header.data_offset, header.points * step, header.points, "point data");
 
     case PcdData::kBinaryCompressed: {
       // Layout: uint32 compressed size, uint32 uncompressed size, LZF block.
@@ -339,17 +363,22 @@ std::optional<Error> checkPcdData(const fs::path& path, const PcdHeader& header,
                                  " bytes) but the compressed block unpacks to " + std::to_string(uncompressed) +
                                  " bytes");
       }
-      return checkBinaryDataSize(path, body.size() - 8, compressed, header.points, "compressed data");
+      return checkBinaryDataSize(path, bytes, header.data_offset + 8, compressed, header.points, "compressed data");
     }
 
     case PcdData::kAscii: {
+      // Zero padding after the last line is accepted as after binary data (PCL stops at POINTS lines).
+      const std::size_t last = bytes.find_last_not_of('\0');
+      const std::size_t data_end =
+          last == std::string_view::npos ? header.data_offset : std::max(header.data_offset, last + 1);
+      const std::string_view lines_text = bytes.substr(header.data_offset, data_end - header.data_offset);
       const std::size_t values_per_point = header.valuesPerPoint();
       std::uint64_t lines = 0;
       std::size_t pos = 0;
-      while (pos < body.size()) {
-        std::size_t end = body.find('\n', pos);
-        if (end == std::string_view::npos) end = body.size();
-        const std::vector<std::string_view> words = splitWords(body.substr(pos, end - pos));
+      while (pos < lines_text.size()) {
+        std::size_t end = lines_text.find('\n', pos);
+        if (end == std::string_view::npos) end = lines_text.size();
+        const std::vector<std::string_view> words = splitWords(lines_text.substr(pos, end - pos));
         pos = end + 1;
         if (words.empty()) continue;
         ++lines;
@@ -368,10 +397,10 @@ std::optional<Error> checkPcdData(const fs::path& path, const PcdHeader& header,
         return badFile(path, "PCD header count mismatch: POINTS says " + std::to_string(header.points) +
                                  " but the data has " + std::to_string(lines) + " points");
       }
-      return std::nullopt;
+      return bytes.size() - data_end;
     }
   }
-  return std::nullopt;
+  return Error{ErrorCode::kInternal, path.string() + ": unhandled PCD data kind"};
 }
 
 float fieldValue(const std::uint8_t* at, std::uint8_t datatype) {
@@ -413,21 +442,26 @@ Expected<CloudFormat> cloudFormatFromPath(const fs::path& path) {
   return badFile(path, "unknown point cloud format (expected a .bin, .pcd.bin or .pcd file name)");
 }
 
-Expected<LoadedCloud> readKittiBin(const fs::path& path) { return readFloatRecords(path, kKittiRecordBytes, "KITTI"); }
-
-Expected<LoadedCloud> readNuscenesBin(const fs::path& path) {
-  return readFloatRecords(path, kNuscenesRecordBytes, "nuScenes");
+Expected<LoadedCloud> readKittiBin(const fs::path& path, const ReadLimits& limits) {
+  return readFloatRecords(path, kKittiRecordBytes, "KITTI", limits);
 }
 
-Expected<LoadedCloud> readPcd(const fs::path& path) {
-  Expected<std::string> bytes = readWholeFile(path);
+Expected<LoadedCloud> readNuscenesBin(const fs::path& path, const ReadLimits& limits) {
+  return readFloatRecords(path, kNuscenesRecordBytes, "nuScenes", limits);
+}
+
+Expected<LoadedCloud> readPcd(const fs::path& path, const ReadLimits& limits) {
+  Expected<std::string> bytes = readWholeFile(path, limits);
   if (!bytes) return bytes.error();
   if (bytes->empty()) return badFile(path, "the file is empty (0 bytes)");
 
   Expected<PcdHeader> header = parsePcdHeader(path, *bytes);
   if (!header) return header.error();
-  if (std::optional<Error> error = checkPcdData(path, *header, *bytes)) return *error;
-  if (header->points == 0) return LoadedCloud{};
+  const Expected<std::size_t> trailing_zero_bytes = checkPcdData(path, *header, *bytes);
+  if (!trailing_zero_bytes) return trailing_zero_bytes.error();
+  LoadedCloud loaded;
+  loaded.trailing_zero_bytes = *trailing_zero_bytes;
+  if (header->points == 0) return loaded;
 
   // PCL prints its warnings to stderr; the checks above already turned every problem we know into an error.
   pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);
@@ -452,7 +486,6 @@ Expected<LoadedCloud> readPcd(const fs::path& path) {
     return badFile(path, "PCL decoded the PCD file differently from its header");
   }
 
-  LoadedCloud loaded;
   loaded.points.reserve(count);
   for (std::size_t i = 0; i < count; ++i) {
     const std::uint8_t* base = cloud.data.data() + i * cloud.point_step;
@@ -461,22 +494,18 @@ Expected<LoadedCloud> readPcd(const fs::path& path) {
     p.y = fieldValue(base + y->offset, y->datatype);
     p.z = fieldValue(base + z->offset, z->datatype);
     if (intensity) p.intensity = fieldValue(base + intensity->offset, intensity->datatype);
-    if (isFinitePoint(p)) {
-      loaded.points.push_back(p);
-    } else {
-      ++loaded.dropped_non_finite;
-    }
+    addPoint(loaded, p, limits);
   }
   return loaded;
 }
 
-Expected<LoadedCloud> readCloud(const fs::path& path) {
+Expected<LoadedCloud> readCloud(const fs::path& path, const ReadLimits& limits) {
   const Expected<CloudFormat> format = cloudFormatFromPath(path);
   if (!format) return format.error();
   switch (*format) {
-    case CloudFormat::kKittiBin: return readKittiBin(path);
-    case CloudFormat::kNuscenesBin: return readNuscenesBin(path);
-    case CloudFormat::kPcd: return readPcd(path);
+    case CloudFormat::kKittiBin: return readKittiBin(path, limits);
+    case CloudFormat::kNuscenesBin: return readNuscenesBin(path, limits);
+    case CloudFormat::kPcd: return readPcd(path, limits);
   }
   return Error{ErrorCode::kInternal, path.string() + ": unhandled cloud format"};
 }

@@ -58,6 +58,14 @@ inline float squaredDistance(float ax, float ay, float az, float bx, float by, f
   return r;
 }
 
+// eps^2 as PCL's EuclideanClusterExtraction compares squared distances with it: the tolerance is
+// cast to float, then squared and rounded to float for FLANN's radius search. (Rounding eps^2
+// from double instead gives another float for about half of all eps, 0.35 among them.)
+float pclSquaredTolerance(double eps_m) {
+  const auto eps = static_cast<float>(eps_m);
+  return eps * eps;  // the exact product rounded once, as float(double(eps) * eps) in PCL
+}
+
 int bitsFor(std::uint64_t span) { return span == 0 ? 1 : static_cast<int>(std::bit_width(span)); }
 
 // LSD radix sort of 64-bit words by their bits [shift, shift + key_bits): as few passes of at
@@ -126,10 +134,30 @@ struct SortedGrid {
   std::size_t columns() const { return column_key.size() - 1; }
 };
 
-// Cell edge slightly under eps/sqrt(3): any two points of one cell are closer than eps, so a
-// cell is connected for free. Points closer than eps are then at most two cells apart per axis.
-// Returns nothing when the scene is too wide for one 64-bit word per point.
-std::optional<SortedGrid> sortIntoGrid(std::span<const Point> points, double eps) {
+// Most cells along one axis. Cell indices are computed in double with a relative error of a few
+// 2^-53, which stays under 1e-6 of a cell below 2^30 cells: well inside the relative 1e-5 by
+// which a cell is smaller than eps/sqrt(3), so a cell's points are still closer than eps. Indices (and z
+// differences) also fit an int32 then, and no conversion from double goes out of range.
+constexpr double kMaxCellsPerAxis = 1073741824.0;  // 2^30
+
+// Whether the grid decides "closer than eps" exactly as FLANN does. It connects the points of a
+// cell without a distance test, which agrees with FLANN only while FLANN's float eps^2 is a
+// normal float (at 0 not even duplicates are closer than eps; a denormal one is rounded by more
+// than the cell's margin) and while every cell index is accurate (at most kMaxCellsPerAxis
+// cells from lo to hi on each axis). Checked in double, before any index becomes an integer.
+bool gridIsExact(float eps2, double cell, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
+  if (!std::isnormal(eps2) || !(cell > 0.0)) return false;
+  for (int a = 0; a < 3; ++a) {
+    if (!((hi[a] - lo[a]) / cell < kMaxCellsPerAxis)) return false;  // also false for NaN
+  }
+  return true;
+}
+
+// Cell edge slightly under eps/sqrt(3): any two points of one cell are closer than eps (also
+// after rounding eps^2 and their squared distance to float), so a cell is connected for free.
+// Points closer than eps are then at most two cells apart per axis. Returns nothing when the
+// grid would not be exact (gridIsExact) or the scene is too wide for one 64-bit word per point.
+std::optional<SortedGrid> sortIntoGrid(std::span<const Point> points, double eps, float eps2) {
   const std::size_t n = points.size();
   const double cell = eps / std::sqrt(3.0) * (1.0 - 1e-5);
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
@@ -139,6 +167,7 @@ std::optional<SortedGrid> sortIntoGrid(std::span<const Point> points, double eps
     lo = lo.cwiseMin(q);
     hi = hi.cwiseMax(q);
   }
+  if (!gridIsExact(eps2, cell, lo, hi)) return std::nullopt;
   // Two cells of margin so that neighbour offsets never leave the coordinate range.
   const Eigen::Vector3d origin = lo - Eigen::Vector3d::Constant(2.0 * cell);
   std::array<int, 3> bits{};
@@ -222,10 +251,10 @@ std::optional<SortedGrid> sortIntoGrid(std::span<const Point> points, double eps
 // Each run is filtered a chunk of cells at a time, branch-free: z index within two, box gap under
 // eps, and not already known to be joined (`known`: a snapshot of the sets' roots, one per cell,
 // padded by a chunk); the survivors get the union-find test and an early-exit closest-pair check.
-// Visits columns [first, last); every union made is also appended to `joined` when given.
-void joinCloseCells(const SortedGrid& g, std::span<const std::int32_t> known, float eps, std::size_t first,
+// `eps2` is pclSquaredTolerance. Visits columns [first, last); every union made is also
+// appended to `joined` when given.
+void joinCloseCells(const SortedGrid& g, std::span<const std::int32_t> known, float eps2, std::size_t first,
                     std::size_t last, DisjointSets& sets, std::vector<std::pair<std::uint32_t, std::uint32_t>>* joined) {
-  const float eps2 = eps * eps;
   const float gap_limit = eps2 * 1.0001F;  // slack so that rounding never drops a true pair
   const auto& [lx, ly, lz, hx, hy, hz] = g.box;
 
@@ -298,7 +327,7 @@ void joinCloseCells(const SortedGrid& g, std::span<const std::int32_t> known, fl
 // The columns split into `threads` ranges of about equal cell counts, one per thread. The first
 // range joins into `sets` directly; the others into sets of their own, whose unions are replayed
 // into `sets` afterwards (pairs across a range boundary belong to the range of their first cell).
-void joinCloseCellsParallel(const SortedGrid& g, std::span<const std::int32_t> known, float eps, std::size_t threads,
+void joinCloseCellsParallel(const SortedGrid& g, std::span<const std::int32_t> known, float eps2, std::size_t threads,
                             DisjointSets& sets) {
   const std::size_t columns = g.columns();
   threads = std::clamp<std::size_t>(threads, 1, std::max<std::size_t>(1, g.cells() / kMinCellsPerThread));
@@ -313,9 +342,9 @@ void joinCloseCellsParallel(const SortedGrid& g, std::span<const std::int32_t> k
   std::vector<DisjointSets> own(threads - 1, sets);  // copied before any thread writes to `sets`
   std::vector<std::thread> workers;
   for (std::size_t t = 1; t < threads; ++t) {
-    workers.emplace_back([&, t] { joinCloseCells(g, known, eps, bounds[t], bounds[t + 1], own[t - 1], &joined[t]); });
+    workers.emplace_back([&, t] { joinCloseCells(g, known, eps2, bounds[t], bounds[t + 1], own[t - 1], &joined[t]); });
   }
-  joinCloseCells(g, known, eps, bounds[0], bounds[1], sets, nullptr);
+  joinCloseCells(g, known, eps2, bounds[0], bounds[1], sets, nullptr);
   for (auto& w : workers) w.join();
   for (const auto& edges : joined) {
     for (const auto& [a, b] : edges) sets.unite(a, b);
@@ -352,8 +381,10 @@ Clustering euclideanClusters(std::span<const Point> points, const ClusteringPara
   if (auto r = withoutNonFinite(points, [&](std::span<const Point> finite) { return euclideanClusters(finite, params); })) {
     return std::move(*r);
   }
-  const auto grid = sortIntoGrid(points, params.eps_m);
-  // A scene wider than ~10^4 km at this eps: no word fits, use the reference.
+  const float eps2 = pclSquaredTolerance(params.eps_m);
+  const auto grid = sortIntoGrid(points, params.eps_m, eps2);
+  // A far outlier, a scene wider than 2^30 cells or an eps whose square underflows in float: the
+  // grid cannot decide exactly, the reference can (such input is rare and worth no fast path).
   if (!grid) return pclEuclideanClusters(points, params, false);
   const std::size_t cells = grid->cells();
   std::vector<std::uint32_t> cell_of_point(n);
@@ -366,7 +397,6 @@ Clustering euclideanClusters(std::span<const Point> points, const ClusteringPara
   // those first is exact (they are closer than eps) and lets the search skip most pairs of cells
   // already joined.
   DisjointSets sets(cells);
-  const auto eps2 = static_cast<float>(params.eps_m * params.eps_m);
   for (std::size_t i = 0; i + 1 < n; ++i) {
     if (cell_of_point[i] == cell_of_point[i + 1]) continue;
     const Point& a = points[i];
@@ -375,7 +405,7 @@ Clustering euclideanClusters(std::span<const Point> points, const ClusteringPara
   }
   std::vector<std::int32_t> known(cells + kChunk, -1);
   for (std::size_t c = 0; c < cells; ++c) known[c] = static_cast<std::int32_t>(sets.find(c));
-  joinCloseCellsParallel(*grid, known, static_cast<float>(params.eps_m), params.threads, sets);
+  joinCloseCellsParallel(*grid, known, eps2, params.threads, sets);
 
   // Component sizes, then canonical labels in the order of each cluster's first point.
   std::vector<std::uint32_t> root_of(cells);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <limits>
 #include <map>
 #include <numeric>
 
@@ -71,7 +72,25 @@ Map localMap(std::vector<Ellipsoid> ellipsoids) {
 
 namespace {
 
-// One ellipsoid of a MERGE: its delimiting box and the input map it came from.
+// The exact test counts ellipsoids as touching up to a relative tolerance of 1e-9 on the
+// separating function: it accepts pairs whose shapes grown by 1 + 1e-9 (semi-axes by about
+// 1 + 5e-10) meet, so their delimiting boxes may be apart by that much. Pruning must never drop
+// a pair the exact test accepts: boxes grow by far more than that tolerance, which also covers
+// the rounding of the exact test, yet by so little that they prune as many pairs as before.
+constexpr double kPruningGrowth = 1e-6;
+
+// The delimiting box grown so that box pruning is conservative with respect to the exact test:
+// by kPruningGrowth of each half extent, plus a few ulps of the coordinates for the rounding of
+// centre +- half extent (the exact test works on the centres' difference).
+Box pruningBox(const Ellipsoid& e) {
+  const Box box = delimitingBox(e);
+  const Eigen::Vector3d half = 0.5 * (box.max - box.min);
+  const Eigen::Vector3d margin =
+      kPruningGrowth * half + 4.0 * std::numeric_limits<double>::epsilon() * (e.center.cwiseAbs() + half);
+  return Box{box.min - margin, box.max + margin};
+}
+
+// One ellipsoid of a MERGE: its box for pruning and the input map it came from.
 struct Item {
   const Ellipsoid* ellipsoid;
   Box box;
@@ -113,7 +132,7 @@ MergeResult mergeMaps(std::span<const Map* const> maps) {
       continue;
     }
     item_of[pos] = items.size();
-    items.push_back({input[pos], delimitingBox(*input[pos]), input_map[pos]});
+    items.push_back({input[pos], pruningBox(*input[pos]), input_map[pos]});
   }
 
   DisjointSets sets(items.size());
@@ -145,7 +164,7 @@ MergeResult mergeMaps(std::span<const Map* const> maps) {
     result.stats.pairs_all = n * (n - (n > 0 ? 1 : 0)) / 2 - pairsWithin(per_map) - pairsWithin(per_node) + pairsWithin(per_both);
   }
 
-  // Sort-and-sweep over the ellipsoids' delimiting boxes along x (ellipsoid boxes prune better
+  // Sort-and-sweep over the ellipsoids' pruning boxes along x (ellipsoid boxes prune better
   // than object boxes: merged objects grow long). Pairs from one input map are already decided by
   // that map; pairs of one node are never joined directly.
   std::vector<std::size_t> sweep(items.size());

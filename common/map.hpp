@@ -56,7 +56,8 @@ struct MergeResult {
   MergeStats stats;
 };
 
-// MERGE(working, child): box pruning with a sort-and-sweep over the ellipsoids' delimiting boxes,
+// MERGE(working, child): box pruning with a sort-and-sweep over the ellipsoids' delimiting boxes
+// (grown past the exact test's touching tolerance, so pruning never drops a pair it accepts),
 // then the exact test. Duplicate ellipsoid ids (the same ellipsoid seen twice) count once.
 MergeResult merge(const Map& working, const Map& child);
 // MERGE of any number of maps in one pass (equal to folding merge() over them).

@@ -19,6 +19,8 @@ struct MapHeader {
   std::int64_t sensor_time_ns = 0;              // earliest sensor timestamp of the data (unix ns)
   std::vector<std::uint32_t> contributing_nodes;  // sensor nodes whose data is in the message (sorted)
   std::vector<std::uint32_t> missing_nodes;       // expected sensor nodes whose data is not (sorted)
+  std::vector<std::uint32_t> failed_nodes;        // reported a failed frame (also missing; sorted)
+  std::uint64_t dropped_uploads = 0;              // uploads dropped by bounded queues in the subtree
   bool operator==(const MapHeader&) const = default;
 };
 
@@ -55,6 +57,8 @@ struct GlobalMapMessage {
   std::uint64_t pairs_all = 0;
   std::uint64_t pairs_tested = 0;
   std::vector<NodeLabels> point_labels;  // baseline and ext roots: global object per point
+  std::uint32_t revision = 0;            // 0: first publication of the epoch; n: n-th revision
+  bool late = false;                     // published after the epoch's deadline plus one period
   bool operator==(const GlobalMapMessage&) const = default;
 };
 

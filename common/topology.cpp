@@ -1,5 +1,7 @@
 #include "common/topology.hpp"
 
+#include <arpa/inet.h>
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
@@ -78,7 +80,7 @@ Expected<T> scalar(const YAML::Node& node, const std::string& key, const std::st
   try {
     return v.as<T>();
   } catch (const YAML::Exception&) {
-    return bad(where + "." + key, "cannot read '" + YAML::Dump(v) + "' as the expected type");
+    return bad(where.empty() ? key : where + "." + key, "cannot read '" + YAML::Dump(v) + "' as the expected type");
   }
 }
 
@@ -179,6 +181,30 @@ Expected<SensorConfig> parseSensor(const YAML::Node& node, const std::string& wh
   return s;
 }
 
+// The services listen on and connect to "host:port" as written, and fogctl polls /metrics over
+// IPv4, so a name such as localhost (or an IPv6 address, which would need brackets) would pass
+// here and then time out at start-up.
+bool isIpv4Address(const std::string& host) {
+  in_addr address{};
+  return host.find('\0') == std::string::npos && ::inet_pton(AF_INET, host.c_str(), &address) == 1;
+}
+
+// The parent chain from `start` (every parent exists): the cycle it runs into, or empty when it
+// reaches a root.
+std::vector<std::string> parentCycle(const TopologyConfig& t, const NodeConfig& start) {
+  std::vector<std::string> chain;
+  for (const NodeConfig* at = &start; at != nullptr && !at->parent.empty(); at = t.find(at->parent)) {
+    const auto seen = std::find(chain.begin(), chain.end(), at->name);
+    if (seen != chain.end()) {
+      std::vector<std::string> cycle(seen, chain.end());
+      cycle.push_back(at->name);
+      return cycle;
+    }
+    chain.push_back(at->name);
+  }
+  return {};
+}
+
 Status validate(const TopologyConfig& t) {
   if (t.nodes.empty()) return bad("nodes", "at least one node is required");
   std::set<std::string> names;
@@ -190,6 +216,10 @@ Status validate(const TopologyConfig& t) {
     const std::string where = "nodes[" + std::to_string(i) + "] (" + n.name + ")";
     if (!names.insert(n.name).second) return bad(where, "duplicate node name");
     if (!ids.insert(n.id).second) return bad(where, "duplicate node id " + std::to_string(n.id));
+    if (!isIpv4Address(n.host)) {
+      return bad(where + ".host", "host '" + n.host + "': give an IPv4 address such as 127.0.0.1 (the services listen on "
+                                  "and connect to numeric addresses, not names)");
+    }
     for (const auto p : {n.port, n.metrics_port}) {
       if (p != 0 && !ports.insert({n.host, p}).second) return bad(where, "port " + std::to_string(p) + " used twice on " + n.host);
     }
@@ -202,26 +232,27 @@ Status validate(const TopologyConfig& t) {
       ++roots;
       continue;
     }
+    if (n.parent == n.name) return bad(where + ".parent", "node '" + n.name + "' is its own parent");
     const NodeConfig* parent = t.find(n.parent);
     if (parent == nullptr) return bad(where + ".parent", "no node named '" + n.parent + "'");
     if (parent->role != Role::kAggregator) return bad(where + ".parent", "'" + n.parent + "' is not an aggregator");
   }
-  if (roots != 1) return bad("nodes", "exactly one node (the root aggregator) must have no parent, found " + std::to_string(roots));
-  for (const auto& n : t.nodes) {  // every chain of parents must reach the root
-    const NodeConfig* at = &n;
-    std::size_t steps = 0;
-    while (!at->parent.empty()) {
-      at = t.find(at->parent);
-      if (++steps > t.nodes.size()) return bad("nodes", "the parents of '" + n.name + "' form a cycle");
-    }
+  // Cycles first: a cycle with no way out also leaves the tree without a root.
+  for (const auto& n : t.nodes) {
+    const std::vector<std::string> cycle = parentCycle(t, n);
+    if (cycle.empty()) continue;
+    std::string path = cycle.front();
+    for (std::size_t i = 1; i < cycle.size(); ++i) path += " -> " + cycle[i];
+    return bad("nodes", "the parents of '" + cycle.front() + "' form a cycle: " + path);
   }
+  if (roots != 1) return bad("nodes", "exactly one node (the root aggregator) must have no parent, found " + std::to_string(roots));
   return {};
 }
 
 Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesystem::path& base_dir) {
   if (!root.IsMap()) return invalidArgument("topology: the document must be a mapping with 'nodes'");
-  if (const Status s = checkSection(root, "", {"name", "mode", "deadline_ms", "period_ms", "max_message_bytes", "madc",
-                                               "preprocess", "nodes"});
+  if (const Status s = checkSection(root, "", {"name", "mode", "deadline_ms", "period_ms", "max_message_bytes",
+                                               "max_scan_bytes", "admission", "madc", "preprocess", "nodes"});
       !s) {
     return s.error();
   }
@@ -246,6 +277,38 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
   if (!max_bytes) return max_bytes.error();
   if (*max_bytes < (1 << 20) || *max_bytes > (1LL << 30)) return bad("max_message_bytes", "must be in [1 MiB, 1 GiB]");
   t.max_message_bytes = static_cast<std::size_t>(*max_bytes);
+  const auto scan_bytes = scalar<long long>(root, "max_scan_bytes", "", static_cast<long long>(t.max_scan_bytes));
+  if (!scan_bytes) return scan_bytes.error();
+  if (*scan_bytes <= 0) return bad("max_scan_bytes", "must be a positive number of bytes, got " + std::to_string(*scan_bytes));
+  t.max_scan_bytes = static_cast<std::uintmax_t>(*scan_bytes);
+  if (const YAML::Node a = root["admission"]) {
+    if (const Status s = checkSection(a, "admission", {"window_periods", "world_extent_m", "max_ellipsoids_per_map",
+                                                       "max_map_bytes", "min_eigenvalue_m2", "max_eigenvalue_m2",
+                                                       "max_condition"});
+        !s) {
+      return s.error();
+    }
+    AdmissionLimits& limits = t.admission;
+    for (const auto& [key, value] : {std::pair{"window_periods", &limits.window_periods},
+                                     std::pair{"world_extent_m", &limits.world_extent_m},
+                                     std::pair{"min_eigenvalue_m2", &limits.min_eigenvalue_m2},
+                                     std::pair{"max_eigenvalue_m2", &limits.max_eigenvalue_m2},
+                                     std::pair{"max_condition", &limits.max_condition}}) {
+      const auto read = scalar<double>(a, key, "admission", *value);
+      if (!read) return read.error();
+      *value = *read;
+    }
+    for (const auto& [key, value] : {std::pair{"max_ellipsoids_per_map", &limits.max_ellipsoids_per_map},
+                                     std::pair{"max_map_bytes", &limits.max_map_bytes}}) {
+      const auto read = scalar<long long>(a, key, "admission", static_cast<long long>(*value));
+      if (!read) return read.error();
+      // Only what a count cannot hold; the value rules are validateAdmissionLimits's.
+      if (*read < 0) return bad(std::string("admission.") + key, "must be a positive integer, got " + std::to_string(*read));
+      *value = static_cast<std::size_t>(*read);
+    }
+  }
+  // Its messages name the key ("admission window_periods must be ...").
+  if (const Status s = validateAdmissionLimits(t.admission); !s) return invalidArgument("topology: " + s.error().message);
 
   if (const YAML::Node m = root["madc"]) {
     if (const Status s = checkSection(m, "madc", {"eps_m", "min_points", "alpha", "threads"}); !s) return s.error();
@@ -257,7 +320,6 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
     if (!min_points) return min_points.error();
     if (!alpha) return alpha.error();
     if (!threads) return threads.error();
-    if (!(*eps > 0.0 && *eps < 100.0)) return bad("madc.eps_m", "must be in (0, 100)");
     if (*min_points < 1 || *min_points > std::numeric_limits<std::int32_t>::max()) {
       return bad("madc.min_points", "must be in [1, 2^31)");
     }
@@ -267,6 +329,10 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
     t.madc.clustering.min_points = static_cast<std::size_t>(*min_points);
     t.madc.alpha = *alpha;
     t.madc.clustering.threads = static_cast<std::size_t>(*threads);
+  }
+  // eps_m's range is validateClusteringParams's; its messages start with the field's name.
+  if (const Status s = validateClusteringParams(t.madc.clustering); !s) {
+    return invalidArgument("topology: madc." + s.error().message);
   }
   if (const YAML::Node p = root["preprocess"]) {
     if (const Status s = checkSection(p, "preprocess", {"crop", "voxel_leaf_m", "ground"}); !s) return s.error();
@@ -463,6 +529,14 @@ std::string toYaml(const TopologyConfig& t) {
   out << YAML::Key << "deadline_ms" << YAML::Value << t.deadline_ms;
   out << YAML::Key << "period_ms" << YAML::Value << t.period_ms;
   out << YAML::Key << "max_message_bytes" << YAML::Value << t.max_message_bytes;
+  out << YAML::Key << "max_scan_bytes" << YAML::Value << t.max_scan_bytes;
+  const AdmissionLimits& a = t.admission;
+  out << YAML::Key << "admission" << YAML::Value << YAML::BeginMap << YAML::Key << "window_periods" << YAML::Value
+      << a.window_periods << YAML::Key << "world_extent_m" << YAML::Value << a.world_extent_m << YAML::Key
+      << "max_ellipsoids_per_map" << YAML::Value << a.max_ellipsoids_per_map << YAML::Key << "max_map_bytes"
+      << YAML::Value << a.max_map_bytes << YAML::Key << "min_eigenvalue_m2" << YAML::Value << a.min_eigenvalue_m2
+      << YAML::Key << "max_eigenvalue_m2" << YAML::Value << a.max_eigenvalue_m2 << YAML::Key << "max_condition"
+      << YAML::Value << a.max_condition << YAML::EndMap;
   out << YAML::Key << "madc" << YAML::Value << YAML::BeginMap << YAML::Key << "eps_m" << YAML::Value << t.madc.clustering.eps_m
       << YAML::Key << "min_points" << YAML::Value << t.madc.clustering.min_points << YAML::Key << "alpha" << YAML::Value
       << t.madc.alpha << YAML::Key << "threads" << YAML::Value << t.madc.clustering.threads << YAML::EndMap;

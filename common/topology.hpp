@@ -9,9 +9,11 @@
 
 #include <Eigen/Geometry>
 
+#include "common/admission.hpp"
 #include "common/madc.hpp"
 #include "common/messages.hpp"
 #include "common/preprocess.hpp"
+#include "common/cloud_io.hpp"
 #include "common/status.hpp"
 
 namespace fogmap {
@@ -41,6 +43,7 @@ struct NodeConfig {
   std::string name;
   Role role = Role::kEdge;
   std::string parent;                  // empty for the root
+  // An IPv4 address (checked at parse time): the services listen on and connect to it as written.
   std::string host = "127.0.0.1";      // where the node listens / is reached
   std::uint16_t port = 0;              // gRPC port (aggregators)
   std::uint16_t metrics_port = 0;      // Prometheus /metrics
@@ -52,9 +55,13 @@ struct TopologyConfig {
   Mode mode = Mode::kMadc;
   MadcParams madc;                     // eps, min points, alpha
   PreprocessConfig preprocess;         // crop and ground (the pose comes from each sensor)
-  double deadline_ms = 80.0;           // an aggregator emits an epoch this long after its first map
-  double period_ms = 100.0;            // sensor period
-  std::size_t max_message_bytes = 64U << 20;
+  // An aggregator with L levels of aggregators below it emits epoch k at k period_ms + L deadline_ms
+  // (common/epochs.hpp).
+  double deadline_ms = 80.0;
+  double period_ms = 100.0;            // the cluster period: epoch k is [k, k + 1) x period_ms of unix time
+  std::size_t max_message_bytes = 64U << 20;  // gRPC transport limit
+  std::uintmax_t max_scan_bytes = kDefaultMaxScanBytes;  // scan files above this are refused unread
+  AdmissionLimits admission;           // what every aggregator accepts (common/admission.hpp)
   std::vector<NodeConfig> nodes;
 
   const NodeConfig* find(const std::string& name) const;
@@ -69,6 +76,7 @@ struct TopologyConfig {
 
 // Parses and validates (unique names, ids and ports; exactly one root; parents exist and are
 // aggregators; no cycles; edges have sensors). Relative sensor paths resolve against `base_dir`.
+// Hosts must be IPv4 addresses; madc and admission values are checked by common/admission.hpp.
 Expected<TopologyConfig> parseTopology(const std::string& yaml_text, const std::filesystem::path& base_dir);
 Expected<TopologyConfig> loadTopology(const std::filesystem::path& path);
 

@@ -1,5 +1,6 @@
 #include "services/common/metrics.hpp"
 
+#include <stdexcept>
 #include <utility>
 
 namespace fogmap {
@@ -64,9 +65,29 @@ Metrics::Metrics(const std::string& bind_address, const std::string& service, co
   dropped_uploads_ = &counter(r, "fogmap_dropped_uploads_total",
                               "Unacknowledged uploads dropped because the send queue was full.", c);
   frames_ = &counter(r, "fogmap_frames_total", "Sensor frames processed.", c);
+  refused_ = &counterFamily(r, "fogmap_refused_uploads_total",
+                            "Uploads refused by an admission rule, by reason (clock_skew, forged_node, ...).", c);
+  dropped_epochs_ = &counter(r, "fogmap_dropped_epochs_total", "Epochs dropped without being emitted.", c);
+  subscriber_drops_ = &counter(r, "fogmap_subscriber_drops_total",
+                               "Global maps a slow subscriber lost from its bounded queue.", c);
+  late_emits_ = &counter(r, "fogmap_late_emits_total",
+                         "Epochs emitted as late revisions (late maps merged in, or emitted after a stall).", c);
+  uploads_refused_ = &counter(r, "fogmap_uploads_refused_by_parent_total",
+                              "Uploads the parent answered as refused (not re-sent).", c);
+  failed_frames_ = &counter(r, "fogmap_failed_frames_total",
+                            "Frames that could not be read or processed (sent as empty maps flagged failed).", c);
+  padded_scans_ = &counter(r, "fogmap_padded_scans_total",
+                           "Scan files accepted with zero padding after their declared points.", c);
 
   if (!bind_address.empty()) {
-    exposer_ = std::make_unique<prometheus::Exposer>(bind_address);
+    try {
+      exposer_ = std::make_unique<prometheus::Exposer>(bind_address);
+    } catch (const std::exception&) {
+      // civetweb only says "null context when constructing CivetServer"; a bind failure is almost
+      // always another process on the port.
+      throw std::runtime_error("cannot serve /metrics on " + bind_address +
+                               ": the port is in use (or the address is not one of this host's)");
+    }
     exposer_->RegisterCollectable(registry_);
   }
 }
@@ -103,5 +124,14 @@ void Metrics::lateMaps(std::uint64_t n) { late_maps_->Increment(static_cast<doub
 void Metrics::reconnects() { reconnects_->Increment(); }
 void Metrics::droppedUploads() { dropped_uploads_->Increment(); }
 void Metrics::framesProcessed() { frames_->Increment(); }
+void Metrics::refused(const std::string& reason, std::uint64_t n) {
+  refused_->Add({{"reason", reason}}).Increment(static_cast<double>(n));
+}
+void Metrics::droppedEpochs(std::uint64_t n) { dropped_epochs_->Increment(static_cast<double>(n)); }
+void Metrics::subscriberDrops(std::uint64_t n) { subscriber_drops_->Increment(static_cast<double>(n)); }
+void Metrics::lateEmits(std::uint64_t n) { late_emits_->Increment(static_cast<double>(n)); }
+void Metrics::uploadsRefused() { uploads_refused_->Increment(); }
+void Metrics::failedFrames() { failed_frames_->Increment(); }
+void Metrics::paddedScans() { padded_scans_->Increment(); }
 
 }  // namespace fogmap

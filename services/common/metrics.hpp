@@ -46,6 +46,20 @@ class Metrics {
   // `what` names the rejected input kind ("map", "points", "geofence", ...).
   void malformed(const std::string& what);
   void lateMaps(std::uint64_t n = 1);
+  // An upload refused by an admission rule; `reason` is refusalName(...) ("clock_skew", ...).
+  void refused(const std::string& reason, std::uint64_t n = 1);
+  // Epochs evicted or abandoned without being emitted (beyond the pending bound).
+  void droppedEpochs(std::uint64_t n = 1);
+  // Global maps a slow subscriber lost from its bounded queue.
+  void subscriberDrops(std::uint64_t n = 1);
+  // Revisions of already emitted epochs (late maps merged in) and epochs emitted late (stall).
+  void lateEmits(std::uint64_t n = 1);
+  // Uploads the parent answered as refused (never re-sent).
+  void uploadsRefused();
+  // Frames the edge could not read or process (sent as empty maps flagged failed).
+  void failedFrames();
+  // Scan files with zero padding after their declared points (accepted).
+  void paddedScans();
   void reconnects();
   void droppedUploads();
   void framesProcessed();
@@ -73,6 +87,13 @@ class Metrics {
   prometheus::Counter* reconnects_;
   prometheus::Counter* dropped_uploads_;
   prometheus::Counter* frames_;
+  prometheus::Family<prometheus::Counter>* refused_;
+  prometheus::Counter* dropped_epochs_;
+  prometheus::Counter* subscriber_drops_;
+  prometheus::Counter* late_emits_;
+  prometheus::Counter* uploads_refused_;
+  prometheus::Counter* failed_frames_;
+  prometheus::Counter* padded_scans_;
 };
 
 }  // namespace fogmap

@@ -5,7 +5,9 @@
 #include <cstdint>
 #include <deque>
 #include <mutex>
+#include <optional>
 #include <utility>
+#include <vector>
 
 #include <grpcpp/grpcpp.h>
 
@@ -36,8 +38,20 @@ const char* kindOf(const v1::Upload& upload) {
 struct ParentLink::State {
   struct Pending {
     std::uint64_t sequence = 0;
-    // Shared so the writer can send it outside the lock while an ack or a drop removes it.
+    std::size_t bytes = 0;  // serialised size, counted against max_unacked_bytes
+    // Shared so the writer can send it outside the lock while an answer or a drop removes it.
     std::shared_ptr<const v1::Upload> upload;
+    Settled on_settled;
+  };
+  // A Settled call taken out of the queue under the lock, to be made after releasing it.
+  struct Settlement {
+    Settled on_settled;
+    std::optional<v1::AckStatus> status;
+    std::string reason;
+  };
+  struct Drop {
+    std::uint64_t total = 0;
+    bool first_of_burst = false;
   };
 
   ParentLinkConfig config;
@@ -46,10 +60,16 @@ struct ParentLink::State {
   std::unique_ptr<v1::MapIngest::Stub> stub;
 
   mutable std::mutex mu;
-  std::condition_variable cv;  // any change: new upload, ack, broken stream, stop
+  std::condition_variable cv;  // any change: new upload, answer, settlement, broken stream, stop
   std::deque<Pending> unacked;  // ascending sequence
-  std::uint64_t next_sequence = 1;
-  std::uint64_t written_upto = 0;  // highest sequence written on the current stream
+  std::size_t unacked_bytes = 0;
+  std::uint64_t next_sequence = 0;
+  std::uint64_t write_from = 0;  // lowest sequence not yet written on the current stream
+  std::size_t settling = 0;      // Settlements taken out of the queue whose call has not returned
+  std::uint64_t dropped = 0;
+  std::uint64_t refused = 0;
+  std::uint64_t late = 0;
+  bool drop_burst = false;  // a drop happened since the last answer or empty queue
   bool stopping = false;
   bool connected = false;
   bool stream_broken = false;
@@ -59,7 +79,37 @@ struct ParentLink::State {
       : config(std::move(c)),
         hooks(std::move(h)),
         channel(makeChannel(config.target, config.max_message_bytes, config.keepalive)),
-        stub(v1::MapIngest::NewStub(channel)) {}
+        stub(v1::MapIngest::NewStub(channel)),
+        // The wall clock, not a counter from 1: a restarted sender must not reuse a sequence the
+        // parent has already seen with other content.
+        next_sequence(config.first_sequence.value_or(wallClockMicros())) {}
+
+  static std::uint64_t wallClockMicros() {
+    const auto now = std::chrono::system_clock::now().time_since_epoch();
+    return static_cast<std::uint64_t>(std::chrono::duration_cast<std::chrono::microseconds>(now).count());
+  }
+
+  // Counts a drop; under the lock.
+  Drop noteDrop(Settled on_settled, std::vector<Settlement>& settlements) {
+    settlements.push_back({std::move(on_settled), std::nullopt, {}});
+    ++settling;
+    const Drop drop{++dropped, !drop_burst};
+    drop_burst = true;
+    return drop;
+  }
+
+  // Makes the Settled calls taken out of the queue; without the lock.
+  void settle(std::vector<Settlement>& settlements) {
+    if (settlements.empty()) return;
+    for (Settlement& s : settlements) {
+      if (s.on_settled) s.on_settled(s.status, s.reason);
+    }
+    {
+      std::lock_guard lock(mu);
+      settling -= settlements.size();
+    }
+    cv.notify_all();
+  }
 
   bool stopRequested() const {
     std::lock_guard lock(mu);
@@ -81,22 +131,34 @@ struct ParentLink::State {
     return false;
   }
 
-  void acknowledge(std::uint64_t sequence) {
+  // Any answer settles its upload: it leaves the queue and is never re-sent.
+  void answer(const v1::Ack& ack) {
+    std::vector<Settlement> settlements;
     {
       std::lock_guard lock(mu);
-      const auto it = std::lower_bound(unacked.begin(), unacked.end(), sequence,
+      drop_burst = false;
+      const auto it = std::lower_bound(unacked.begin(), unacked.end(), ack.sequence(),
                                        [](const Pending& p, std::uint64_t s) { return p.sequence < s; });
-      // A re-sent upload may be acknowledged twice; the second ack finds nothing.
-      if (it != unacked.end() && it->sequence == sequence) unacked.erase(it);
+      // An upload dropped meanwhile, or answered twice, finds nothing: it is settled already.
+      if (it == unacked.end() || it->sequence != ack.sequence()) return;
+      if (ack.status() == v1::ACK_STATUS_REFUSED) ++refused;
+      if (ack.status() == v1::ACK_STATUS_LATE) ++late;
+      settlements.push_back({std::move(it->on_settled), ack.status(), ack.reason()});
+      ++settling;
+      unacked_bytes -= it->bytes;
+      unacked.erase(it);
     }
     cv.notify_all();
+    if (ack.status() == v1::ACK_STATUS_REFUSED && hooks.on_refused) hooks.on_refused(ack.sequence(), ack.reason());
+    if (ack.status() == v1::ACK_STATUS_LATE && hooks.on_late) hooks.on_late(ack.sequence());
+    settle(settlements);
   }
 
-  void readAcks(Stream& stream, bool& got_ack) {
+  void readAnswers(Stream& stream, bool& got_answer) {
     v1::Ack ack;
     while (stream.Read(&ack)) {
-      got_ack = true;
-      acknowledge(ack.sequence());
+      got_answer = true;
+      answer(ack);
     }
     {
       std::lock_guard lock(mu);
@@ -111,11 +173,12 @@ struct ParentLink::State {
     for (;;) {
       std::shared_ptr<const v1::Upload> next;
       std::uint64_t sequence = 0;
+      std::size_t bytes = 0;
       {
         std::unique_lock lock(mu);
         const auto unwritten = [&] {
-          return std::find_if(unacked.begin(), unacked.end(),
-                              [&](const Pending& p) { return p.sequence > written_upto; });
+          return std::lower_bound(unacked.begin(), unacked.end(), write_from,
+                                  [](const Pending& p, std::uint64_t s) { return p.sequence < s; });
         };
         cv.wait_for(lock, kPollSlice, [&] { return stopping || stream_broken || unwritten() != unacked.end(); });
         if (stopping || stream_broken) return;
@@ -123,14 +186,15 @@ struct ParentLink::State {
         if (it == unacked.end()) continue;
         next = it->upload;
         sequence = it->sequence;
+        bytes = it->bytes;
       }
       // Blocks under flow control; TryCancel from the destructor or a failed read unblocks it.
       if (!stream.Write(*next)) return;
       {
         std::lock_guard lock(mu);
-        written_upto = std::max(written_upto, sequence);
+        write_from = std::max(write_from, sequence + 1);
       }
-      if (hooks.on_sent) hooks.on_sent(kindOf(*next), next->ByteSizeLong());
+      if (hooks.on_sent) hooks.on_sent(kindOf(*next), bytes);
     }
   }
 
@@ -144,7 +208,7 @@ struct ParentLink::State {
         if (stopping) break;
         this->context = context;
         stream_broken = false;
-        written_upto = 0;  // a new stream re-sends everything unacknowledged
+        write_from = 0;  // a new stream re-sends everything unanswered
       }
       // No deadline: the stream lives as long as the link; keepalive detects a dead parent.
       std::unique_ptr<Stream> stream = stub->Push(context.get());
@@ -156,8 +220,8 @@ struct ParentLink::State {
       if (had_stream && hooks.on_reconnect) hooks.on_reconnect();
       had_stream = true;
 
-      bool got_ack = false;
-      std::thread reader([&] { readAcks(*stream, got_ack); });
+      bool got_answer = false;
+      std::thread reader([&] { readAnswers(*stream, got_answer); });
       writeUploads(*stream);
       context->TryCancel();  // ends a Read still waiting when the write side failed or we stop
       reader.join();
@@ -170,7 +234,7 @@ struct ParentLink::State {
 
       // A parent that accepts streams and fails them at once must not be hammered; one that
       // served a while gets a quick reconnect.
-      if (got_ack || Clock::now() - opened >= config.backoff_max) backoff = config.backoff_initial;
+      if (got_answer || Clock::now() - opened >= config.backoff_max) backoff = config.backoff_initial;
       if (sleepFor(backoff)) break;
       backoff = std::min(backoff * 2, config.backoff_max);
     }
@@ -190,34 +254,77 @@ ParentLink::~ParentLink() {
   }
   state_->cv.notify_all();
   thread_.join();
+  std::deque<State::Pending> abandoned;
+  {
+    std::lock_guard lock(state_->mu);
+    abandoned.swap(state_->unacked);
+    state_->unacked_bytes = 0;
+  }
+  for (State::Pending& p : abandoned) {
+    if (p.on_settled) p.on_settled(std::nullopt, {});
+  }
 }
 
-void ParentLink::send(v1::Upload upload) {
-  std::size_t dropped = 0;
+void ParentLink::send(v1::Upload upload, Settled on_settled) {
+  std::vector<State::Settlement> settlements;
+  std::vector<State::Drop> drops;
   {
     std::lock_guard lock(state_->mu);
     const std::uint64_t sequence = state_->next_sequence++;
     upload.set_sequence(sequence);
-    state_->unacked.push_back({sequence, std::make_shared<const v1::Upload>(std::move(upload))});
-    while (state_->unacked.size() > std::max<std::size_t>(state_->config.max_unacked, 1)) {
-      state_->unacked.pop_front();
-      ++dropped;
+    const std::size_t bytes = upload.ByteSizeLong();
+    const std::size_t bound = state_->config.max_unacked_bytes;
+    if (bytes > bound) {
+      // Dropping older uploads could not make room for it.
+      drops.push_back(state_->noteDrop(std::move(on_settled), settlements));
+    } else {
+      state_->unacked.push_back(
+          {sequence, bytes, std::make_shared<const v1::Upload>(std::move(upload)), std::move(on_settled)});
+      state_->unacked_bytes += bytes;
+      while (state_->unacked_bytes > bound) {  // stops before the new one, which fits alone
+        State::Pending& oldest = state_->unacked.front();
+        state_->unacked_bytes -= oldest.bytes;
+        drops.push_back(state_->noteDrop(std::move(oldest.on_settled), settlements));
+        state_->unacked.pop_front();
+      }
     }
+    if (state_->unacked.empty()) state_->drop_burst = false;
   }
   state_->cv.notify_all();
   if (state_->hooks.on_dropped) {
-    for (std::size_t i = 0; i < dropped; ++i) state_->hooks.on_dropped();
+    for (const State::Drop& d : drops) state_->hooks.on_dropped(d.total, d.first_of_burst);
   }
+  state_->settle(settlements);
 }
 
 bool ParentLink::flush(std::chrono::milliseconds timeout) {
   std::unique_lock lock(state_->mu);
-  return state_->cv.wait_for(lock, timeout, [&] { return state_->unacked.empty(); });
+  return state_->cv.wait_for(lock, timeout, [&] { return state_->unacked.empty() && state_->settling == 0; });
 }
 
 std::size_t ParentLink::unacknowledged() const {
   std::lock_guard lock(state_->mu);
   return state_->unacked.size();
+}
+
+std::size_t ParentLink::unacknowledgedBytes() const {
+  std::lock_guard lock(state_->mu);
+  return state_->unacked_bytes;
+}
+
+std::uint64_t ParentLink::dropped() const {
+  std::lock_guard lock(state_->mu);
+  return state_->dropped;
+}
+
+std::uint64_t ParentLink::refused() const {
+  std::lock_guard lock(state_->mu);
+  return state_->refused;
+}
+
+std::uint64_t ParentLink::late() const {
+  std::lock_guard lock(state_->mu);
+  return state_->late;
 }
 
 bool ParentLink::connected() const {

@@ -78,6 +78,8 @@ void toProto(const MapHeader& h, v1::MapHeader* out) {
   out->set_sensor_time_ns(h.sensor_time_ns);
   for (const auto n : h.contributing_nodes) out->add_contributing_nodes(n);
   for (const auto n : h.missing_nodes) out->add_missing_nodes(n);
+  for (const auto n : h.failed_nodes) out->add_failed_nodes(n);
+  out->set_dropped_uploads(h.dropped_uploads);
 }
 
 // The frame is left out when it is the map's epoch (the usual case).
@@ -122,6 +124,8 @@ MapHeader fromProto(const v1::MapHeader& h) {
   out.sensor_time_ns = h.sensor_time_ns();
   out.contributing_nodes = sortedNodes(h.contributing_nodes());
   out.missing_nodes = sortedNodes(h.missing_nodes());
+  out.failed_nodes = sortedNodes(h.failed_nodes());
+  out.dropped_uploads = h.dropped_uploads();
   return out;
 }
 
@@ -231,6 +235,8 @@ v1::GlobalMap toProto(const GlobalMapMessage& message) {
   out.set_merge_seconds(message.merge_seconds);
   out.set_pairs_all(message.pairs_all);
   out.set_pairs_tested(message.pairs_tested);
+  out.set_revision(message.revision);
+  out.set_late(message.late);
   for (const auto& nl : message.point_labels) {
     v1::NodeLabels* l = out.add_point_labels();
     l->set_node(nl.node);
@@ -316,6 +322,8 @@ Expected<GlobalMapMessage> fromProto(const v1::GlobalMap& message) {
   out.merge_seconds = message.merge_seconds();
   out.pairs_all = message.pairs_all();
   out.pairs_tested = message.pairs_tested();
+  out.revision = message.revision();
+  out.late = message.late();
   out.point_labels.reserve(static_cast<std::size_t>(message.point_labels_size()));
   for (int i = 0; i < message.point_labels_size(); ++i) {
     const v1::NodeLabels& nl = message.point_labels(i);

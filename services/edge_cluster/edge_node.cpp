@@ -125,4 +125,20 @@ Expected<EdgeOutput> EdgeNode::processFrame(const Cloud& scan_in_sensor_frame, s
   return output;
 }
 
+EdgeOutput EdgeNode::failedFrame(std::uint64_t frame) const {
+  MapHeader header;
+  header.node = config_.node;
+  header.epoch = frame;
+  header.failed_nodes = {config_.node};
+  EdgeOutput output;
+  if (config_.mode == Mode::kBaseline) {
+    output.chunks = chunkPoints(Cloud{}, {}, header, config_.max_points_per_chunk);
+  } else {
+    // Ext ships no chunk either: points of a failed frame do not exist, and the map alone tells
+    // the parent that this node reported the epoch.
+    output.map = MapMessage{std::move(header), Map{}};
+  }
+  return output;
+}
+
 }  // namespace fogmap

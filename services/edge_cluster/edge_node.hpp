@@ -60,6 +60,12 @@ class EdgeNode {
   Expected<EdgeOutput> processFrame(const Cloud& scan_in_sensor_frame, std::uint64_t frame,
                                     std::int64_t sensor_time_ns) const;
 
+  // What the edge ships for epoch `frame` when its scan could not be read or processed, so that
+  // the parent need not wait out its deadline: an empty map (madc, ext) or one empty chunk
+  // (baseline) whose header lists this node in failed_nodes and in no contributing_nodes, with
+  // sensor time 0 (no data: unknown).
+  EdgeOutput failedFrame(std::uint64_t frame) const;
+
   const EdgeConfig& config() const { return config_; }
 
  private:

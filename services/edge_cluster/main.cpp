@@ -1,5 +1,6 @@
 // edge-cluster: replays one sensor's scans, clusters them at the edge (MAD-C, baseline or ext) and
-// pushes what the mode ships up the stream to its parent aggregator. Composition root only.
+// pushes what the mode ships up the stream to its parent aggregator. Composition root only: the
+// replay loop and its policy are EdgeRunner's.
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -9,26 +10,27 @@
 #include <exception>
 #include <filesystem>
 #include <iostream>
-#include <set>
 #include <string>
 #include <thread>
 #include <utility>
 
+#include "common/clock.hpp"
+#include "common/epochs.hpp"
 #include "common/topology.hpp"
 #include "services/common/metrics.hpp"
 #include "services/common/parent_link.hpp"
 #include "services/common/proto_convert.hpp"
 #include "services/edge_cluster/edge_node.hpp"
+#include "services/edge_cluster/edge_runner.hpp"
 #include "services/edge_cluster/scan_source.hpp"
 
 namespace {
 
 using namespace std::chrono_literals;
-using SteadyClock = std::chrono::steady_clock;
 
 constexpr int kExitRuntimeError = 1;
 constexpr int kExitBadConfig = 2;
-constexpr std::uint64_t kStatusEveryFrames = 10;
+constexpr std::int64_t kStopPollNs = 50'000'000;
 
 // The one global: a signal handler can reach nothing else. Lock-free, so safe to set there.
 std::atomic<bool> g_stop{false};
@@ -38,18 +40,15 @@ void requestStop(int /*signal*/) { g_stop.store(true); }
 
 bool stopRequested() { return g_stop.load(); }
 
-// Sleeps until `deadline` but wakes every 50 ms so that a stop request is honoured promptly.
-void waitUntil(SteadyClock::time_point deadline) {
+// Sleeps until the system clock reaches `until_ns`, waking every 50 ms so that a stop request is
+// honoured promptly; false when a stop was requested.
+bool waitUntil(std::int64_t until_ns) {
   while (!stopRequested()) {
-    const SteadyClock::time_point now = SteadyClock::now();
-    if (now >= deadline) return;
-    std::this_thread::sleep_until(std::min(deadline, now + 50ms));
+    const std::int64_t now_ns = fogmap::systemNowNs();
+    if (now_ns >= until_ns) return true;
+    std::this_thread::sleep_for(std::chrono::nanoseconds(std::min(until_ns - now_ns, kStopPollNs)));
   }
-}
-
-std::int64_t wallClockNs() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
-      .count();
+  return false;
 }
 
 void usage() { std::cerr << "usage: edge-cluster --topology FILE --node NAME\n"; }
@@ -81,23 +80,40 @@ int badConfig(const std::string& message) {
   return kExitBadConfig;
 }
 
-// Queues everything the frame produced on the link; returns the number of uploads.
-std::size_t ship(fogmap::EdgeOutput& output, fogmap::ParentLink& link) {
-  std::size_t uploads = 0;
+// Queues everything an epoch produced on the link.
+void ship(const fogmap::EdgeOutput& output, fogmap::ParentLink& link) {
   if (output.map) {
     fogmap::v1::Upload upload;
     *upload.mutable_map() = fogmap::toProto(*output.map);
     link.send(std::move(upload));
-    ++uploads;
   }
   for (const fogmap::PointChunk& chunk : output.chunks) {
     fogmap::v1::Upload upload;
     *upload.mutable_points() = fogmap::toProto(chunk);
     link.send(std::move(upload));
-    ++uploads;
   }
-  return uploads;
 }
+
+// The runner's observations as Prometheus metrics.
+class MetricsObserver final : public fogmap::EdgeObserver {
+ public:
+  explicit MetricsObserver(fogmap::Metrics& metrics) : metrics_(metrics) {}
+  void scanProcessed(const fogmap::EdgeOutput& output) override {
+    metrics_.framesProcessed();
+    metrics_.pointsIn(output.points_in);
+    metrics_.pointsOut(output.points_out);
+    if (output.map) metrics_.clusteringSeconds(output.clustering_seconds);
+  }
+  void shipped(const fogmap::EdgeOutput& output) override {
+    if (output.map) metrics_.mapsOut();
+  }
+  void failedFrame() override { metrics_.failedFrames(); }
+  void malformed(const std::string& what) override { metrics_.malformed(what); }
+  void paddedScan() override { metrics_.paddedScans(); }
+
+ private:
+  fogmap::Metrics& metrics_;
+};
 
 int run(const Flags& flags) {
   fogmap::Expected<fogmap::TopologyConfig> topology = fogmap::loadTopology(flags.topology);
@@ -111,13 +127,17 @@ int run(const Flags& flags) {
   if (parent == nullptr) return badConfig("edge '" + flags.node + "' has no parent aggregator to send to");
   const fogmap::SensorConfig& sensor = *node->sensor;
   if (!(sensor.rate_hz > 0.0)) return badConfig("edge '" + flags.node + "': rate_hz must be positive");
+  fogmap::Expected<fogmap::EpochSchedule> schedule =
+      fogmap::EpochSchedule::create(topology->period_ms, topology->deadline_ms);
+  if (!schedule) return badConfig(flags.topology.string() + ": " + schedule.error().message);
 
-  fogmap::Expected<fogmap::ScanSource> source = fogmap::ScanSource::open(sensor);
+  fogmap::Expected<fogmap::ScanSource> source =
+      fogmap::ScanSource::open(sensor, fogmap::ReadLimits{topology->max_scan_bytes});
   if (!source) return badConfig(source.error().message);
 
   const std::string host = node->host.empty() ? "127.0.0.1" : node->host;
   fogmap::Metrics metrics(host + ":" + std::to_string(node->metrics_port), "edge-cluster", node->name);
-  const fogmap::EdgeNode edge(fogmap::edgeConfigFor(*topology, *node));
+  const std::string prefix = "edge-cluster " + node->name + ": ";
 
   fogmap::ParentLinkConfig link_config;
   link_config.target = parent->host + ":" + std::to_string(parent->port);
@@ -126,85 +146,57 @@ int run(const Flags& flags) {
   const std::string peer = parent->name;
   hooks.on_sent = [&metrics, peer](const std::string& kind, std::size_t bytes) { metrics.bytesSent(peer, kind, bytes); };
   hooks.on_reconnect = [&metrics] { metrics.reconnects(); };
-  hooks.on_dropped = [&metrics] { metrics.droppedUploads(); };
+  hooks.on_dropped = [&metrics, prefix](std::uint64_t total, bool first_of_burst) {
+    metrics.droppedUploads();
+    if (first_of_burst) {
+      std::cerr << prefix << "the send queue to the parent is full; dropping the oldest uploads (" << total
+                << " dropped so far)\n";
+    }
+  };
+  hooks.on_refused = [&metrics, prefix](std::uint64_t sequence, const std::string& reason) {
+    metrics.uploadsRefused();
+    std::cerr << prefix << "the parent refused upload " << sequence << ": " << reason << "\n";
+  };
   // Declared after `metrics`, so destroyed (and its thread stopped) before the hooks' target goes.
   fogmap::ParentLink link(link_config, std::move(hooks));
 
-  std::cerr << "edge-cluster " << node->name << ": " << source->files().size() << " scan(s) from "
-            << sensor.source.string() << " at " << sensor.rate_hz << " Hz, mode " << fogmap::modeName(topology->mode)
-            << ", sending to " << parent->name << " (" << link_config.target << ")\n";
+  MetricsObserver observer(metrics);
+  fogmap::EdgeRunnerHooks runner_hooks;
+  runner_hooks.now = fogmap::systemNowNs;
+  runner_hooks.wait_until = waitUntil;
+  runner_hooks.ship = [&link](const fogmap::EdgeOutput& output) { ship(output, link); };
+  runner_hooks.dropped_uploads = [&link] { return link.dropped(); };
+  runner_hooks.log = [&prefix](const std::string& line) { std::cerr << prefix << line << "\n"; };
+  runner_hooks.link_status = [&link] {
+    return std::string("link ") + (link.connected() ? "connected" : "disconnected") + ", " +
+           std::to_string(link.unacknowledged()) + " unacknowledged";
+  };
+  runner_hooks.observer = &observer;
+  fogmap::EdgeRunner runner(fogmap::EdgeNode(fogmap::edgeConfigFor(*topology, *node)), *source, *schedule,
+                            sensor.rate_hz, std::move(runner_hooks));
 
-  // Epochs are windows of one sensor period on the wall clock (DESIGN 2.2): every edge captures
-  // epoch k at k * period, so the sensors of one cluster report the same epoch at about the same
-  // time (clocks are assumed synchronised, e.g. by NTP or PTP), and a replayed recording shows scan
-  // k mod N in epoch k on every sensor.
-  const auto period_ns = static_cast<std::int64_t>(1e9 / sensor.rate_hz);
-  std::set<std::string> reported_bad_files;  // each bad file is named once, counted every time
-  std::uint64_t frame_errors = 0;
-  std::int64_t epoch = wallClockNs() / period_ns + 1;
-  while (!stopRequested() && !source->done()) {
-    waitUntil(SteadyClock::now() + std::chrono::nanoseconds(epoch * period_ns - wallClockNs()));
-    if (stopRequested()) break;
-    const auto this_epoch = static_cast<std::uint64_t>(epoch);
-    // After a stall (slow disk, a frame longer than the period) skip to the next window instead
-    // of bursting to catch up: a burst would stamp old data with new times.
-    epoch = std::max(epoch + 1, wallClockNs() / period_ns + 1);
+  std::cerr << prefix << source->files().size() << " scan(s) from " << sensor.source.string() << " at "
+            << sensor.rate_hz << " Hz, epochs of " << topology->period_ms << " ms, mode "
+            << fogmap::modeName(topology->mode) << ", sending to " << parent->name << " (" << link_config.target
+            << ")\n";
 
-    fogmap::Expected<fogmap::ScanFrame> scan = source->at(this_epoch);
-    // The sensor timestamp is when the scan is in memory, as a live sensor delivers it: reading and
-    // cutting a recorded scan into a virtual LiDAR is the replay's cost, not the pipeline's.
-    const std::int64_t sensor_time_ns = wallClockNs();
-    if (!scan) {
-      metrics.malformed("scan");
-      if (reported_bad_files.insert(scan.error().message).second) {
-        std::cerr << "edge-cluster " << node->name << ": skipping a scan: " << scan.error().message << "\n";
-      }
-      continue;
-    }
-    // Counted once per scan that had any: the reader already dropped them.
-    if (scan->dropped_non_finite > 0) metrics.malformed("non_finite_points");
-
-    fogmap::Expected<fogmap::EdgeOutput> output = edge.processFrame(scan->points, scan->sequence, sensor_time_ns);
-    if (!output) {
-      metrics.malformed("frame");
-      if (frame_errors++ % kStatusEveryFrames == 0) {
-        std::cerr << "edge-cluster " << node->name << ": frame " << scan->sequence << " (" << scan->file.string()
-                  << ") failed (" << frame_errors << " so far): " << output.error().message << "\n";
-      }
-      continue;
-    }
-
-    metrics.framesProcessed();
-    metrics.pointsIn(output->points_in);
-    metrics.pointsOut(output->points_out);
-    if (output->map) {
-      metrics.clusteringSeconds(output->clustering_seconds);
-      metrics.mapsOut();
-    }
-    const std::size_t uploads = ship(*output, link);
-
-    if (scan->sequence % kStatusEveryFrames == 0) {
-      std::cerr << "edge-cluster " << node->name << ": frame " << scan->sequence << ": " << output->points_in
-                << " points in, " << output->points_out << " after pre-processing (" << output->preprocess_seconds * 1e3
-                << " ms), " << output->clusters << " clusters (" << output->clustering_seconds * 1e3 << " ms), "
-                << uploads << " upload(s); link "
-                << (link.connected() ? "connected" : "disconnected") << ", " << link.unacknowledged()
-                << " unacknowledged\n";
-    }
-  }
-
+  runner.run();
+  const fogmap::EdgeRunnerStats& stats = runner.stats();
+  const std::string frames = std::to_string(stats.epochs_shipped) + " epoch(s) from " +
+                             std::to_string(stats.scans_processed) + " scan(s), " +
+                             std::to_string(stats.failed_frames) + " failed";
   if (stopRequested()) {
     const bool flushed = link.flush(1s);
-    std::cerr << "edge-cluster " << node->name << ": stopping after " << source->emitted() << " frame(s)"
+    std::cerr << prefix << "stopping after " << frames
               << (flushed ? "" : "; " + std::to_string(link.unacknowledged()) + " upload(s) unacknowledged") << "\n";
     return 0;
   }
   if (source->emitted() == 0) {
-    std::cerr << "edge-cluster " << node->name << ": no readable scan in " << sensor.source.string() << "\n";
+    std::cerr << prefix << "no readable scan in " << sensor.source.string() << "\n";
     return kExitRuntimeError;
   }
   const bool flushed = link.flush(5s);
-  std::cerr << "edge-cluster " << node->name << ": done after " << source->emitted() << " frame(s)"
+  std::cerr << prefix << "done after " << frames
             << (flushed ? ", all acknowledged" : "; " + std::to_string(link.unacknowledged()) + " upload(s) unacknowledged")
             << "\n";
   return 0;

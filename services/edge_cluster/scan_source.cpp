@@ -23,10 +23,10 @@ Error namingFile(Error error, const fs::path& file) {
 
 }  // namespace
 
-ScanSource::ScanSource(SensorConfig sensor, std::vector<fs::path> files)
-    : sensor_(std::move(sensor)), files_(std::move(files)) {}
+ScanSource::ScanSource(SensorConfig sensor, ReadLimits limits, std::vector<fs::path> files)
+    : sensor_(std::move(sensor)), limits_(limits), files_(std::move(files)) {}
 
-Expected<ScanSource> ScanSource::open(const SensorConfig& sensor) {
+Expected<ScanSource> ScanSource::open(const SensorConfig& sensor, ReadLimits limits) {
   const fs::path& source = sensor.source;
   std::error_code ec;
   const fs::file_status status = fs::status(source, ec);
@@ -52,7 +52,7 @@ Expected<ScanSource> ScanSource::open(const SensorConfig& sensor) {
     if (!format) return format.error();
     files.push_back(source);
   }
-  return ScanSource(sensor, std::move(files));
+  return ScanSource(sensor, limits, std::move(files));
 }
 
 bool ScanSource::done() const {
@@ -73,15 +73,16 @@ Expected<ScanFrame> ScanSource::next() {
   return read(file, emitted_);
 }
 
-Expected<ScanFrame> ScanSource::at(std::uint64_t epoch) {
+Expected<ScanFrame> ScanSource::at(std::uint64_t n) {
   if (done()) return Error{ErrorCode::kInternal, "ScanSource::at called after the source is done"};
-  // Without looping each scan plays once: the source ends after as many frames as files.
-  if (!sensor_.loop && emitted_ + 1 >= files_.size()) exhausted_ = true;
-  return read(files_[static_cast<std::size_t>(epoch % files_.size())], epoch);
+  // Without looping each scan plays once: the source ends after as many reads as files, readable
+  // or not (an unreadable file is still its turn in the recording).
+  if (!sensor_.loop && ++reads_by_number_ >= files_.size()) exhausted_ = true;
+  return read(files_[static_cast<std::size_t>(n % files_.size())], n);
 }
 
 Expected<ScanFrame> ScanSource::read(const fs::path& file, std::uint64_t sequence) {
-  Expected<LoadedCloud> loaded = readCloud(file);
+  Expected<LoadedCloud> loaded = readCloud(file, limits_);
   if (!loaded) {
     ++failures_in_a_row_;
     return namingFile(loaded.error(), file);
@@ -93,6 +94,7 @@ Expected<ScanFrame> ScanSource::read(const fs::path& file, std::uint64_t sequenc
   frame.sequence = sequence;
   frame.file = file;
   frame.dropped_non_finite = loaded->dropped_non_finite;
+  frame.trailing_zero_bytes = loaded->trailing_zero_bytes;
   frame.points = sensor_.split ? sectorView(loaded->points, *sensor_.split) : std::move(loaded->points);
   return frame;
 }

@@ -1,7 +1,8 @@
 #pragma once
 // Replays a sensor's recorded scans (SensorConfig.source): a directory of scans in name order, or
 // one file, optionally looped and limited to a number of frames, cut to a virtual LiDAR's sector
-// when the sensor is split. Pacing is the caller's: next() returns at once.
+// when the sensor is split. Files above the size bound are refused unread. Pacing is the caller's:
+// next() and at() return at once.
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
@@ -9,6 +10,7 @@
 #include <vector>
 
 #include "common/cloud.hpp"
+#include "common/cloud_io.hpp"
 #include "common/status.hpp"
 #include "common/topology.hpp"
 
@@ -19,37 +21,55 @@ struct ScanFrame {
   std::filesystem::path file;            // the scan it was read from
   Cloud points;                          // in the sensor frame (the sector's frame when split)
   std::size_t dropped_non_finite = 0;    // points the reader dropped (NaN or infinite coordinates)
+  std::size_t trailing_zero_bytes = 0;   // zero padding after the declared points (accepted)
 };
 
-class ScanSource {
+// Scans by number, as the edge's replay loop asks for them: ScanSource in the service, a fake in
+// tests.
+class ScanProvider {
+ public:
+  virtual ~ScanProvider() = default;
+  // True when no further scan will be read (the recording or the frame limit is exhausted).
+  virtual bool done() const = 0;
+  // Reads scan number `n` of the recording (which file is the provider's choice; ScanSource: file
+  // n mod N); sequence = n. Must not be called when done().
+  virtual Expected<ScanFrame> at(std::uint64_t n) = 0;
+};
+
+class ScanSource : public ScanProvider {
  public:
   // Lists the scans of `sensor.source`: the *.bin, *.pcd.bin and *.pcd files of a directory
   // sorted by name, or the one file. Errors when the source does not exist, a single file has an
-  // unsupported name, or a directory holds no scans.
-  static Expected<ScanSource> open(const SensorConfig& sensor);
+  // unsupported name, or a directory holds no scans. Every read is bounded by `limits` (topology
+  // max_scan_bytes): a larger file is an error naming the bound.
+  static Expected<ScanSource> open(const SensorConfig& sensor, ReadLimits limits = {});
 
-  // True once `frames` frames were emitted, or after the last scan when not looping, or after a
-  // whole pass over the scans emitted nothing (looping could never succeed).
-  bool done() const;
+  // True once `frames` frames were emitted, or after the last scan when not looping (next(): the
+  // last file; at(): as many reads as files), or after a whole pass over the scans emitted nothing
+  // (looping could never succeed).
+  bool done() const override;
 
   // Reads the next scan. A file that cannot be read yields an Error naming it and is skipped: the
   // following call continues with the next file. Must not be called when done().
   Expected<ScanFrame> next();
 
-  // Reads the scan of time epoch `epoch` (the scan epoch mod the number of scans), so that every
-  // sensor replaying one recording shows the same scan in the same epoch; sequence = epoch.
-  Expected<ScanFrame> at(std::uint64_t epoch);
+  // Reads scan number `n`, file n mod the number of files, so that every sensor replaying one
+  // recording shows the same scan at the same time; sequence = n. An unreadable file is an Error
+  // naming it.
+  Expected<ScanFrame> at(std::uint64_t n) override;
   const std::vector<std::filesystem::path>& files() const { return files_; }
   std::uint64_t emitted() const { return emitted_; }
 
  private:
-  ScanSource(SensorConfig sensor, std::vector<std::filesystem::path> files);
+  ScanSource(SensorConfig sensor, ReadLimits limits, std::vector<std::filesystem::path> files);
   Expected<ScanFrame> read(const std::filesystem::path& file, std::uint64_t sequence);
 
   SensorConfig sensor_;
+  ReadLimits limits_;
   std::vector<std::filesystem::path> files_;
   std::size_t position_ = 0;          // index into files_ of the next scan to read
-  std::uint64_t emitted_ = 0;         // frames emitted so far (= the next sequence number)
+  std::uint64_t emitted_ = 0;         // frames emitted so far (= next()'s next sequence number)
+  std::uint64_t reads_by_number_ = 0;  // calls of at(), readable or not
   std::size_t failures_in_a_row_ = 0;  // consecutive unreadable files
   bool exhausted_ = false;            // passed the last scan without looping
 };

@@ -11,9 +11,8 @@
 namespace fogmap {
 namespace {
 
-// Closed epochs remembered exactly; older ones are covered by a floor. Far more than any sane
-// number of epochs in flight, small enough to cost nothing.
-constexpr std::size_t kClosedHistory = 4096;
+// Sequence fingerprints remembered per child: far more than the uploads of any admission window.
+constexpr std::size_t kUploadHistory = 4096;
 
 double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -21,30 +20,109 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
 
 std::string nodeText(std::uint32_t node) { return "node " + std::to_string(node); }
 
+std::string msText(std::int64_t ns) { return std::to_string(ns / 1'000'000) + " ms"; }
+
 void addStats(MergeStats& total, const MergeStats& step) {
   total.pairs_all += step.pairs_all;
   total.pairs_tested += step.pairs_tested;
   total.pairs_pruned += step.pairs_pruned;
 }
 
+// The sensor's scan in its original order (the chunks tile it, checked on arrival).
+Cloud assemblePoints(const std::map<std::uint32_t, PointChunk>& chunks) {
+  Cloud cloud;
+  for (const auto& [index, chunk] : chunks) cloud.insert(cloud.end(), chunk.points.begin(), chunk.points.end());
+  return cloud;
+}
+
+std::vector<std::int32_t> assembleLabels(const std::map<std::uint32_t, PointChunk>& chunks) {
+  std::vector<std::int32_t> labels;
+  for (const auto& [index, chunk] : chunks) labels.insert(labels.end(), chunk.labels.begin(), chunk.labels.end());
+  return labels;
+}
+
+bool sameGeometry(const Ellipsoid& a, const Ellipsoid& b) {
+  return a.center == b.center && a.shape == b.shape && a.point_count == b.point_count;
+}
+
 }  // namespace
 
-MergeAggregator::MergeAggregator(AggregatorConfig config) : config_(std::move(config)) {
+std::uint64_t AggregatorCounters::refusedTotal() const {
+  std::uint64_t total = 0;
+  for (const auto& [reason, count] : refused) total += count;
+  return total;
+}
+
+Expected<AggregatorConfig> aggregatorConfigFor(const TopologyConfig& topology, const std::string& name) {
+  const NodeConfig* self = topology.find(name);
+  if (self == nullptr || self->role != Role::kAggregator) {
+    return invalidArgument("the topology '" + topology.name + "' has no aggregator named '" + name + "'");
+  }
+  AggregatorConfig config;
+  config.node = self->id;
+  config.mode = topology.mode;
+  config.is_root = self->parent.empty();
+  config.levels = topology.aggregatorLevels(self->name);
+  config.period_ms = topology.period_ms;
+  config.deadline_ms = topology.deadline_ms;
+  config.admission = topology.admission;
+  config.madc = topology.madc;
+  for (const NodeConfig* child : topology.children(self->name)) {
+    config.children.push_back({child->id, topology.sensorsBelow(child->name)});
+  }
+  return config;
+}
+
+GlobalMapMessage clusterCentrally(BaselineJob job) {
+  GlobalMapMessage global = std::move(job.message);
+  Cloud all;
+  for (const auto& [sensor, cloud] : job.scans) all.insert(all.end(), cloud.begin(), cloud.end());
+  const auto start = std::chrono::steady_clock::now();
+  const Clustering clustering = euclideanClusters(all, job.madc.clustering);
+  const auto summaries = summarizeClusters(all, clustering);
+  std::vector<Ellipsoid> ellipsoids;
+  ellipsoids.reserve(summaries.size());
+  for (std::size_t k = 0; k < summaries.size(); ++k) {
+    ellipsoids.push_back(ellipsoidFromSummary(summaries[k],
+                                              {job.node, global.header.epoch, static_cast<std::uint32_t>(k)},
+                                              job.madc.ellipsoidParams()));
+  }
+  // Ids (node, epoch, k) sort by k, so object k of the canonical map is central cluster k.
+  global.map = localMap(std::move(ellipsoids));
+  global.merge_seconds = secondsSince(start);
+  global.pairs_all = 0;
+  global.pairs_tested = 0;
+  std::size_t offset = 0;
+  for (const auto& [sensor, cloud] : job.scans) {
+    NodeLabels labels{sensor, {}};
+    labels.labels.assign(clustering.labels.begin() + static_cast<std::ptrdiff_t>(offset),
+                         clustering.labels.begin() + static_cast<std::ptrdiff_t>(offset + cloud.size()));
+    global.point_labels.push_back(std::move(labels));
+    offset += cloud.size();
+  }
+  return global;
+}
+
+MergeAggregator::MergeAggregator(AggregatorConfig config, EpochSchedule schedule)
+    : config_(std::move(config)), schedule_(schedule) {
   for (const auto& child : config_.children) {
     sensors_.insert(sensors_.end(), child.sensors.begin(), child.sensors.end());
-    open_streams_[child.id] = 0;
+    Child state;
+    state.sensors = child.sensors;
+    std::sort(state.sensors.begin(), state.sensors.end());
+    children_.emplace(child.id, std::move(state));
   }
   std::sort(sensors_.begin(), sensors_.end());
 }
 
 Expected<MergeAggregator> MergeAggregator::create(AggregatorConfig config) {
-  if (!std::isfinite(config.deadline_ms) || config.deadline_ms <= 0.0) {
-    return invalidArgument("aggregator deadline_ms must be a positive number of milliseconds, got " +
-                           std::to_string(config.deadline_ms));
-  }
+  auto schedule = EpochSchedule::create(config.period_ms, config.deadline_ms);
+  if (!schedule) return invalidArgument("aggregator " + nodeText(config.node) + ": " + schedule.error().message);
+  if (const Status limits = validateAdmissionLimits(config.admission); !limits.ok()) return limits.error();
   if (config.max_pending_epochs == 0) {
     return invalidArgument("aggregator max_pending_epochs must be at least 1");
   }
+  if (config.levels < 1) return invalidArgument("aggregator levels must be at least 1");
   std::set<std::uint32_t> children;
   std::set<std::uint32_t> sensors;
   for (const auto& child : config.children) {
@@ -62,15 +140,13 @@ Expected<MergeAggregator> MergeAggregator::create(AggregatorConfig config) {
       }
     }
   }
-  return MergeAggregator(std::move(config));
+  return MergeAggregator(std::move(config), *schedule);
 }
 
 std::optional<std::uint32_t> MergeAggregator::childOf(std::uint32_t node) const {
-  for (const auto& child : config_.children) {
-    if (child.id == node) return child.id;
-  }
-  for (const auto& child : config_.children) {
-    if (std::find(child.sensors.begin(), child.sensors.end(), node) != child.sensors.end()) return child.id;
+  if (children_.contains(node)) return node;
+  for (const auto& [id, child] : children_) {
+    if (std::binary_search(child.sensors.begin(), child.sensors.end(), node)) return id;
   }
   return std::nullopt;
 }
@@ -78,142 +154,288 @@ std::optional<std::uint32_t> MergeAggregator::childOf(std::uint32_t node) const 
 Expected<std::uint32_t> MergeAggregator::childConnected(std::uint32_t sender) {
   const auto child = childOf(sender);
   if (!child) {
+    ++counters_.refused[Refusal::kUnknownNode];
     return invalidArgument(nodeText(sender) + " is neither a child of aggregator " + nodeText(config_.node) +
                            " nor a sensor below one; check the topology");
   }
-  ++open_streams_[*child];
+  Child& state = children_.at(*child);
+  ++state.open_streams;
+  state.disconnected_ns.reset();
   return *child;
 }
 
-void MergeAggregator::childDisconnected(std::uint32_t child) {
-  const auto it = open_streams_.find(child);
-  if (it != open_streams_.end() && it->second > 0) --it->second;
+void MergeAggregator::childDisconnected(std::uint32_t child, std::int64_t now_ns) {
+  const auto it = children_.find(child);
+  if (it == children_.end() || it->second.open_streams == 0) return;
+  if (--it->second.open_streams == 0) it->second.disconnected_ns = now_ns;
 }
 
-std::size_t MergeAggregator::liveChildren() const {
-  return static_cast<std::size_t>(
-      std::count_if(open_streams_.begin(), open_streams_.end(), [](const auto& entry) { return entry.second > 0; }));
+bool MergeAggregator::isLive(const Child& child, std::int64_t now_ns) const {
+  if (child.open_streams > 0) return true;
+  // A child that never connected is not waited for; one that just lost its stream is, for a
+  // grace of one period and one deadline (it reconnects and re-sends what was not answered).
+  return child.disconnected_ns && now_ns - *child.disconnected_ns < schedule_.periodNs() + schedule_.deadlineNs();
 }
 
-bool MergeAggregator::isClosed(std::uint64_t epoch) const {
-  return closed_.contains(epoch) || (closed_floor_ && epoch <= *closed_floor_);
+std::size_t MergeAggregator::liveChildren(std::int64_t now_ns) const {
+  return static_cast<std::size_t>(std::count_if(children_.begin(), children_.end(),
+                                                [&](const auto& entry) { return isLive(entry.second, now_ns); }));
 }
 
-void MergeAggregator::close(std::uint64_t epoch) {
-  closed_.insert(epoch);
-  while (closed_.size() > kClosedHistory) {
-    closed_floor_ = std::max(closed_floor_.value_or(0), *closed_.begin());
-    closed_.erase(closed_.begin());
+std::int64_t MergeAggregator::windowNs() const {
+  return static_cast<std::int64_t>(std::llround(config_.admission.window_periods *
+                                                static_cast<double>(schedule_.periodNs())));
+}
+
+Outcome MergeAggregator::refusedOutcome(Refused refused) {
+  ++counters_.refused[refused.reason];
+  Outcome outcome;
+  outcome.refused = std::move(refused);
+  return outcome;
+}
+
+Refused MergeAggregator::refuse(Refusal reason, std::string message) {
+  ++counters_.refused[reason];
+  return Refused{reason, std::move(message)};
+}
+
+bool MergeAggregator::speaksFor(const Child& child, std::uint32_t sensor) const {
+  return std::binary_search(child.sensors.begin(), child.sensors.end(), sensor);
+}
+
+std::optional<Refused> MergeAggregator::admit(std::uint32_t child_id, const UploadKey& key, const MapHeader& header,
+                                              std::size_t wire_bytes, std::int64_t now_ns, const std::string& what,
+                                              bool& duplicate) {
+  duplicate = false;
+  const auto child = children_.find(child_id);
+  if (child == children_.end()) {
+    return Refused{Refusal::kUnknownNode, what + ": " + nodeText(child_id) + " is not a child of aggregator " +
+                                              nodeText(config_.node)};
   }
+  if (wire_bytes > config_.admission.max_map_bytes) {
+    return Refused{Refusal::kTooLarge, what + " has " + std::to_string(wire_bytes) + " bytes, more than the bound of " +
+                                           std::to_string(config_.admission.max_map_bytes) +
+                                           " (admission max_map_bytes)"};
+  }
+  // The window bounds how far an epoch may be from this aggregator's clock: no map can open an
+  // epoch ahead of time, and the epochs remembered (open, emitted, closed) stay few.
+  const std::int64_t window = windowNs();
+  const std::int64_t start = schedule_.startNs(header.epoch);
+  if (start > now_ns && start - now_ns > window) {
+    return Refused{Refusal::kClockSkew, what + ": the epoch starts " + msText(start - now_ns) +
+                                            " ahead of aggregator " + nodeText(config_.node) +
+                                            "'s clock, beyond the admission window of " + msText(window) +
+                                            " (check the sender's clock)"};
+  }
+  const std::int64_t deadline = schedule_.deadlineNs(header.epoch, config_.levels);
+  if (deadline < now_ns && now_ns - deadline > window) {
+    return Refused{Refusal::kClockSkew, what + ": the epoch's deadline passed " + msText(now_ns - deadline) +
+                                            " ago, beyond the admission window of " + msText(window) +
+                                            " (a stale re-send, or the sender's clock is behind)"};
+  }
+  const auto seen = child->second.uploads.find(key.sequence);
+  if (seen != child->second.uploads.end()) {
+    if (seen->second != key.fingerprint) {
+      return Refused{Refusal::kSequenceConflict, what + ": sequence " + std::to_string(key.sequence) +
+                                                     " was already applied with other content"};
+    }
+    duplicate = true;
+  }
+  return std::nullopt;
 }
 
-MergeAggregator::Epoch& MergeAggregator::openEpoch(std::uint64_t epoch, std::int64_t now_ns) {
+void MergeAggregator::rememberUpload(std::uint32_t child_id, const UploadKey& key) {
+  auto& uploads = children_.at(child_id).uploads;
+  uploads.emplace(key.sequence, key.fingerprint);
+  while (uploads.size() > kUploadHistory) uploads.erase(uploads.begin());
+}
+
+MergeAggregator::Epoch& MergeAggregator::openEpoch(std::uint64_t epoch) {
   auto it = pending_.find(epoch);
   if (it != pending_.end()) return it->second;
-  // A child stuck far behind (or a flood of bogus epochs) must not grow memory without bound.
+  // The admission window already bounds the open epochs; this is the last line of defence.
   while (pending_.size() >= config_.max_pending_epochs) {
     ++counters_.dropped_epochs;
-    close(pending_.begin()->first);
     pending_.erase(pending_.begin());
   }
-  Epoch fresh;
-  fresh.first_arrival_ns = now_ns;
-  return pending_.emplace(epoch, std::move(fresh)).first->second;
+  return pending_.emplace(epoch, Epoch{}).first->second;
 }
 
-Expected<Arrival> MergeAggregator::onMap(const MapMessage& message, std::int64_t now_ns) {
+std::optional<Refused> MergeAggregator::checkEllipsoids(std::uint32_t child_id, const MapMessage& message,
+                                                        const Epoch* epoch, const std::string& what) const {
+  const Child& child = children_.at(child_id);
+  for (const auto& object : message.map.objects) {
+    for (const auto& e : object.ellipsoids) {
+      if (!speaksFor(child, e.id.node)) {
+        return Refused{Refusal::kForgedNode, what + ": ellipsoid " + toString(e.id) + " names " +
+                                                 nodeText(e.id.node) + ", which is not a sensor below " +
+                                                 nodeText(child_id)};
+      }
+      if (epoch == nullptr) continue;
+      const auto known = epoch->ellipsoids.find(e.id);
+      if (known != epoch->ellipsoids.end() && !sameGeometry(known->second, e)) {
+        return Refused{Refusal::kEllipsoidConflict,
+                       what + ": ellipsoid " + toString(e.id) + " was already merged with other geometry"};
+      }
+    }
+  }
+  return std::nullopt;
+}
+
+void MergeAggregator::mergeInto(Epoch& epoch, const MapMessage& message) {
   const MapHeader& header = message.header;
-  if (config_.mode == Mode::kBaseline) {
-    return invalidArgument(nodeText(header.node) + " sent a map for epoch " + std::to_string(header.epoch) +
-                           ", but the cluster runs in baseline mode (points only)");
-  }
-  const bool direct_child = std::any_of(config_.children.begin(), config_.children.end(),
-                                        [&](const ChildConfig& c) { return c.id == header.node; });
-  if (!direct_child) {
-    return invalidArgument("map from " + nodeText(header.node) + ", which is not a direct child of aggregator " +
-                           nodeText(config_.node));
-  }
-  if (isClosed(header.epoch)) {
-    ++counters_.late;
-    return Arrival::kLate;
-  }
-  Epoch& epoch = openEpoch(header.epoch, now_ns);
   const auto start = std::chrono::steady_clock::now();
   MergeResult merged = merge(epoch.working, message.map);
   epoch.merge_seconds += secondsSince(start);
   epoch.working = std::move(merged.map);
   addStats(epoch.stats, merged.stats);
-
+  for (const auto& object : message.map.objects) {
+    for (const auto& e : object.ellipsoids) epoch.ellipsoids.emplace(e.id, e);
+  }
   epoch.reported_children.insert(header.node);
   epoch.contributing.insert(header.contributing_nodes.begin(), header.contributing_nodes.end());
-  // An edge that leaves contributing_nodes empty still contributes its own scan (possibly empty).
-  if (header.contributing_nodes.empty() && std::binary_search(sensors_.begin(), sensors_.end(), header.node)) {
+  epoch.failed.insert(header.failed_nodes.begin(), header.failed_nodes.end());
+  // An edge that leaves contributing_nodes empty still contributes its own scan (possibly empty),
+  // unless it reported the frame as failed.
+  if (header.contributing_nodes.empty() && header.failed_nodes.empty() &&
+      std::binary_search(sensors_.begin(), sensors_.end(), header.node)) {
     epoch.contributing.insert(header.node);
   }
   // Zero means "unknown" on the wire; it must not become the epoch's earliest timestamp.
   if (header.sensor_time_ns > 0) {
     epoch.sensor_time_ns = std::min(epoch.sensor_time_ns.value_or(header.sensor_time_ns), header.sensor_time_ns);
   }
-  ++counters_.accepted;
-  return Arrival::kAccepted;
 }
 
-Expected<PointsArrival> MergeAggregator::onPoints(PointChunk chunk, std::int64_t now_ns) {
+Outcome MergeAggregator::onMap(std::uint32_t child_id, const UploadKey& key, const MapMessage& message,
+                               std::size_t wire_bytes, std::int64_t now_ns) {
+  const MapHeader& header = message.header;
+  const std::string what = "map of " + nodeText(header.node) + " for epoch " + std::to_string(header.epoch);
+  if (config_.mode == Mode::kBaseline) {
+    return refusedOutcome({Refusal::kWrongMode, what + ", but the cluster runs in baseline mode (points only)"});
+  }
+  bool duplicate = false;
+  if (auto refused = admit(child_id, key, header, wire_bytes, now_ns, what, duplicate)) {
+    return refusedOutcome(std::move(*refused));
+  }
+  const Child& child = children_.at(child_id);
+  if (header.node != child_id) {
+    return refusedOutcome({Refusal::kForgedNode, what + " arrived on the stream of " + nodeText(child_id) +
+                                                     "; a stream speaks for one node only"});
+  }
+  for (const auto* nodes : {&header.contributing_nodes, &header.failed_nodes}) {
+    for (const auto sensor : *nodes) {
+      if (!speaksFor(child, sensor)) {
+        return refusedOutcome({Refusal::kForgedNode, what + " speaks for " + nodeText(sensor) +
+                                                         ", which is not a sensor below " + nodeText(child_id)});
+      }
+    }
+  }
+  auto open = pending_.find(header.epoch);
+  auto retained = emitted_.find(header.epoch);
+  if (duplicate) {
+    ++counters_.duplicates;
+    return Outcome{retained != emitted_.end() ? Arrival::kLate : Arrival::kAccepted, std::nullopt, std::nullopt};
+  }
+  if (auto refused = checkMapBounds(message.map, config_.admission, what)) return refusedOutcome(std::move(*refused));
+  Epoch* known = open != pending_.end() ? &open->second : retained != emitted_.end() ? &retained->second : nullptr;
+  if (auto refused = checkEllipsoids(child_id, message, known, what)) return refusedOutcome(std::move(*refused));
+
+  children_.at(child_id).dropped = header.dropped_uploads;
+  rememberUpload(child_id, key);
+  if (retained != emitted_.end()) {
+    mergeInto(retained->second, message);
+    retained->second.dirty = true;
+    ++counters_.late;
+    return Outcome{Arrival::kLate, std::nullopt, std::nullopt};
+  }
+  mergeInto(openEpoch(header.epoch), message);
+  ++counters_.accepted;
+  return Outcome{};
+}
+
+Outcome MergeAggregator::onPoints(std::uint32_t child_id, const UploadKey& key, PointChunk chunk,
+                                  std::size_t wire_bytes, std::int64_t now_ns) {
   // Copies: the chunk is moved into storage below.
   const std::uint32_t node = chunk.header.node;
   const std::uint64_t epoch_id = chunk.header.epoch;
-  const std::int64_t sensor_time_ns = chunk.header.sensor_time_ns;
-  const std::string what = "point chunk " + std::to_string(chunk.chunk) + " of " + nodeText(node) +
-                           " for epoch " + std::to_string(epoch_id);
+  const std::string what = "point chunk " + std::to_string(chunk.chunk) + " of " + nodeText(node) + " for epoch " +
+                           std::to_string(epoch_id);
   if (config_.mode == Mode::kMadc) {
-    return invalidArgument(what + " arrived, but the cluster runs in madc mode (maps only)");
+    return refusedOutcome({Refusal::kWrongMode, what + " arrived, but the cluster runs in madc mode (maps only)"});
   }
-  if (!std::binary_search(sensors_.begin(), sensors_.end(), node)) {
-    return invalidArgument(what + ": the node is not a sensor below aggregator " + nodeText(config_.node));
+  bool duplicate = false;
+  if (auto refused = admit(child_id, key, chunk.header, wire_bytes, now_ns, what, duplicate)) {
+    return refusedOutcome(std::move(*refused));
+  }
+  const Child& child = children_.at(child_id);
+  if (!speaksFor(child, node)) {
+    return refusedOutcome({Refusal::kForgedNode, what + " arrived on the stream of " + nodeText(child_id) +
+                                                     ", but that node is not a sensor below it"});
   }
   if (chunk.chunk_count == 0 || chunk.chunk >= chunk.chunk_count) {
-    return invalidArgument(what + ": chunk index must be below chunk_count " + std::to_string(chunk.chunk_count));
+    return refusedOutcome({Refusal::kMalformed, what + ": chunk index must be below chunk_count " +
+                                                    std::to_string(chunk.chunk_count)});
   }
   if (std::uint64_t{chunk.first_point} + chunk.points.size() > chunk.total_points) {
-    return invalidArgument(what + ": points " + std::to_string(chunk.first_point) + " + " +
-                           std::to_string(chunk.points.size()) + " exceed total_points " +
-                           std::to_string(chunk.total_points));
+    return refusedOutcome({Refusal::kMalformed, what + ": points " + std::to_string(chunk.first_point) + " + " +
+                                                    std::to_string(chunk.points.size()) + " exceed total_points " +
+                                                    std::to_string(chunk.total_points)});
   }
   if (config_.mode == Mode::kExt && chunk.labels.size() != chunk.points.size()) {
-    return invalidArgument(what + ": ext mode needs one local label per point, got " +
-                           std::to_string(chunk.labels.size()) + " labels for " +
-                           std::to_string(chunk.points.size()) + " points");
+    return refusedOutcome({Refusal::kMalformed, what + ": ext mode needs one local label per point, got " +
+                                                    std::to_string(chunk.labels.size()) + " labels for " +
+                                                    std::to_string(chunk.points.size()) + " points"});
   }
-
-  if (!config_.is_root) {
-    ++counters_.relayed;
-    return PointsArrival{Arrival::kRelay, std::move(chunk)};
-  }
-  if (isClosed(epoch_id)) {
-    ++counters_.late;
-    return PointsArrival{Arrival::kLate, std::nullopt};
-  }
-
-  const auto existing = pending_.find(epoch_id);
-  if (existing != pending_.end()) {
-    const auto sensor = existing->second.points.find(node);
-    if (sensor != existing->second.points.end() &&
-        (sensor->second.chunk_count != chunk.chunk_count || sensor->second.total_points != chunk.total_points)) {
-      return invalidArgument(what + ": chunk_count/total_points " + std::to_string(chunk.chunk_count) + "/" +
-                             std::to_string(chunk.total_points) + " disagree with earlier chunks (" +
-                             std::to_string(sensor->second.chunk_count) + "/" +
-                             std::to_string(sensor->second.total_points) + ")");
+  for (const auto& p : chunk.points) {
+    if (!(std::abs(p.x) <= config_.admission.world_extent_m && std::abs(p.y) <= config_.admission.world_extent_m &&
+          std::abs(p.z) <= config_.admission.world_extent_m)) {
+      return refusedOutcome({Refusal::kOutOfWorld, what + ": a point lies outside the world extent of " +
+                                                       std::to_string(config_.admission.world_extent_m) + " m"});
     }
   }
 
-  Epoch& epoch = openEpoch(epoch_id, now_ns);
+  if (!config_.is_root) {
+    // Relayed again even when re-sent: the child is answered once the next hop answers.
+    rememberUpload(child_id, key);
+    ++counters_.relayed;
+    return Outcome{Arrival::kRelay, std::nullopt, std::move(chunk)};
+  }
+  auto open = pending_.find(epoch_id);
+  auto retained = emitted_.find(epoch_id);
+  if (duplicate) {
+    ++counters_.duplicates;
+    return Outcome{retained != emitted_.end() ? Arrival::kLate : Arrival::kAccepted, std::nullopt, std::nullopt};
+  }
+  Epoch* known = open != pending_.end() ? &open->second : retained != emitted_.end() ? &retained->second : nullptr;
+  if (known != nullptr) {
+    const auto sensor = known->points.find(node);
+    if (sensor != known->points.end() &&
+        (sensor->second.chunk_count != chunk.chunk_count || sensor->second.total_points != chunk.total_points)) {
+      return refusedOutcome({Refusal::kInconsistentChunks,
+                             what + ": chunk_count/total_points " + std::to_string(chunk.chunk_count) + "/" +
+                                 std::to_string(chunk.total_points) + " disagree with earlier chunks (" +
+                                 std::to_string(sensor->second.chunk_count) + "/" +
+                                 std::to_string(sensor->second.total_points) + ")"});
+    }
+    if (sensor != known->points.end()) {
+      const auto same = sensor->second.chunks.find(chunk.chunk);
+      if (same != sensor->second.chunks.end() && !(same->second == chunk)) {
+        return refusedOutcome({Refusal::kInconsistentChunks, what + " was already stored with other content"});
+      }
+    }
+  }
+
+  const bool late = retained != emitted_.end();
+  Epoch& epoch = late ? retained->second : openEpoch(epoch_id);
   SensorPoints& sensor = epoch.points[node];
   sensor.chunk_count = chunk.chunk_count;
   sensor.total_points = chunk.total_points;
-  if (sensor_time_ns > 0) {
-    epoch.sensor_time_ns = std::min(epoch.sensor_time_ns.value_or(sensor_time_ns), sensor_time_ns);
+  if (chunk.header.sensor_time_ns > 0) {
+    epoch.sensor_time_ns =
+        std::min(epoch.sensor_time_ns.value_or(chunk.header.sensor_time_ns), chunk.header.sensor_time_ns);
   }
-  // A re-sent chunk (after a reconnect) is the same chunk: keep the first copy.
+  epoch.failed.insert(chunk.header.failed_nodes.begin(), chunk.header.failed_nodes.end());
   sensor.chunks.emplace(chunk.chunk, std::move(chunk));
 
   if (sensor.complete()) {
@@ -225,26 +447,32 @@ Expected<PointsArrival> MergeAggregator::onPoints(PointChunk chunk, std::int64_t
       next += part.points.size();
     }
     if (!tiled || next != sensor.total_points) {
-      const std::string message = "point chunks of " + nodeText(node) + " for epoch " +
-                                  std::to_string(epoch_id) + " do not tile its " +
-                                  std::to_string(sensor.total_points) + " points; the scan is discarded";
+      const std::string message = "point chunks of " + nodeText(node) + " for epoch " + std::to_string(epoch_id) +
+                                  " do not tile its " + std::to_string(sensor.total_points) +
+                                  " points; the scan is discarded";
       epoch.points.erase(node);
       // An epoch opened only by the discarded scan would otherwise emit an empty map later.
-      if (epoch.points.empty() && epoch.reported_children.empty()) pending_.erase(epoch_id);
-      return invalidArgument(message);
+      if (!late && epoch.points.empty() && epoch.reported_children.empty()) pending_.erase(epoch_id);
+      return refusedOutcome({Refusal::kInconsistentChunks, message});
     }
   }
+  rememberUpload(child_id, key);
+  if (late) {
+    epoch.dirty = true;
+    ++counters_.late;
+    return Outcome{Arrival::kLate, std::nullopt, std::nullopt};
+  }
   ++counters_.accepted;
-  return PointsArrival{Arrival::kAccepted, std::nullopt};
+  return Outcome{};
 }
 
-bool MergeAggregator::isComplete(const Epoch& epoch) const {
+bool MergeAggregator::isComplete(const Epoch& epoch, std::int64_t now_ns) const {
   const bool needs_maps = config_.mode != Mode::kBaseline;
   const bool needs_points = config_.is_root && config_.mode != Mode::kMadc;
-  for (const auto& child : config_.children) {
+  for (const auto& [id, child] : children_) {
     // A dead child is never waited for (DESIGN.md 2.2): neither its map nor its sensors' points.
-    if (open_streams_.at(child.id) == 0) continue;
-    if (needs_maps && !epoch.reported_children.contains(child.id)) return false;
+    if (!isLive(child, now_ns)) continue;
+    if (needs_maps && !epoch.reported_children.contains(id)) return false;
     if (needs_points) {
       for (const auto sensor : child.sensors) {
         const auto it = epoch.points.find(sensor);
@@ -255,19 +483,46 @@ bool MergeAggregator::isComplete(const Epoch& epoch) const {
   return true;
 }
 
+void MergeAggregator::forgetOldEpochs(std::int64_t now_ns) {
+  // Epochs whose deadline left the admission window can take no more maps (admit refuses them).
+  const std::int64_t window = windowNs();
+  const auto expired = [&](std::uint64_t epoch) {
+    const std::int64_t deadline = schedule_.deadlineNs(epoch, config_.levels);
+    return deadline < now_ns && now_ns - deadline > window;
+  };
+  while (!emitted_.empty() && expired(emitted_.begin()->first)) emitted_.erase(emitted_.begin());
+}
+
 std::vector<EpochOutput> MergeAggregator::poll(std::int64_t now_ns) {
-  const auto deadline_ns = static_cast<std::int64_t>(std::llround(config_.deadline_ms * 1e6));
+  forgetOldEpochs(now_ns);
   std::vector<EpochOutput> outputs;
   for (auto it = pending_.begin(); it != pending_.end();) {
-    const bool complete = isComplete(it->second);
-    if (complete || now_ns >= it->second.first_arrival_ns + deadline_ns) {
-      outputs.push_back(emit(it->first, it->second, complete));
-      close(it->first);
+    // Never before the epoch has begun: an early upload cannot make an epoch look complete.
+    const bool begun = now_ns >= schedule_.startNs(it->first);
+    const bool complete = begun && isComplete(it->second, now_ns);
+    if (complete || now_ns >= schedule_.deadlineNs(it->first, config_.levels)) {
+      outputs.push_back(emit(it->first, it->second, complete, now_ns));
+      emitted_.insert_or_assign(it->first, std::move(it->second));
       it = pending_.erase(it);
     } else {
       ++it;
     }
   }
+  for (auto& [epoch_id, epoch] : emitted_) {
+    if (epoch.dirty) outputs.push_back(emit(epoch_id, epoch, isComplete(epoch, now_ns), now_ns));
+  }
+  std::stable_sort(outputs.begin(), outputs.end(),
+                   [](const EpochOutput& a, const EpochOutput& b) { return a.epoch < b.epoch; });
+  return outputs;
+}
+
+std::vector<EpochOutput> MergeAggregator::drain(std::int64_t now_ns) {
+  std::vector<EpochOutput> outputs = poll(now_ns);
+  for (auto& [epoch_id, epoch] : pending_) {
+    outputs.push_back(emit(epoch_id, epoch, isComplete(epoch, now_ns), now_ns));
+    emitted_.insert_or_assign(epoch_id, std::move(epoch));
+  }
+  pending_.clear();
   return outputs;
 }
 
@@ -280,102 +535,84 @@ MapHeader MergeAggregator::headerFor(std::uint64_t epoch_id, const Epoch& epoch,
   header.contributing_nodes.assign(contributing.begin(), contributing.end());
   std::set_difference(sensors_.begin(), sensors_.end(), contributing.begin(), contributing.end(),
                       std::back_inserter(header.missing_nodes));
+  header.failed_nodes.assign(epoch.failed.begin(), epoch.failed.end());
+  header.dropped_uploads = link_drops_ + counters_.dropped_epochs;
+  for (const auto& [id, child] : children_) header.dropped_uploads += child.dropped;
   return header;
 }
 
-namespace {
-
-// The sensor's scan in its original order (the chunks tile it, checked on arrival).
-Cloud assemblePoints(const std::map<std::uint32_t, PointChunk>& chunks) {
-  Cloud cloud;
-  for (const auto& [index, chunk] : chunks) cloud.insert(cloud.end(), chunk.points.begin(), chunk.points.end());
-  return cloud;
-}
-
-std::vector<std::int32_t> assembleLabels(const std::map<std::uint32_t, PointChunk>& chunks) {
-  std::vector<std::int32_t> labels;
-  for (const auto& [index, chunk] : chunks) labels.insert(labels.end(), chunk.labels.begin(), chunk.labels.end());
-  return labels;
-}
-
-}  // namespace
-
-EpochOutput MergeAggregator::emit(std::uint64_t epoch_id, Epoch& epoch, bool complete) {
-  ++counters_.emitted;
+EpochOutput MergeAggregator::emit(std::uint64_t epoch_id, Epoch& epoch, bool complete, std::int64_t now_ns) {
   EpochOutput out;
   out.epoch = epoch_id;
   out.complete = complete;
+  out.revision = epoch.revision++;
+  out.late = out.revision > 0 || now_ns > schedule_.deadlineNs(epoch_id, config_.levels) + schedule_.periodNs();
   out.stats = epoch.stats;
   out.merge_seconds = epoch.merge_seconds;
+  epoch.dirty = false;
+  ++counters_.emitted;
+  if (out.revision > 0) ++counters_.revisions;
+  if (out.late) ++counters_.late_emits;
 
   if (!config_.is_root) {
-    out.message = MapMessage{headerFor(epoch_id, epoch, epoch.contributing), std::move(epoch.working)};
+    // The whole epoch again for a revision: MERGE is idempotent, the parent keeps what it has.
+    out.message = MapMessage{headerFor(epoch_id, epoch, epoch.contributing), epoch.working};
     return out;
   }
 
   GlobalMapMessage global;
   global.mode = config_.mode;
+  global.revision = out.revision;
+  global.late = out.late;
   if (config_.mode == Mode::kBaseline) {
-    // Central clustering of the union, exactly the clustering the edges would run.
+    BaselineJob job;
+    job.node = config_.node;
+    job.madc = config_.madc;
     std::set<std::uint32_t> contributing;
-    Cloud all;
-    std::vector<std::pair<std::uint32_t, std::size_t>> extents;  // (sensor, point count), sensor order
     for (const auto& [sensor, points] : epoch.points) {
-      if (!points.complete()) continue;  // a partial scan would be clustered wrongly near the gaps
-      Cloud cloud = assemblePoints(points.chunks);
+      // A partial scan would be clustered wrongly near the gaps; a failed one has no data.
+      if (!points.complete() || epoch.failed.contains(sensor)) continue;
       contributing.insert(sensor);
-      extents.emplace_back(sensor, cloud.size());
-      all.insert(all.end(), cloud.begin(), cloud.end());
-    }
-    const auto start = std::chrono::steady_clock::now();
-    const Clustering clustering = euclideanClusters(all, config_.madc.clustering);
-    const auto summaries = summarizeClusters(all, clustering);
-    std::vector<Ellipsoid> ellipsoids;
-    ellipsoids.reserve(summaries.size());
-    for (std::size_t k = 0; k < summaries.size(); ++k) {
-      ellipsoids.push_back(ellipsoidFromSummary(summaries[k], {config_.node, epoch_id, static_cast<std::uint32_t>(k)},
-                                                config_.madc.ellipsoidParams()));
-    }
-    // Ids (node, epoch, k) sort by k, so object k of the canonical map is central cluster k.
-    global.map = localMap(std::move(ellipsoids));
-    out.merge_seconds = secondsSince(start);
-    out.stats = {};
-    std::size_t offset = 0;
-    for (const auto& [sensor, count] : extents) {
-      NodeLabels labels{sensor, {}};
-      labels.labels.assign(clustering.labels.begin() + static_cast<std::ptrdiff_t>(offset),
-                           clustering.labels.begin() + static_cast<std::ptrdiff_t>(offset + count));
-      global.point_labels.push_back(std::move(labels));
-      offset += count;
+      job.scans.emplace_back(sensor, assemblePoints(points.chunks));
     }
     global.header = headerFor(epoch_id, epoch, contributing);
-  } else {
-    global.map = std::move(epoch.working);
-    global.header = headerFor(epoch_id, epoch, epoch.contributing);
-    if (config_.mode == Mode::kExt) {
-      std::map<EllipsoidId, std::int32_t> object_of;
-      for (std::size_t i = 0; i < global.map.objects.size(); ++i) {
-        for (const auto& e : global.map.objects[i].ellipsoids) object_of.emplace(e.id, static_cast<std::int32_t>(i));
+    job.message = std::move(global);
+    out.stats = {};
+    out.message = std::move(job);
+    return out;
+  }
+
+  global.map = epoch.working;
+  global.header = headerFor(epoch_id, epoch, epoch.contributing);
+  if (config_.mode == Mode::kExt) {
+    std::map<EllipsoidId, std::int32_t> object_of;
+    for (std::size_t i = 0; i < global.map.objects.size(); ++i) {
+      for (const auto& e : global.map.objects[i].ellipsoids) object_of.emplace(e.id, static_cast<std::int32_t>(i));
+    }
+    for (const auto& [sensor, points] : epoch.points) {
+      if (!points.complete()) continue;
+      NodeLabels labels{sensor, assembleLabels(points.chunks)};
+      for (auto& label : labels.labels) {
+        if (label < 0) continue;
+        const auto it = object_of.find({sensor, epoch_id, static_cast<std::uint32_t>(label)});
+        // A local cluster missing from the global map (its map was lost) has no object.
+        label = it == object_of.end() ? -1 : it->second;
       }
-      for (const auto& [sensor, points] : epoch.points) {
-        if (!points.complete()) continue;
-        NodeLabels labels{sensor, assembleLabels(points.chunks)};
-        for (auto& label : labels.labels) {
-          if (label < 0) continue;
-          const auto it = object_of.find({sensor, epoch_id, static_cast<std::uint32_t>(label)});
-          // A local cluster missing from the global map (its map was lost) has no object.
-          label = it == object_of.end() ? -1 : it->second;
-        }
-        global.point_labels.push_back(std::move(labels));
-      }
+      global.point_labels.push_back(std::move(labels));
     }
   }
   global.merge_seconds = out.merge_seconds;
   global.pairs_all = out.stats.pairs_all;
   global.pairs_tested = out.stats.pairs_tested;
-  if (!latest_ || latest_->header.epoch <= epoch_id) latest_ = global;
+  published(global);
   out.message = std::move(global);
   return out;
+}
+
+void MergeAggregator::published(const GlobalMapMessage& message) {
+  // Geofences answer on the live picture: never a late revision, never an older epoch.
+  if (message.late) return;
+  if (!latest_ || latest_->header.epoch <= message.header.epoch) latest_ = message;
 }
 
 Expected<std::size_t> MergeAggregator::setGeofence(Geofence fence) {

@@ -1,9 +1,11 @@
 #pragma once
-// The merge-aggregator's core (DESIGN.md 2.2): collect maps (or points) per epoch from the direct
-// children, MERGE them into the epoch's working map, and emit the epoch once every live child has
-// reported or its deadline has passed. Domain types only; the clock is injected (every call that
-// depends on time takes now_ns, unix nanoseconds), so tests drive deadlines by hand. Not
-// thread-safe: the service wraps it in SharedAggregator.
+// The merge-aggregator's core (DESIGN.md 2.2, docs/design.md "Epochs", "Admission", "Delivery"):
+// admit uploads from the direct children, collect them per epoch, MERGE maps into the epoch's
+// working map, and emit the epoch once every live child has reported or its absolute deadline
+// (common/epochs.hpp) has passed. Maps that arrive after their epoch was emitted are merged into
+// the retained epoch and emitted again as a revision flagged late. Domain types only; the clock is
+// injected (every call that depends on time takes now_ns, unix nanoseconds), so tests drive
+// deadlines by hand. Not thread-safe: the service wraps it in SharedAggregator.
 #include <cstddef>
 #include <cstdint>
 #include <map>
@@ -13,11 +15,14 @@
 #include <variant>
 #include <vector>
 
+#include "common/admission.hpp"
+#include "common/epochs.hpp"
 #include "common/geofence.hpp"
 #include "common/madc.hpp"
 #include "common/map.hpp"
 #include "common/messages.hpp"
 #include "common/status.hpp"
+#include "common/topology.hpp"
 
 namespace fogmap {
 
@@ -28,35 +33,65 @@ struct ChildConfig {
 };
 
 struct AggregatorConfig {
-  std::uint32_t node = 0;               // this aggregator's id
+  std::uint32_t node = 0;             // this aggregator's id
   Mode mode = Mode::kMadc;
-  bool is_root = false;                 // the sink: emits global maps instead of uploading
-  std::vector<ChildConfig> children;    // direct children (TopologyConfig::children / sensorsBelow)
-  double deadline_ms = 80.0;            // an epoch is emitted this long after its first arrival
+  bool is_root = false;               // the sink: emits global maps instead of uploading
+  std::vector<ChildConfig> children;  // direct children
+  int levels = 1;                     // levels of aggregators at and below this one (1 over edges)
+  double period_ms = 100.0;           // the cluster period (epoch length)
+  double deadline_ms = 80.0;          // per level: epoch k is emitted at k period + levels deadline
+  AdmissionLimits admission;
   MadcParams madc;                      // baseline root: the central clustering and ellipsoids
   std::size_t max_pending_epochs = 64;  // beyond this the oldest open epoch is dropped (counted)
 };
 
-// What happened to an accepted upload.
+// The configuration of aggregator `name` in `topology`: its children and their sensors, its
+// level, the cluster period, deadline, admission limits and MAD-C parameters.
+Expected<AggregatorConfig> aggregatorConfigFor(const TopologyConfig& topology, const std::string& name);
+
+// What happened to an admitted upload.
 enum class Arrival {
-  kAccepted,  // stored or merged into an open epoch
-  kLate,      // its epoch was already emitted (or dropped): counted and discarded
-  kRelay,     // an intermediate's point chunk: forward it to the parent unchanged
+  kAccepted,   // stored or merged into an open epoch (or a re-sent copy of one already applied)
+  kLate,       // its epoch was already emitted: merged into the retained epoch, a revision follows
+  kRelay,      // an intermediate's point chunk: forward it to the parent unchanged
 };
 
-struct PointsArrival {
+// The answer to one upload: admitted (with its arrival) or refused with a reason.
+struct Outcome {
   Arrival arrival = Arrival::kAccepted;
+  std::optional<Refused> refused;
   std::optional<PointChunk> relay;  // set when arrival == kRelay
+  bool ok() const { return !refused.has_value(); }
 };
 
-// One emitted epoch. `message` is a MapMessage for the parent at an intermediate and a
-// GlobalMapMessage at the root.
+// Identifies an upload on a child's stream: the stream's sequence number and a fingerprint of
+// its content, so a re-sent copy is recognised and the same sequence with other content refused.
+struct UploadKey {
+  std::uint64_t sequence = 0;
+  std::uint64_t fingerprint = 0;
+};
+
+// The central clustering of a baseline root, run by the caller outside the core's lock.
+struct BaselineJob {
+  std::uint32_t node = 0;  // the root, for the ellipsoid ids
+  MadcParams madc;
+  std::vector<std::pair<std::uint32_t, Cloud>> scans;  // (sensor, its scan), sensor order
+  GlobalMapMessage message;  // header and flags set; map and labels filled by clusterCentrally
+};
+// Clusters the union of the scans and fills the job's global map (objects, point labels, time).
+GlobalMapMessage clusterCentrally(BaselineJob job);
+
+// One emitted epoch. `message` is a MapMessage for the parent at an intermediate, a
+// GlobalMapMessage at the root, or a BaselineJob at a baseline root (finish it with
+// clusterCentrally, then hand the result to MergeAggregator::published).
 struct EpochOutput {
   std::uint64_t epoch = 0;
   bool complete = false;       // false: emitted because the deadline passed
+  std::uint32_t revision = 0;  // 0 for the first emission of the epoch
+  bool late = false;           // a revision, or emitted after deadline + one period (a stall)
   MergeStats stats;            // summed over the epoch's merges
-  double merge_seconds = 0.0;  // merging, or central clustering at a baseline root
-  std::variant<MapMessage, GlobalMapMessage> message;
+  double merge_seconds = 0.0;  // merging
+  std::variant<MapMessage, GlobalMapMessage, BaselineJob> message;
 };
 
 struct GeofenceIntrusion {
@@ -74,15 +109,21 @@ struct GeofenceReport {
 
 struct AggregatorCounters {
   std::uint64_t accepted = 0;        // maps and chunks accepted into open epochs
-  std::uint64_t late = 0;            // uploads for epochs already emitted or dropped
+  std::uint64_t duplicates = 0;      // re-sent copies of uploads already applied
+  std::uint64_t late = 0;            // maps merged into an already emitted epoch
   std::uint64_t relayed = 0;         // chunks passed through an intermediate
-  std::uint64_t emitted = 0;         // epochs emitted
+  std::uint64_t emitted = 0;         // epochs emitted (revisions included)
+  std::uint64_t revisions = 0;       // emissions of an epoch after its first
+  std::uint64_t late_emits = 0;      // emissions flagged late (revisions and stale epochs)
   std::uint64_t dropped_epochs = 0;  // open epochs evicted beyond max_pending_epochs
+  std::map<Refusal, std::uint64_t> refused;  // by reason
+  std::uint64_t refusedTotal() const;
 };
 
 class MergeAggregator {
  public:
-  // Validates the config (unique children, finite positive deadline, at least one pending epoch).
+  // Validates the config (unique children, positive period and deadline, admission limits, at
+  // least one pending epoch).
   static Expected<MergeAggregator> create(AggregatorConfig config);
 
   const AggregatorConfig& config() const { return config_; }
@@ -91,32 +132,49 @@ class MergeAggregator {
 
   // A child's upload stream opened; `sender` is the node in its first upload's header: the direct
   // child itself, or a sensor below it (chunks relayed by an intermediate keep the sensor's id).
-  // Returns the direct child, now live. Streams are counted, so a reconnect that overlaps the old
-  // stream keeps the child live until both have closed.
+  // Returns the direct child, now live: the stream speaks for that child only from now on.
+  // Streams are counted, so a reconnect that overlaps the old stream keeps the child live.
   Expected<std::uint32_t> childConnected(std::uint32_t sender);
-  // The stream of `child` (as returned by childConnected) closed.
-  void childDisconnected(std::uint32_t child);
-  std::size_t liveChildren() const;
-  std::size_t staleChildren() const { return config_.children.size() - liveChildren(); }
+  // The stream of `child` (as returned by childConnected) closed. The child stays live for a
+  // grace of one period plus one deadline, so a brief reconnect does not cost it its epochs.
+  void childDisconnected(std::uint32_t child, std::int64_t now_ns);
+  std::size_t liveChildren(std::int64_t now_ns) const;
+  std::size_t staleChildren(std::int64_t now_ns) const { return config_.children.size() - liveChildren(now_ns); }
 
-  // Merges a child's map into its epoch. header.node must be a direct child. Not in baseline mode.
-  Expected<Arrival> onMap(const MapMessage& message, std::int64_t now_ns);
-  // Baseline and ext: relays a chunk at an intermediate, stores it at the root. header.node must
-  // be a sensor below this aggregator.
-  Expected<PointsArrival> onPoints(PointChunk chunk, std::int64_t now_ns);
-  // Emits every epoch that is complete or past its deadline, oldest epoch first.
+  // Admits and merges a map from the stream of `child`. `wire_bytes` is its serialised size.
+  Outcome onMap(std::uint32_t child, const UploadKey& key, const MapMessage& message, std::size_t wire_bytes,
+                std::int64_t now_ns);
+  // Baseline and ext: relays a chunk at an intermediate, stores it at the root.
+  Outcome onPoints(std::uint32_t child, const UploadKey& key, PointChunk chunk, std::size_t wire_bytes,
+                   std::int64_t now_ns);
+  // Counts a refusal decided outside the core (a message that does not convert, an oversized
+  // one) and returns it, so every refusal shows in counters().refused.
+  Refused refuse(Refusal reason, std::string message);
+
+  // Emits every epoch that is complete or past its deadline, and a revision of every retained
+  // epoch that took late maps, oldest epoch first.
   std::vector<EpochOutput> poll(std::int64_t now_ns);
+  // Emits every open epoch now, complete or not (shutdown: nothing acknowledged is abandoned).
+  std::vector<EpochOutput> drain(std::int64_t now_ns);
+
+  // The total drops of this node's own upload link (intermediates), added to the drops its
+  // children report in the headers of the maps it emits.
+  void setLinkDrops(std::uint64_t dropped) { link_drops_ = dropped; }
+
+  // Root: records a global map finished outside the core (baseline) as the latest when it is.
+  void published(const GlobalMapMessage& message);
 
   // Root only: adds a geofence or replaces the one with the same name; returns the fence count.
   Expected<std::size_t> setGeofence(Geofence fence);
   // Root only: intrusions into the named geofence (every geofence when empty) on the latest
   // global map.
   Expected<GeofenceReport> queryGeofences(const std::string& name) const;
-  // The emitted global map with the highest epoch (root only).
+  // The latest on-time global map (root only): the highest epoch emitted, never a late one.
   const std::optional<GlobalMapMessage>& latestGlobalMap() const { return latest_; }
 
   const AggregatorCounters& counters() const { return counters_; }
   std::size_t pendingEpochs() const { return pending_.size(); }
+  std::size_t retainedEpochs() const { return emitted_.size(); }
 
  private:
   struct SensorPoints {
@@ -127,35 +185,56 @@ class MergeAggregator {
   };
 
   struct Epoch {
-    std::int64_t first_arrival_ns = 0;
     std::optional<std::int64_t> sensor_time_ns;  // earliest known sensor timestamp
     Map working;
+    std::map<EllipsoidId, Ellipsoid> ellipsoids;  // every ellipsoid merged in, by id
     MergeStats stats;
     double merge_seconds = 0.0;
-    std::set<std::uint32_t> contributing;       // sensors whose maps are merged in
-    std::set<std::uint32_t> reported_children;  // direct children whose map arrived
+    std::set<std::uint32_t> contributing;          // sensors whose data is merged in
+    std::set<std::uint32_t> failed;                // sensors that reported a failed frame
+    std::set<std::uint32_t> reported_children;     // direct children whose map arrived
     std::map<std::uint32_t, SensorPoints> points;  // root, baseline and ext: by sensor
+    std::uint32_t revision = 0;                    // emissions so far
+    bool dirty = false;                            // retained, with late data not yet emitted
   };
 
-  explicit MergeAggregator(AggregatorConfig config);
+  struct Child {
+    std::vector<std::uint32_t> sensors;  // sorted
+    int open_streams = 0;
+    std::optional<std::int64_t> disconnected_ns;  // when the last stream closed
+    std::uint64_t dropped = 0;                    // latest drop count its maps reported
+    std::map<std::uint64_t, std::uint64_t> uploads;  // sequence -> fingerprint, recent ones
+  };
+
+  explicit MergeAggregator(AggregatorConfig config, EpochSchedule schedule);
 
   std::optional<std::uint32_t> childOf(std::uint32_t node) const;
-  bool isClosed(std::uint64_t epoch) const;
-  void close(std::uint64_t epoch);
-  Epoch& openEpoch(std::uint64_t epoch, std::int64_t now_ns);
-  bool isComplete(const Epoch& epoch) const;
-  EpochOutput emit(std::uint64_t epoch_id, Epoch& epoch, bool complete);
-  MapHeader headerFor(std::uint64_t epoch_id, const Epoch& epoch,
-                      const std::set<std::uint32_t>& contributing) const;
+  bool isLive(const Child& child, std::int64_t now_ns) const;
+  // The admission rules every upload passes: the epoch window, the stream's identity and the
+  // sequence. Returns a refusal, or nothing; sets `duplicate` for a re-sent copy.
+  std::optional<Refused> admit(std::uint32_t child, const UploadKey& key, const MapHeader& header,
+                               std::size_t wire_bytes, std::int64_t now_ns, const std::string& what, bool& duplicate);
+  void rememberUpload(std::uint32_t child, const UploadKey& key);
+  Outcome refusedOutcome(Refused refused);
+  bool speaksFor(const Child& child, std::uint32_t sensor) const;
+  std::optional<Refused> checkEllipsoids(std::uint32_t child, const MapMessage& message, const Epoch* epoch,
+                                         const std::string& what) const;
+  Epoch& openEpoch(std::uint64_t epoch);
+  void mergeInto(Epoch& epoch, const MapMessage& message);
+  bool isComplete(const Epoch& epoch, std::int64_t now_ns) const;
+  EpochOutput emit(std::uint64_t epoch_id, Epoch& epoch, bool complete, std::int64_t now_ns);
+  MapHeader headerFor(std::uint64_t epoch_id, const Epoch& epoch, const std::set<std::uint32_t>& contributing) const;
+  void forgetOldEpochs(std::int64_t now_ns);
+  std::int64_t windowNs() const;
 
   AggregatorConfig config_;
+  EpochSchedule schedule_;
   std::vector<std::uint32_t> sensors_;
-  std::map<std::uint32_t, int> open_streams_;  // direct child -> open upload streams
+  std::map<std::uint32_t, Child> children_;
   std::map<std::uint64_t, Epoch> pending_;
-  // Closed (emitted or dropped) epochs: the most recent ones exactly, older ones by a floor, so
-  // late detection keeps bounded memory.
-  std::set<std::uint64_t> closed_;
-  std::optional<std::uint64_t> closed_floor_;
+  // Emitted epochs still inside the admission window: late maps merge into them (revisions).
+  std::map<std::uint64_t, Epoch> emitted_;
+  std::uint64_t link_drops_ = 0;
   std::vector<Geofence> geofences_;
   std::optional<GlobalMapMessage> latest_;
   AggregatorCounters counters_;

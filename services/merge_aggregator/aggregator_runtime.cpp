@@ -4,11 +4,6 @@
 
 namespace fogmap {
 
-std::int64_t systemNowNs() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
-      .count();
-}
-
 Emitter::Emitter(SharedAggregator& aggregator, EmitterSinks sinks, Metrics* metrics, NowNs now_ns,
                  std::chrono::milliseconds period)
     : aggregator_(aggregator), sinks_(std::move(sinks)), metrics_(metrics), now_ns_(std::move(now_ns)), period_(period) {}
@@ -50,22 +45,64 @@ void Emitter::wake() {
   wake_.notify_one();
 }
 
+void Emitter::exportCounters(const AggregatorCounters& now) {
+  if (metrics_ != nullptr) {
+    metrics_->mapsIn(now.accepted - exported_.accepted);
+    metrics_->lateMaps(now.late - exported_.late);
+    metrics_->droppedEpochs(now.dropped_epochs - exported_.dropped_epochs);
+    metrics_->lateEmits(now.late_emits - exported_.late_emits);
+    for (const auto& [reason, count] : now.refused) {
+      const auto before = exported_.refused.find(reason);
+      const std::uint64_t delta = count - (before == exported_.refused.end() ? 0 : before->second);
+      if (delta > 0) metrics_->refused(refusalName(reason), delta);
+    }
+  }
+  exported_ = now;
+}
+
 std::size_t Emitter::pollOnce() {
   std::vector<EpochOutput> outputs;
   std::size_t live = 0;
   std::size_t stale = 0;
+  AggregatorCounters counters;
+  const std::uint64_t drops = sinks_.link_drops ? sinks_.link_drops() : 0;
   aggregator_.with([&](MergeAggregator& core) {
-    outputs = core.poll(now_ns_());
-    live = core.liveChildren();
-    stale = core.staleChildren();
+    const std::int64_t now = now_ns_();
+    core.setLinkDrops(drops);
+    outputs = core.poll(now);
+    live = core.liveChildren(now);
+    stale = core.staleChildren(now);
+    counters = core.counters();
   });
-
   if (metrics_ != nullptr) {
     metrics_->childrenLive(static_cast<double>(live));
     metrics_->childrenStale(static_cast<double>(stale));
   }
+  exportCounters(counters);
+  return dispatch(std::move(outputs));
+}
 
+std::size_t Emitter::drain() {
+  std::vector<EpochOutput> outputs;
+  AggregatorCounters counters;
+  aggregator_.with([&](MergeAggregator& core) {
+    outputs = core.drain(now_ns_());
+    counters = core.counters();
+  });
+  exportCounters(counters);
+  return dispatch(std::move(outputs));
+}
+
+std::size_t Emitter::dispatch(std::vector<EpochOutput> outputs) {
   for (auto& output : outputs) {
+    // A baseline root clusters the epoch's points here, outside the core's lock, so the streams
+    // keep flowing meanwhile.
+    if (auto* job = std::get_if<BaselineJob>(&output.message)) {
+      GlobalMapMessage global = clusterCentrally(std::move(*job));
+      output.merge_seconds = global.merge_seconds;
+      aggregator_.with([&](MergeAggregator& core) { core.published(global); });
+      output.message = std::move(global);
+    }
     if (metrics_ != nullptr) {
       metrics_->mergeSeconds(output.merge_seconds);
       metrics_->pairs(output.stats.pairs_tested, output.stats.pairs_pruned);
@@ -81,8 +118,10 @@ std::size_t Emitter::pollOnce() {
       if (metrics_ != nullptr) {
         if (global->mode == Mode::kBaseline) metrics_->clusteringSeconds(output.merge_seconds);
         // Zero: no contribution carried a sensor timestamp, so there is no latency to report.
-        if (global->header.sensor_time_ns > 0) {
-          metrics_->endToEndSeconds(static_cast<double>(global->published_time_ns - global->header.sensor_time_ns) * 1e-9);
+        // Late maps are not the live picture; their delay is not the pipeline's latency.
+        if (global->header.sensor_time_ns > 0 && !global->late) {
+          metrics_->endToEndSeconds(static_cast<double>(global->published_time_ns - global->header.sensor_time_ns) *
+                                    1e-9);
         }
       }
       if (sinks_.publish) sinks_.publish(std::move(*global));

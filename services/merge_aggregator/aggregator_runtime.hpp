@@ -9,17 +9,14 @@
 #include <mutex>
 #include <thread>
 #include <utility>
+#include <vector>
 
+#include "common/clock.hpp"
 #include "services/common/metrics.hpp"
 #include "services/common/proto_convert.hpp"
 #include "services/merge_aggregator/aggregator_core.hpp"
 
 namespace fogmap {
-
-// Unix time in nanoseconds: sensor timestamps are unix ns, so epoch deadlines and end-to-end
-// latency use the same clock.
-using NowNs = std::function<std::int64_t()>;
-std::int64_t systemNowNs();
 
 // The core is not thread-safe; every RPC handler and the emitter go through here.
 class SharedAggregator {
@@ -41,6 +38,7 @@ class SharedAggregator {
 struct EmitterSinks {
   std::function<void(v1::Upload)> to_parent;      // intermediate: ParentLink::send
   std::function<void(GlobalMapMessage)> publish;  // root: GlobalMapService::publish
+  std::function<std::uint64_t()> link_drops;      // intermediate: ParentLink::dropped
 };
 
 class Emitter {
@@ -59,15 +57,21 @@ class Emitter {
   void wake();
   // One poll: emits every due epoch to the sinks, updates metrics; returns how many it emitted.
   std::size_t pollOnce();
+  // Emits every open epoch, due or not (shutdown, after the ingest stopped); returns how many.
+  std::size_t drain();
 
  private:
   void run();
+  std::size_t dispatch(std::vector<EpochOutput> outputs);
+  // Exports what the core counted since the last call (the core's counters are the one set).
+  void exportCounters(const AggregatorCounters& now);
 
   SharedAggregator& aggregator_;
   EmitterSinks sinks_;
   Metrics* metrics_;
   NowNs now_ns_;
   std::chrono::milliseconds period_;
+  AggregatorCounters exported_;  // what exportCounters has reported so far (emitter thread only)
   std::mutex mutex_;
   std::condition_variable wake_;
   bool stopping_ = false;

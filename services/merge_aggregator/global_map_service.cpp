@@ -54,9 +54,11 @@ void GlobalMapService::publish(const GlobalMapMessage& message) {
   const auto full = std::make_shared<const v1::GlobalMap>(toProto(message));
   const Published with_labels{full, full->ByteSizeLong()};
   std::optional<Published> without_labels;
+  std::uint64_t newly_dropped = 0;
   {
     std::lock_guard lock(mutex_);
     for (const auto& subscriber : subscribers_) {
+      if (subscriber->on_time_only && message.late) continue;
       if (!subscriber->point_labels && !without_labels) {
         auto copy = std::make_shared<v1::GlobalMap>(*full);
         copy->clear_point_labels();
@@ -67,17 +69,21 @@ void GlobalMapService::publish(const GlobalMapMessage& message) {
       while (subscriber->queue.size() > queue_capacity_) {
         subscriber->queue.pop_front();
         ++dropped_;
+        ++newly_dropped;
       }
     }
   }
   published_.notify_all();
+  if (newly_dropped > 0 && metrics_ != nullptr) metrics_->subscriberDrops(newly_dropped);
 }
 
-void GlobalMapService::shutdown() {
-  {
-    std::lock_guard lock(mutex_);
-    shutting_down_ = true;
-  }
+void GlobalMapService::shutdown(std::chrono::milliseconds drain) {
+  std::unique_lock lock(mutex_);
+  shutting_down_ = true;
+  published_.notify_all();
+  // The handlers end themselves once their queues are empty (or the client is gone).
+  drained_.wait_for(lock, drain, [&] { return subscribers_.empty(); });
+  drain_expired_ = true;
   published_.notify_all();
 }
 
@@ -95,6 +101,7 @@ grpc::Status GlobalMapService::Subscribe(grpc::ServerContext* context, const v1:
                                          grpc::ServerWriter<v1::GlobalMap>* writer) {
   auto subscriber = std::make_shared<Subscriber>();
   subscriber->point_labels = request->include_point_labels();
+  subscriber->on_time_only = request->on_time_only();
   {
     std::lock_guard lock(mutex_);
     if (shutting_down_) return {grpc::StatusCode::UNAVAILABLE, "the aggregator is shutting down"};
@@ -104,8 +111,11 @@ grpc::Status GlobalMapService::Subscribe(grpc::ServerContext* context, const v1:
     GlobalMapService& service;
     const std::shared_ptr<Subscriber>& subscriber;
     ~Unsubscribe() {
-      std::lock_guard lock(service.mutex_);
-      std::erase(service.subscribers_, subscriber);
+      {
+        std::lock_guard lock(service.mutex_);
+        std::erase(service.subscribers_, subscriber);
+      }
+      service.drained_.notify_all();
     }
   } unsubscribe{*this, subscriber};
 
@@ -115,7 +125,10 @@ grpc::Status GlobalMapService::Subscribe(grpc::ServerContext* context, const v1:
     {
       std::unique_lock lock(mutex_);
       published_.wait_for(lock, poll_wait_, [&] { return shutting_down_ || !subscriber->queue.empty(); });
-      if (shutting_down_) return {grpc::StatusCode::UNAVAILABLE, "the aggregator is shutting down"};
+      // What was published before the shutdown is still delivered (within the drain time).
+      if (shutting_down_ && (subscriber->queue.empty() || drain_expired_)) {
+        return {grpc::StatusCode::UNAVAILABLE, "the aggregator is shutting down"};
+      }
       if (subscriber->queue.empty()) continue;
       next = std::move(subscriber->queue.front());
       subscriber->queue.pop_front();

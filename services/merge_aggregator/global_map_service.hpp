@@ -28,8 +28,9 @@ class GlobalMapService final : public v1::GlobalMapService::Service {
 
   // Queues the global map for every subscriber (the emitter's publish sink).
   void publish(const GlobalMapMessage& message);
-  // Ends every Subscribe call (UNAVAILABLE) and refuses new ones; call before Server::Shutdown.
-  void shutdown();
+  // Refuses new subscribers and ends every Subscribe call (UNAVAILABLE) once it has written what
+  // is queued for it, or after `drain` at the most; call before Server::Shutdown.
+  void shutdown(std::chrono::milliseconds drain = std::chrono::milliseconds(500));
   std::size_t subscriberCount() const;
   std::uint64_t droppedMessages() const;
 
@@ -48,6 +49,7 @@ class GlobalMapService final : public v1::GlobalMapService::Service {
   };
   struct Subscriber {
     bool point_labels = false;
+    bool on_time_only = false;
     std::deque<Published> queue;
   };
 
@@ -57,9 +59,11 @@ class GlobalMapService final : public v1::GlobalMapService::Service {
   std::chrono::milliseconds poll_wait_;
   mutable std::mutex mutex_;
   std::condition_variable published_;
+  std::condition_variable drained_;  // a subscriber left
   std::vector<std::shared_ptr<Subscriber>> subscribers_;
   std::uint64_t dropped_ = 0;
   bool shutting_down_ = false;
+  bool drain_expired_ = false;
 };
 
 }  // namespace fogmap

@@ -1,6 +1,6 @@
 #include "services/merge_aggregator/ingest_service.hpp"
 
-#include <optional>
+#include <mutex>
 #include <utility>
 
 #include "services/common/grpc_options.hpp"
@@ -13,121 +13,152 @@ const char* kindOf(const v1::Upload& upload) {
   return upload.payload_case() == v1::Upload::kPoints ? "points" : "map";
 }
 
+// The sender named by an upload's header, before conversion (to resolve the stream's child).
+std::optional<std::uint32_t> senderOf(const v1::Upload& upload) {
+  if (upload.payload_case() == v1::Upload::kMap && upload.map().has_header()) return upload.map().header().node();
+  if (upload.payload_case() == v1::Upload::kPoints && upload.points().has_header()) {
+    return upload.points().header().node();
+  }
+  return std::nullopt;
+}
+
+// Identifies the content of an upload, whatever its sequence: a re-sent copy has the same.
+std::uint64_t fingerprintOf(const v1::Upload& upload) {
+  std::string bytes;
+  if (upload.payload_case() == v1::Upload::kMap) {
+    upload.map().SerializeToString(&bytes);
+  } else if (upload.payload_case() == v1::Upload::kPoints) {
+    upload.points().SerializeToString(&bytes);
+  }
+  return std::hash<std::string>{}(bytes);
+}
+
+v1::AckStatus statusOf(Arrival arrival) {
+  return arrival == Arrival::kLate ? v1::ACK_STATUS_LATE : v1::ACK_STATUS_APPLIED;
+}
+
 }  // namespace
 
-IngestService::IngestService(SharedAggregator& aggregator, Metrics* metrics, std::function<void(v1::Upload)> relay,
-                             NowNs now_ns)
+// Answers on one stream, from its handler and from relay callbacks; writes are serialised and
+// stop once the handler has returned (the stream object is gone then).
+struct IngestService::AckWriter {
+  std::mutex mutex;
+  grpc::ServerReaderWriter<v1::Ack, v1::Upload>* stream = nullptr;
+
+  bool write(std::uint64_t sequence, v1::AckStatus status, const std::string& reason) {
+    v1::Ack ack;
+    ack.set_sequence(sequence);
+    ack.set_status(status);
+    if (!reason.empty()) ack.set_reason(reason);
+    std::lock_guard lock(mutex);
+    return stream != nullptr && stream->Write(ack);
+  }
+  void close() {
+    std::lock_guard lock(mutex);
+    stream = nullptr;
+  }
+};
+
+IngestService::IngestService(SharedAggregator& aggregator, Metrics* metrics, Relay relay, NowNs now_ns)
     : aggregator_(aggregator), metrics_(metrics), relay_(std::move(relay)), now_ns_(std::move(now_ns)) {}
-
-IngestCounters IngestService::counters() const {
-  return {accepted_.load(), late_.load(), malformed_.load(), rejected_streams_.load()};
-}
-
-void IngestService::countMalformed(const std::string& what) {
-  ++malformed_;
-  if (metrics_ != nullptr) metrics_->malformed(what);
-}
 
 grpc::Status IngestService::Push(grpc::ServerContext* /*context*/,
                                  grpc::ServerReaderWriter<v1::Ack, v1::Upload>* stream) {
   std::optional<std::uint32_t> child;
-  std::string peer = "unknown";  // until the first well-formed upload names the child
-  // The child stays live exactly as long as this stream, however the handler ends.
+  std::string peer = "unknown";  // until the first upload names the child
+  const auto writer = std::make_shared<AckWriter>();
+  writer->stream = stream;
+  // The child stays live as long as this stream (and a grace after), however the handler ends.
   struct Disconnect {
-    SharedAggregator& aggregator;
+    IngestService& service;
     const std::optional<std::uint32_t>& child;
+    const std::shared_ptr<AckWriter>& writer;
     ~Disconnect() {
-      if (child) aggregator.with([this](MergeAggregator& core) { core.childDisconnected(*child); });
+      writer->close();
+      if (child) {
+        service.aggregator_.with(
+            [this](MergeAggregator& core) { core.childDisconnected(*child, service.now_ns_()); });
+      }
     }
-  } disconnect{aggregator_, child};
+  } disconnect{*this, child, writer};
 
   v1::Upload upload;
   while (stream->Read(&upload)) {
-    const std::size_t bytes = upload.ByteSizeLong();
-    std::uint32_t sender = 0;
-    std::optional<MapMessage> map;
-    std::optional<PointChunk> chunk;
-    if (upload.payload_case() == v1::Upload::kMap) {
-      auto converted = fromProto(upload.map());
-      if (converted) {
-        sender = converted->header.node;
-        map = std::move(*converted);
-      }
-    } else if (upload.payload_case() == v1::Upload::kPoints) {
-      auto converted = fromProto(upload.points());
-      if (converted) {
-        sender = converted->header.node;
-        chunk = std::move(*converted);
-      }
-    }
-    if (!map && !chunk) {
-      if (metrics_ != nullptr) metrics_->bytesReceived(peer, kindOf(upload), bytes);
-      countMalformed(upload.payload_case() == v1::Upload::PAYLOAD_NOT_SET ? "upload" : kindOf(upload));
-      continue;
-    }
-
+    if (stopping_) return {grpc::StatusCode::UNAVAILABLE, "the aggregator is shutting down; re-send later"};
     if (!child) {
-      auto connected = aggregator_.with([&](MergeAggregator& core) { return core.childConnected(sender); });
-      if (!connected) {
-        ++rejected_streams_;
-        countMalformed("sender");
-        return toGrpcStatus(connected.error());
+      const auto sender = senderOf(upload);
+      if (!sender) {
+        if (metrics_ != nullptr) metrics_->bytesReceived(peer, kindOf(upload), upload.ByteSizeLong());
+        const Refused refused = aggregator_.with([&](MergeAggregator& core) {
+          return core.refuse(Refusal::kMalformed, "an upload without a header cannot name its sender");
+        });
+        if (!writer->write(upload.sequence(), v1::ACK_STATUS_REFUSED, refused.message)) break;
+        continue;
       }
+      auto connected = aggregator_.with([&](MergeAggregator& core) { return core.childConnected(*sender); });
+      if (!connected) return toGrpcStatus(connected.error());
       child = *connected;
       const auto name = peer_names_.find(*child);
       peer = name != peer_names_.end() ? name->second : std::to_string(*child);
     }
-    if (metrics_ != nullptr) metrics_->bytesReceived(peer, kindOf(upload), bytes);
-
-    const bool acknowledge = map ? handleMap(*map) : handlePoints(std::move(*chunk));
-    if (!acknowledge) continue;
-    v1::Ack ack;
-    ack.set_sequence(upload.sequence());
-    if (!stream->Write(ack)) break;  // the child went away; it re-sends what was not acknowledged
+    if (metrics_ != nullptr) metrics_->bytesReceived(peer, kindOf(upload), upload.ByteSizeLong());
+    handle(upload, *child, writer);
   }
   return grpc::Status::OK;
 }
 
-bool IngestService::handleMap(const MapMessage& map) {
-  const auto arrival = aggregator_.with([&](MergeAggregator& core) { return core.onMap(map, now_ns_()); });
-  if (!arrival) {
-    countMalformed("map");
-    return false;
-  }
-  if (*arrival == Arrival::kLate) {
-    ++late_;
-    if (metrics_ != nullptr) metrics_->lateMaps();
+void IngestService::handle(const v1::Upload& upload, std::uint32_t child, const std::shared_ptr<AckWriter>& writer) {
+  const std::size_t bytes = upload.ByteSizeLong();
+  const UploadKey key{upload.sequence(), fingerprintOf(upload)};
+  const auto refused = [&](Refusal reason, const std::string& message) {
+    Outcome outcome;
+    outcome.refused = aggregator_.with([&](MergeAggregator& core) { return core.refuse(reason, message); });
+    return outcome;
+  };
+  Outcome outcome;
+  std::size_t points = 0;
+  if (upload.payload_case() == v1::Upload::kMap) {
+    auto map = fromProto(upload.map());
+    outcome = !map ? refused(Refusal::kMalformed, map.error().message)
+                   : aggregator_.with([&](MergeAggregator& core) { return core.onMap(child, key, *map, bytes, now_ns_()); });
+  } else if (upload.payload_case() == v1::Upload::kPoints) {
+    auto chunk = fromProto(upload.points());
+    if (chunk) points = chunk->points.size();
+    outcome = !chunk ? refused(Refusal::kMalformed, chunk.error().message)
+                     : aggregator_.with([&](MergeAggregator& core) {
+                         return core.onPoints(child, key, std::move(*chunk), bytes, now_ns_());
+                       });
   } else {
-    ++accepted_;
-    if (metrics_ != nullptr) metrics_->mapsIn();
-    if (on_arrival_) on_arrival_();
+    outcome = refused(Refusal::kMalformed, "an upload without a payload");
   }
-  return true;
-}
 
-bool IngestService::handlePoints(PointChunk chunk) {
-  const std::size_t points = chunk.points.size();
-  auto outcome = aggregator_.with([&](MergeAggregator& core) { return core.onPoints(std::move(chunk), now_ns_()); });
-  if (!outcome) {
-    countMalformed("points");
-    return false;
+  if (!outcome.ok()) {
+    writer->write(upload.sequence(), v1::ACK_STATUS_REFUSED, outcome.refused->message);
+    return;
   }
-  if (outcome->arrival == Arrival::kLate) {
-    ++late_;
-    if (metrics_ != nullptr) metrics_->lateMaps();
-    return true;
-  }
-  ++accepted_;
-  if (metrics_ != nullptr) metrics_->pointsIn(points);
+  if (points > 0 && metrics_ != nullptr) metrics_->pointsIn(points);
   if (on_arrival_) on_arrival_();
-  // Relayed outside the core's lock: the parent link only queues, but need not hold up others.
-  if (outcome->arrival == Arrival::kRelay && outcome->relay && relay_) {
-    v1::Upload upload;
-    *upload.mutable_points() = toProto(*outcome->relay);
-    relay_(std::move(upload));
-    if (metrics_ != nullptr) metrics_->pointsOut(points);
+  if (outcome.arrival != Arrival::kRelay) {
+    writer->write(upload.sequence(), statusOf(outcome.arrival), "");
+    return;
   }
-  return true;
+  if (!relay_) {
+    writer->write(upload.sequence(), v1::ACK_STATUS_REFUSED, "this aggregator has no parent to relay to");
+    return;
+  }
+  // Relayed outside the core's lock; the child is answered when the next hop answers, so an
+  // APPLIED answer always means the data reached the root (or was applied on the way).
+  v1::Upload relayed;
+  *relayed.mutable_points() = toProto(*outcome.relay);
+  if (metrics_ != nullptr) metrics_->pointsOut(points);
+  relay_(std::move(relayed), [writer, sequence = upload.sequence()](std::optional<v1::AckStatus> status,
+                                                                    const std::string& reason) {
+    if (status) {
+      writer->write(sequence, *status, reason);
+    } else {
+      writer->write(sequence, v1::ACK_STATUS_REFUSED, "dropped by the relay's full send queue");
+    }
+  });
 }
 
 }  // namespace fogmap

@@ -70,18 +70,12 @@ int run(const Args& args, const sigset_t& stop_signals) {
     return kBadConfig;
   }
 
-  AggregatorConfig config;
-  config.node = self->id;
-  config.mode = topology->mode;
-  config.is_root = self->parent.empty();
-  // Deadlines nest: an aggregator with aggregators below waits one deadline per level, so a
-  // child's late-but-complete map (sent at its own deadline) still makes it into the epoch.
-  config.deadline_ms = topology->deadline_ms * topology->aggregatorLevels(self->name);
-  config.madc = topology->madc;
-  for (const NodeConfig* child : topology->children(self->name)) {
-    config.children.push_back({child->id, topology->sensorsBelow(child->name)});
+  auto config = aggregatorConfigFor(*topology, self->name);
+  if (!config) {
+    std::cerr << "merge-aggregator: " << args.topology << ": " << config.error().message << "\n";
+    return kBadConfig;
   }
-  auto core = MergeAggregator::create(std::move(config));
+  auto core = MergeAggregator::create(std::move(*config));
   if (!core) {
     std::cerr << "merge-aggregator: " << args.topology << ": " << core.error().message << "\n";
     return kBadConfig;
@@ -103,12 +97,30 @@ int run(const Args& args, const sigset_t& stop_signals) {
       metrics.bytesSent(parent_name, kind, bytes);
     };
     hooks.on_reconnect = [&metrics] { metrics.reconnects(); };
-    hooks.on_dropped = [&metrics] { metrics.droppedUploads(); };
+    const std::string self_name = self->name;
+    hooks.on_dropped = [&metrics, self_name](std::uint64_t total, bool first_of_burst) {
+      metrics.droppedUploads();
+      if (first_of_burst) {
+        std::cerr << "merge-aggregator " << self_name << ": the send queue to the parent is full; dropping the oldest "
+                  << "uploads (" << total << " dropped so far)\n";
+      }
+    };
+    hooks.on_refused = [&metrics, self_name](std::uint64_t sequence, const std::string& reason) {
+      metrics.uploadsRefused();
+      std::cerr << "merge-aggregator " << self_name << ": the parent refused upload " << sequence << ": " << reason
+                << "\n";
+    };
     parent_link = std::make_unique<ParentLink>(std::move(link_config), std::move(hooks));
   }
   auto to_parent = [&parent_link](v1::Upload upload) { parent_link->send(std::move(upload)); };
+  Relay relay;
+  if (parent_link) {
+    relay = [&parent_link](v1::Upload upload, RelaySettled settled) {
+      parent_link->send(std::move(upload), std::move(settled));
+    };
+  }
 
-  IngestService ingest(aggregator, &metrics, is_root ? std::function<void(v1::Upload)>{} : to_parent);
+  IngestService ingest(aggregator, &metrics, std::move(relay));
   std::optional<GlobalMapService> global_maps;
   EmitterSinks sinks;
   if (is_root) {
@@ -116,6 +128,7 @@ int run(const Args& args, const sigset_t& stop_signals) {
     sinks.publish = [&global_maps](const GlobalMapMessage& message) { global_maps->publish(message); };
   } else {
     sinks.to_parent = to_parent;
+    sinks.link_drops = [&parent_link] { return parent_link->dropped(); };
   }
   Emitter emitter(aggregator, std::move(sinks), &metrics);
   ingest.onArrival([&emitter] { emitter.wake(); });
@@ -141,13 +154,19 @@ int run(const Args& args, const sigset_t& stop_signals) {
   int signal = 0;
   sigwait(&stop_signals, &signal);
 
-  // Subscribers first (they would otherwise hold Shutdown until its deadline), then the server,
-  // then the emitter; an intermediate gives its last uploads a moment to reach the parent.
+  // Nothing acknowledged is abandoned: stop taking uploads (unanswered ones are re-sent by the
+  // children to the restarted node), emit every open epoch, let subscribers read what was
+  // published, then end the server; an intermediate gives its last uploads time to be answered.
+  ingest.stopAccepting();
+  emitter.stop();
+  emitter.drain();
   if (global_maps) global_maps->shutdown();
   server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
   server->Wait();
-  emitter.stop();
-  if (parent_link) parent_link->flush(std::chrono::milliseconds(500));
+  if (parent_link && !parent_link->flush(std::chrono::seconds(2))) {
+    std::cerr << "merge-aggregator " << self->name << ": " << parent_link->unacknowledged()
+              << " upload(s) unanswered by the parent at shutdown\n";
+  }
   return EXIT_SUCCESS;
 }
 

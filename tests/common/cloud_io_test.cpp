@@ -404,5 +404,165 @@ TEST_F(CloudIo, WritingIntoAMissingDirectoryIsAnIoError) {
   EXPECT_EQ(pcd.error().code, ErrorCode::kIo);
 }
 
+// ---- trailing zero padding -----------------------------------------------------------------------
+// A real KITTI PCD export carries this many zero bytes after its declared points; PCL reads it.
+constexpr std::size_t kExportPadding = 3906;
+
+void appendBytes(const fs::path& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::app);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+TEST_F(CloudIo, AcceptsBinaryPcdWithTrailingZeroPaddingAndCountsIt) {
+  const fs::path plain = file("plain.pcd");
+  ASSERT_TRUE(writePcd(plain, sampleCloud()).ok());
+  const Expected<LoadedCloud> unpadded = readPcd(plain);
+  ASSERT_TRUE(unpadded.ok()) << unpadded.error().message;
+  EXPECT_EQ(unpadded->trailing_zero_bytes, 0u);
+
+  const fs::path path = file("padded.pcd");
+  ASSERT_TRUE(writePcd(path, sampleCloud()).ok());
+  appendBytes(path, std::string(kExportPadding, '\0'));
+  for (const Expected<LoadedCloud>& loaded : {readPcd(path), readCloud(path)}) {
+    ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+    expectSamePoints(loaded->points, sampleCloud());
+    EXPECT_EQ(loaded->trailing_zero_bytes, kExportPadding);
+    EXPECT_EQ(loaded->dropped_non_finite, 0u);
+  }
+}
+
+TEST_F(CloudIo, AcceptsBinaryCompressedPcdWithTrailingZeroPadding) {
+  const fs::path path = file("compressed_padded.pcd");
+  ASSERT_EQ(pcl::PCDWriter().writeBinaryCompressed(path.string(), toPcl(sampleCloud())), 0);
+  appendBytes(path, std::string(kExportPadding, '\0'));
+  const Expected<LoadedCloud> loaded = readPcd(path);
+  ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+  expectSamePoints(loaded->points, sampleCloud());
+  EXPECT_EQ(loaded->trailing_zero_bytes, kExportPadding);
+}
+
+TEST_F(CloudIo, AcceptsAsciiPcdWithTrailingZeroPadding) {
+  const fs::path path =
+      writeBytes("ascii_padded.pcd", asciiPcd(kXyzFields, 2, "1 2 3\n4 5 6\n") + std::string(kExportPadding, '\0'));
+  const Expected<LoadedCloud> loaded = readPcd(path);
+  ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+  expectSamePoints(loaded->points, {{1, 2, 3, 0}, {4, 5, 6, 0}});
+  EXPECT_EQ(loaded->trailing_zero_bytes, kExportPadding);
+}
+
+TEST_F(CloudIo, RejectsPcdPaddingWithANonZeroByte) {
+  std::string padding(kExportPadding, '\0');
+  padding[1000] = '\x01';
+
+  const fs::path binary = file("binary_dirty_padding.pcd");
+  ASSERT_TRUE(writePcd(binary, sampleCloud()).ok());
+  const std::uintmax_t binary_size = fs::file_size(binary);
+  appendBytes(binary, padding);
+  expectRejected(readPcd(binary), binary,
+                 {"3906 bytes of trailing data", "4 points", "byte " + std::to_string(binary_size + 1000) + " of the file is not zero"});
+
+  const fs::path compressed = file("compressed_dirty_padding.pcd");
+  ASSERT_EQ(pcl::PCDWriter().writeBinaryCompressed(compressed.string(), toPcl(sampleCloud())), 0);
+  const std::uintmax_t compressed_size = fs::file_size(compressed);
+  appendBytes(compressed, padding);
+  expectRejected(readPcd(compressed), compressed,
+                 {"3906 bytes of trailing data", "byte " + std::to_string(compressed_size + 1000) + " of the file is not zero"});
+
+  // In ascii data the dirty padding reads as a third, malformed data line.
+  const fs::path ascii = writeBytes("ascii_dirty_padding.pcd", asciiPcd(kXyzFields, 2, "1 2 3\n4 5 6\n") + padding);
+  expectRejected(readPcd(ascii), ascii, {"PCD data line 3"});
+}
+
+// ---- read limits ---------------------------------------------------------------------------------
+
+TEST_F(CloudIo, RefusesAFileAboveTheSizeBoundNamingTheBound) {
+  const fs::path kitti = file("scan.bin");
+  ASSERT_TRUE(writeKittiBin(kitti, sampleCloud()).ok());  // 64 bytes
+  expectRejected(readKittiBin(kitti, ReadLimits{.max_bytes = 63}), kitti,
+                 {"64 bytes", "bound of 63 bytes", "max_scan_bytes"});
+  expectRejected(readCloud(kitti, ReadLimits{.max_bytes = 63}), kitti, {"bound of 63 bytes"});
+  const Expected<LoadedCloud> at_bound = readKittiBin(kitti, ReadLimits{.max_bytes = 64});
+  ASSERT_TRUE(at_bound.ok()) << at_bound.error().message;
+  EXPECT_EQ(at_bound->points.size(), 4u);
+
+  const fs::path pcd = file("scan.pcd");
+  ASSERT_TRUE(writePcd(pcd, sampleCloud()).ok());
+  const std::uintmax_t pcd_size = fs::file_size(pcd);
+  expectRejected(readPcd(pcd, ReadLimits{.max_bytes = pcd_size - 1}), pcd,
+                 {"bound of " + std::to_string(pcd_size - 1) + " bytes"});
+  EXPECT_TRUE(readPcd(pcd, ReadLimits{.max_bytes = pcd_size}).ok());
+}
+
+TEST_F(CloudIo, RefusesAFileAboveTheDefaultBoundBeforeReadingIt) {
+  // Sparse, so it costs no disk: whole KITTI records of zeros that would read as valid points
+  // if the size were not checked first.
+  const fs::path path = file("huge.bin");
+  std::ofstream(path, std::ios::binary).close();
+  fs::resize_file(path, kDefaultMaxScanBytes + 16);
+  expectRejected(readKittiBin(path), path,
+                 {std::to_string(kDefaultMaxScanBytes + 16) + " bytes", "bound of " + std::to_string(kDefaultMaxScanBytes)});
+}
+
+TEST_F(CloudIo, KeepsNonFiniteKittiPointsInPlaceWhenAsked) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  const fs::path path = writeBytes("non_finite.bin", floatBytes({1, 2, 3, 0.5F,      //
+                                                                 nan, 0, 0, 0,       //
+                                                                 0, -inf, 0, 0,      //
+                                                                 0, 0, inf, 0,       //
+                                                                 4, 5, 6, 0.25F}));
+  const Expected<LoadedCloud> loaded = readKittiBin(path, ReadLimits{.keep_non_finite = true});
+  ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+  ASSERT_EQ(loaded->points.size(), 5u);
+  EXPECT_EQ(loaded->kept_non_finite, 3u);
+  EXPECT_EQ(loaded->dropped_non_finite, 0u);
+  EXPECT_EQ(loaded->points[0].x, 1.0F);
+  EXPECT_TRUE(std::isnan(loaded->points[1].x));
+  EXPECT_EQ(loaded->points[2].y, -inf);
+  EXPECT_EQ(loaded->points[3].z, inf);
+  EXPECT_EQ(loaded->points[4].x, 4.0F);
+  EXPECT_EQ(loaded->points[4].intensity, 0.25F);
+}
+
+TEST_F(CloudIo, KeepsNonFinitePcdPointsInPlaceWhenAsked) {
+  const ReadLimits keep{.keep_non_finite = true};
+  Cloud cloud = sampleCloud();
+  cloud[1].y = std::numeric_limits<float>::quiet_NaN();
+  cloud[3].z = std::numeric_limits<float>::infinity();
+  const auto expectInPlace = [&](const Expected<LoadedCloud>& loaded) {
+    ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+    ASSERT_EQ(loaded->points.size(), 4u);
+    EXPECT_EQ(loaded->kept_non_finite, 2u);
+    EXPECT_EQ(loaded->dropped_non_finite, 0u);
+    EXPECT_EQ(loaded->points[0].x, cloud[0].x);
+    EXPECT_EQ(loaded->points[1].x, cloud[1].x);
+    EXPECT_TRUE(std::isnan(loaded->points[1].y));
+    EXPECT_EQ(loaded->points[2].x, cloud[2].x);
+    EXPECT_EQ(loaded->points[3].intensity, cloud[3].intensity);
+    EXPECT_TRUE(std::isinf(loaded->points[3].z));
+  };
+  const fs::path binary = file("non_finite.pcd");
+  ASSERT_TRUE(writePcd(binary, cloud).ok());
+  {
+    SCOPED_TRACE("binary");
+    expectInPlace(readPcd(binary, keep));
+  }
+  const fs::path compressed = file("non_finite_compressed.pcd");
+  ASSERT_EQ(pcl::PCDWriter().writeBinaryCompressed(compressed.string(), toPcl(cloud)), 0);
+  {
+    SCOPED_TRACE("binary_compressed");
+    expectInPlace(readPcd(compressed, keep));
+  }
+
+  const fs::path ascii = writeBytes("non_finite_ascii.pcd", asciiPcd(kXyzFields, 3, "1 2 3\nnan 0 0\n4 5 6\n"));
+  const Expected<LoadedCloud> loaded_ascii = readPcd(ascii, keep);
+  ASSERT_TRUE(loaded_ascii.ok()) << loaded_ascii.error().message;
+  ASSERT_EQ(loaded_ascii->points.size(), 3u);
+  EXPECT_EQ(loaded_ascii->kept_non_finite, 1u);
+  EXPECT_EQ(loaded_ascii->points[0].x, 1.0F);
+  EXPECT_TRUE(std::isnan(loaded_ascii->points[1].x));
+  EXPECT_EQ(loaded_ascii->points[2].x, 4.0F);
+}
+
 }  // namespace
 }  // namespace fogmap

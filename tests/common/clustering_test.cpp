@@ -2,8 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <limits>
 #include <random>
+#include <string>
 
 #include "common/cloud_io.hpp"
 #include "common/map.hpp"
@@ -13,9 +15,11 @@
 namespace fogmap {
 namespace {
 
-// Oracle: all pairs, "closer than eps" decided exactly as PCL's radius search decides it.
+// Oracle: all pairs, "closer than eps" decided exactly as PCL's EuclideanClusterExtraction decides
+// it (the tolerance cast to float, squared in float; distances as FLANN's L2_Simple).
 Clustering bruteForceClusters(std::span<const Point> points, const ClusteringParams& params) {
-  const auto eps2 = static_cast<float>(params.eps_m * params.eps_m);
+  const auto eps = static_cast<float>(params.eps_m);
+  const float eps2 = eps * eps;
   DisjointSets sets(points.size());
   for (std::size_t i = 0; i < points.size(); ++i) {
     for (std::size_t j = i + 1; j < points.size(); ++j) {
@@ -147,6 +151,90 @@ TEST(Clustering, PointsExactlyEpsApartAreNotConnected) {
   EXPECT_EQ(c.labels, bruteForceClusters(cloud, params).labels);
   params.eps_m = 0.5001;
   EXPECT_EQ(euclideanClusters(cloud, params).cluster_count, 1);
+}
+
+// PCL casts eps to float and squares it in float; eps^2 rounded from double is the next float up
+// for eps = 0.35. Points exactly 0.35F apart lie between the two: not connected, whether they are
+// consecutive in the input (the shortcut for scan order) or not (the grid search).
+TEST(Clustering, PointsFloatEpsApartAreNotConnectedLikePcl) {
+  const Cloud consecutive{{0.0F, 0.0F, 0.0F, 0.0F}, {0.35F, 0.0F, 0.0F, 0.0F}, {50.0F, 0.0F, 0.0F, 0.0F}};
+  const Cloud apart{{0.0F, 0.0F, 0.0F, 0.0F}, {50.0F, 0.0F, 0.0F, 0.0F}, {0.35F, 0.0F, 0.0F, 0.0F}};
+  ClusteringParams params;
+  params.eps_m = 0.35;
+  params.min_points = 1;
+  for (const Cloud& cloud : {consecutive, apart}) {
+    const Clustering pcl = pclEuclideanClusters(cloud, params, false);
+    EXPECT_EQ(pcl.cluster_count, 3);
+    EXPECT_EQ(euclideanClusters(cloud, params).labels, pcl.labels);
+    EXPECT_EQ(bruteForceClusters(cloud, params).labels, pcl.labels);
+  }
+}
+
+// Inputs at the edges of float and of the integer grid: fogmap must still give PCL's partition,
+// which here is also the brute-force one.
+void expectPclPartition(const Cloud& cloud, const ClusteringParams& params, const std::string& what) {
+  const Clustering pcl = pclEuclideanClusters(cloud, params, false);
+  EXPECT_EQ(pcl.labels, bruteForceClusters(cloud, params).labels) << what;
+  EXPECT_EQ(euclideanClusters(cloud, params).labels, pcl.labels) << what;
+  EXPECT_EQ(euclideanClusters(cloud, params).cluster_count, pcl.cluster_count) << what;
+}
+
+TEST(Clustering, FarOutlierGivesPclPartition) {
+  std::mt19937_64 rng(30);
+  Cloud cloud = randomScene(rng, 2000, 10.0, 0.0);
+  const std::size_t outlier = 1000;
+  cloud.insert(cloud.begin() + outlier, Point{1e30F, 0.0F, 0.0F, 0.0F});
+  for (const std::size_t min_points : {std::size_t{1}, std::size_t{5}}) {
+    ClusteringParams params;
+    params.min_points = min_points;
+    expectPclPartition(cloud, params, "min points " + std::to_string(min_points));
+    // The outlier connects to nothing: a cluster of its own with min 1, noise otherwise.
+    const Clustering ours = euclideanClusters(cloud, params);
+    const auto label = ours.labels[outlier];
+    if (min_points == 1) {
+      EXPECT_EQ(std::count(ours.labels.begin(), ours.labels.end(), label), 1);
+    } else {
+      EXPECT_EQ(label, -1);
+    }
+  }
+}
+
+TEST(Clustering, TinyEpsGivesPclPartition) {
+  std::mt19937_64 rng(31);
+  Cloud cloud = randomScene(rng, 2000, 10.0, 0.0);
+  // Duplicates and points 1e-30 m apart: eps^2 = 1e-50 is 0 in float, so even these stay apart.
+  cloud.push_back({1e-30F, 0.0F, 0.0F, 0.0F});
+  cloud.push_back({2e-30F, 0.0F, 0.0F, 0.0F});
+  cloud.push_back(cloud.front());
+  const Cloud tiny{{1e-30F, 0.0F, 0.0F, 0.0F}, {1e-30F, 0.0F, 0.0F, 0.0F}, {2e-30F, 0.0F, 0.0F, 0.0F}};
+  ClusteringParams params;
+  params.eps_m = 1e-25;
+  params.min_points = 1;
+  for (const Cloud& c : {cloud, tiny}) {
+    expectPclPartition(c, params, std::to_string(c.size()) + " points");
+    EXPECT_EQ(euclideanClusters(c, params).cluster_count, static_cast<std::int32_t>(c.size()));
+  }
+}
+
+// Every coordinate near 1e30, where floats are 7.6e22 apart: only duplicates are closer than
+// eps (other differences square to infinity); and a scene shifted by 1e30 along x only.
+TEST(Clustering, HugeCoordinatesGivePclPartition) {
+  std::mt19937_64 rng(32);
+  const Cloud scene = randomScene(rng, 2000, 10.0, 0.0);
+  Cloud huge;
+  Cloud shifted;
+  for (const auto& p : scene) {
+    auto far = [](float c) { return static_cast<float>(1e30 + 1e23 * static_cast<double>(c)); };
+    huge.push_back({far(p.x), far(p.y), far(p.z), 0.0F});
+    shifted.push_back({1e30F, p.y, p.z, 0.0F});
+  }
+  for (const double eps : {1e-3, 0.35, 100.0}) {  // the admitted range of eps is [1e-3, 100] m
+    ClusteringParams params;
+    params.eps_m = eps;
+    params.min_points = 2;
+    expectPclPartition(huge, params, "all huge, eps " + std::to_string(eps));
+    expectPclPartition(shifted, params, "x huge, eps " + std::to_string(eps));
+  }
 }
 
 TEST(Clustering, DuplicatesAndSinglePointsAndEmpty) {

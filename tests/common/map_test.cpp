@@ -3,9 +3,13 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <random>
+#include <vector>
 
 #include <Eigen/Geometry>
+
+#include "tests/common/random_geometry.hpp"
 
 namespace fogmap {
 namespace {
@@ -125,6 +129,71 @@ TEST(Merge, SameNodeEllipsoidsAreNeverJoinedDirectly) {
   c.id = {2, 1, 0};
   c.center = {0.25, 0, 0};  // another node's ellipsoid bridges them
   EXPECT_EQ(merge(m, localMap({c})).map.objects.size(), 1U);
+}
+
+Ellipsoid sphere(std::uint32_t node, const Eigen::Vector3d& center, double radius) {
+  Ellipsoid e;
+  e.id = {node, 1, 0};
+  e.center = center;
+  e.shape = radius * radius * Eigen::Matrix3d::Identity();
+  return e;
+}
+
+// Spheres of radius 1 whose centres are 2 (1 + gap) apart: their boxes are `gap` times 2 apart,
+// while the exact test counts a gap within its tolerance (1e-9 relative) as touching.
+TEST(Merge, TouchingEllipsoidsMergeAsSpecified) {
+  for (const double gap : {0.0, 1e-13, 1e-12, 1e-11, 1e-6}) {
+    const Ellipsoid a = sphere(1, {0.1, -3.0, 7.0}, 1.0);
+    const Ellipsoid b = sphere(2, a.center + Eigen::Vector3d(2.0 * (1.0 + gap), 0.0, 0.0), 1.0);
+    const Map spec = mergeSpecification(std::vector<Ellipsoid>{a, b});
+    EXPECT_EQ(spec.objects.size(), gap < 1e-9 ? 1U : 2U) << "gap " << gap;
+    EXPECT_EQ(merge(localMap({a}), localMap({b})).map, spec) << "gap " << gap;
+    EXPECT_EQ(merge(localMap({b}), localMap({a})).map, spec) << "gap " << gap;
+  }
+}
+
+// Chains of random ellipsoids from alternating nodes, each placed against the previous one
+// (touching at a point with normal n) and then moved along n by a relative gap around the exact
+// test's tolerance. Normals along an axis make the boxes touch too, the case where box pruning
+// without the tolerance drops pairs the exact test accepts.
+TEST(Merge, NearContactEqualsAllPairsSpecification) {
+  std::mt19937_64 rng(12);
+  const std::vector<double> gaps{-1e-6, -1e-12, 0.0, 1e-13, 1e-12, 1e-11, 1e-10, 3e-10, 1e-9, 1e-8, 1e-6};
+  std::uniform_int_distribution<std::size_t> pick_gap(0, gaps.size() - 1);
+  std::uniform_int_distribution<int> pick_axis(0, 5);
+  std::uniform_real_distribution<double> pos(-50.0, 50.0);
+  for (int trial = 0; trial < 500; ++trial) {
+    const int nodes = 2 + trial % 3;
+    std::vector<std::vector<Ellipsoid>> per_node(static_cast<std::size_t>(nodes));
+    Ellipsoid prev;
+    for (int k = 0; k < 6; ++k) {
+      Ellipsoid e;
+      e.id = {static_cast<std::uint32_t>(k % nodes + 1), 1, static_cast<std::uint32_t>(k)};
+      e.shape = randomShape(rng, 0.2, 2.0);
+      e.center = {pos(rng), pos(rng), pos(rng)};
+      if (k > 0) {
+        Eigen::Vector3d n = Eigen::Vector3d::Zero();
+        if (trial % 4 == 3) {
+          n = testing::randomUnitVector(rng);
+        } else {
+          const int axis = pick_axis(rng);
+          n[axis % 3] = axis < 3 ? 1.0 : -1.0;
+        }
+        // The boundary point of M with outward normal n is c + M n / sqrt(n^T M n).
+        const double reach_prev = std::sqrt(n.dot(prev.shape * n));
+        const double reach = std::sqrt(n.dot(e.shape * n));
+        const Eigen::Vector3d contact = prev.center + prev.shape * n / reach_prev;
+        e.center = contact + e.shape * n / reach + gaps[pick_gap(rng)] * (reach_prev + reach) * n;
+      }
+      per_node[static_cast<std::size_t>(k % nodes)].push_back(e);
+      prev = e;
+    }
+    std::vector<Map> maps;
+    for (auto& es : per_node) maps.push_back(localMap(std::move(es)));
+    ASSERT_EQ(mergeAll(maps).map, mergeSpecification(allEllipsoids(maps))) << "trial " << trial;
+    ASSERT_EQ(merge(maps[0], maps[1]).map, mergeSpecification(allEllipsoids(std::span(maps).first(2))))
+        << "trial " << trial;
+  }
 }
 
 TEST(Merge, BoxPruningTestsTenTimesFewerPairsOnSevenMapsOfOneHundred) {

@@ -1,6 +1,10 @@
 #include "common/topology.hpp"
 
 #include <filesystem>
+#include <fstream>
+#include <initializer_list>
+#include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -21,6 +25,8 @@ void expectSameTopology(const TopologyConfig& a, const TopologyConfig& b) {
   EXPECT_DOUBLE_EQ(a.deadline_ms, b.deadline_ms);
   EXPECT_DOUBLE_EQ(a.period_ms, b.period_ms);
   EXPECT_EQ(a.max_message_bytes, b.max_message_bytes);
+  EXPECT_EQ(a.max_scan_bytes, b.max_scan_bytes);
+  EXPECT_EQ(a.admission, b.admission);
   EXPECT_DOUBLE_EQ(a.madc.clustering.eps_m, b.madc.clustering.eps_m);
   EXPECT_EQ(a.madc.clustering.min_points, b.madc.clustering.min_points);
   EXPECT_EQ(a.madc.clustering.threads, b.madc.clustering.threads);
@@ -71,6 +77,14 @@ void customize(TopologyConfig& t) {
   t.deadline_ms = 45.5;
   t.period_ms = 50.0;
   t.max_message_bytes = 8U << 20;
+  t.max_scan_bytes = 3U << 20;
+  t.admission.window_periods = 2.5;
+  t.admission.world_extent_m = 750.0;
+  t.admission.max_ellipsoids_per_map = 1234;
+  t.admission.max_map_bytes = 1U << 20;
+  t.admission.min_eigenvalue_m2 = 1e-8;
+  t.admission.max_eigenvalue_m2 = 2.5e5;
+  t.admission.max_condition = 1e9;
   t.madc.clustering.eps_m = 0.55;
   t.madc.clustering.min_points = 7;
   t.madc.clustering.threads = 4;
@@ -158,6 +172,17 @@ void expectRejected(const std::string& yaml, const std::string& field) {
       << "'" << parsed.error().message << "' does not name " << field << "\n" << yaml;
 }
 
+// Rejected, with a message containing every phrase (the key, the bound, the reason).
+void expectRejectedWith(const std::string& yaml, std::initializer_list<std::string> phrases) {
+  const Expected<TopologyConfig> parsed = parseTopology(yaml, "");
+  ASSERT_FALSE(parsed.ok()) << "accepted:\n" << yaml;
+  EXPECT_EQ(parsed.error().code, ErrorCode::kInvalidArgument);
+  for (const std::string& phrase : phrases) {
+    EXPECT_NE(parsed.error().message.find(phrase), std::string::npos)
+        << "'" << parsed.error().message << "' does not contain '" << phrase << "'\n" << yaml;
+  }
+}
+
 TEST(Topology, ValidSmallTopologyAndBoundsAreAccepted) {
   for (const std::string& globals : {std::string(), std::string("period_ms: 0.5\n"),
                                      std::string("max_message_bytes: 1048576\n"),
@@ -209,7 +234,7 @@ TEST(Topology, BadParentsAndDuplicateNamesAreRejected) {
                  "cycle");
   expectRejected(topologyYaml("", "", sink +
                                           "  - {name: agg-a, id: 101, role: aggregator, parent: agg-a, port: 50001, metrics_port: 50201}\n"),
-                 "cycle");
+                 "node 'agg-a' is its own parent");
   expectRejected(topologyYaml("", "", kNodes + "  - {name: edge-1, id: 2, role: edge, parent: sink, metrics_port: 50102, "
                                               "sensor: {source: scans}}\n"),
                  "duplicate node name");
@@ -254,6 +279,138 @@ TEST(Topology, MisspeltKeysAreRejected) {
                  "prot");
   expectRejected(topologyYaml("", "", sink + "  - {name: e, id: 1, role: edge, parent: sink, sensor: {source: s, rate: 5}}\n"),
                  "sensor.rate");
+}
+
+TEST(Topology, ScanSizeBoundAndAdmissionLimitsAreRead) {
+  const Expected<TopologyConfig> defaults = parseTopology(topologyYaml(""), "");
+  ASSERT_TRUE(defaults.ok()) << defaults.error().message;
+  EXPECT_EQ(defaults->max_scan_bytes, kDefaultMaxScanBytes);
+  EXPECT_EQ(defaults->admission, AdmissionLimits{});
+
+  const Expected<TopologyConfig> parsed = parseTopology(topologyYaml("max_scan_bytes: 1048576\n"
+                                                                     "admission:\n"
+                                                                     "  window_periods: 5\n"
+                                                                     "  world_extent_m: 500\n"
+                                                                     "  max_ellipsoids_per_map: 100\n"
+                                                                     "  max_map_bytes: 65536\n"
+                                                                     "  min_eigenvalue_m2: 1e-6\n"
+                                                                     "  max_eigenvalue_m2: 1e4\n"
+                                                                     "  max_condition: 1e9\n"),
+                                                        "");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  EXPECT_EQ(parsed->max_scan_bytes, 1048576U);
+  const AdmissionLimits expected{5.0, 500.0, 100, 65536, 1e-6, 1e4, 1e9};
+  EXPECT_EQ(parsed->admission, expected);
+
+  // Keys left out keep their defaults.
+  const Expected<TopologyConfig> partial = parseTopology(topologyYaml("admission: {world_extent_m: 250}\n"), "");
+  ASSERT_TRUE(partial.ok()) << partial.error().message;
+  AdmissionLimits only_extent;
+  only_extent.world_extent_m = 250.0;
+  EXPECT_EQ(partial->admission, only_extent);
+}
+
+TEST(Topology, BadScanSizeBoundIsRefusedNamingTheKey) {
+  for (const char* v : {"0", "-1"}) {
+    expectRejectedWith(topologyYaml(std::string("max_scan_bytes: ") + v + "\n"), {"max_scan_bytes", "positive"});
+  }
+  for (const char* v : {"1.5", "big", "[1, 2]"}) {
+    expectRejectedWith(topologyYaml(std::string("max_scan_bytes: ") + v + "\n"), {"max_scan_bytes", "cannot read"});
+  }
+}
+
+TEST(Topology, BadAdmissionLimitsAreRefusedNamingTheKey) {
+  // Value rules come from validateAdmissionLimits; the parser names the key.
+  for (const char* key : {"window_periods", "world_extent_m", "min_eigenvalue_m2", "max_eigenvalue_m2", "max_condition"}) {
+    for (const char* v : {"0", "-2", ".nan", ".inf"}) {
+      SCOPED_TRACE(std::string(key) + ": " + v);
+      expectRejectedWith(topologyYaml("admission: {" + std::string(key) + ": " + v + "}\n"), {"admission", key, "positive"});
+    }
+  }
+  for (const char* key : {"max_ellipsoids_per_map", "max_map_bytes"}) {
+    SCOPED_TRACE(key);
+    expectRejectedWith(topologyYaml("admission: {" + std::string(key) + ": 0}\n"), {"admission", key, "at least 1"});
+    expectRejectedWith(topologyYaml("admission: {" + std::string(key) + ": -5}\n"), {"admission." + std::string(key)});
+    expectRejectedWith(topologyYaml("admission: {" + std::string(key) + ": 2.5}\n"), {"admission." + std::string(key)});
+  }
+  expectRejectedWith(topologyYaml("admission: {min_eigenvalue_m2: 10, max_eigenvalue_m2: 1}\n"),
+                     {"min_eigenvalue_m2", "max_eigenvalue_m2", "below"});
+  expectRejectedWith(topologyYaml("admission: {world_extent_m: far}\n"), {"admission.world_extent_m", "cannot read"});
+  expectRejectedWith(topologyYaml("admission: {window_period: 3}\n"), {"admission.window_period", "unknown key"});
+  expectRejectedWith(topologyYaml("admission: 5\n"), {"admission", "must be a mapping"});
+}
+
+TEST(Topology, AdmissionErrorsFromAFileNameTheFile) {
+  const fs::path dir = fs::temp_directory_path() / ("fogmap_topology_" + std::to_string(std::random_device{}()));
+  fs::create_directories(dir);
+  const fs::path path = dir / "bad-admission.yaml";
+  std::ofstream(path) << topologyYaml("admission: {max_condition: -1}\n");
+  const Expected<TopologyConfig> loaded = loadTopology(path);
+  fs::remove_all(dir);
+  ASSERT_FALSE(loaded.ok());
+  EXPECT_NE(loaded.error().message.find(path.string()), std::string::npos) << loaded.error().message;
+  EXPECT_NE(loaded.error().message.find("max_condition"), std::string::npos) << loaded.error().message;
+  EXPECT_NE(loaded.error().message.find("positive"), std::string::npos) << loaded.error().message;
+}
+
+TEST(Topology, EpsOutsideTheClusteringRangeIsRefused) {
+  // The range is validateClusteringParams's: [kMinEpsM, kMaxEpsM], bounds included.
+  for (const char* v : {"1e-300", "0.0009", "100.5", "1e6", ".nan", ".inf", "0", "-0.1"}) {
+    SCOPED_TRACE(v);
+    expectRejectedWith("name: t\nmadc: {eps_m: " + std::string(v) + "}\nnodes:\n" + kNodes, {"madc.eps_m", "0.001", "100"});
+  }
+  for (const double eps : {kMinEpsM, kMaxEpsM}) {
+    std::ostringstream yaml;
+    yaml.precision(17);
+    yaml << "name: t\nmadc: {eps_m: " << eps << "}\nnodes:\n" << kNodes;
+    const Expected<TopologyConfig> parsed = parseTopology(yaml.str(), "");
+    ASSERT_TRUE(parsed.ok()) << eps << ": " << parsed.error().message;
+    EXPECT_EQ(parsed->madc.clustering.eps_m, eps);
+  }
+}
+
+TEST(Topology, ANodeThatIsItsOwnParentIsNamed) {
+  // The only parentless candidate points at itself: not "found 0 roots" but the actual mistake.
+  expectRejectedWith(topologyYaml("", "",
+                                  "  - {name: sink, id: 100, role: aggregator, parent: sink, port: 50000, metrics_port: 50200}\n"
+                                  "  - {name: edge-1, id: 1, role: edge, parent: sink, metrics_port: 50101, sensor: {source: s}}\n"),
+                     {"node 'sink' is its own parent"});
+  expectRejectedWith(topologyYaml("", "", kNodes + "  - {name: e2, id: 2, role: edge, parent: e2, metrics_port: 50102, "
+                                                   "sensor: {source: s}}\n"),
+                     {"node 'e2' is its own parent"});
+}
+
+TEST(Topology, ACycleWithoutARootIsNamedAsACycle) {
+  expectRejectedWith(
+      topologyYaml("", "",
+                   "  - {name: edge-1, id: 1, role: edge, parent: agg-a, metrics_port: 50101, sensor: {source: s}}\n"
+                   "  - {name: agg-a, id: 101, role: aggregator, parent: agg-b, port: 50001, metrics_port: 50201}\n"
+                   "  - {name: agg-b, id: 102, role: aggregator, parent: agg-a, port: 50002, metrics_port: 50202}\n"),
+      {"cycle", "agg-a -> agg-b -> agg-a"});
+}
+
+TEST(Topology, HostMustBeANumericIPv4Address) {
+  // The services bind and connect to host:port and fogctl polls /metrics over IPv4, so a name
+  // like localhost (or an IPv6 address, which would need brackets) would pass here and then time
+  // out at start-up.
+  for (const char* host : {"localhost", "sink.local", "::1", "10.0.0.256", "127.1", "\"\"", "\"127.0.0.1 \""}) {
+    SCOPED_TRACE(host);
+    expectRejectedWith(topologyYaml("", "", "  - {name: sink, id: 100, role: aggregator, host: " + std::string(host) +
+                                                ", port: 50000, metrics_port: 50200}\n"
+                                                "  - {name: edge-1, id: 1, role: edge, parent: sink, metrics_port: 50101, "
+                                                "sensor: {source: s}}\n"),
+                       {"nodes[0]", "host", "IPv4 address", "127.0.0.1"});
+  }
+  for (const char* host : {"127.0.0.1", "10.0.0.7", "0.0.0.0"}) {
+    const Expected<TopologyConfig> parsed =
+        parseTopology(topologyYaml("", "", "  - {name: sink, id: 100, role: aggregator, host: " + std::string(host) +
+                                               ", port: 50000, metrics_port: 50200}\n"
+                                               "  - {name: edge-1, id: 1, role: edge, parent: sink, metrics_port: 50101, "
+                                               "sensor: {source: s}}\n"),
+                      "");
+    ASSERT_TRUE(parsed.ok()) << host << ": " << parsed.error().message;
+    EXPECT_EQ(parsed->root()->host, host);
+  }
 }
 
 }  // namespace

@@ -202,7 +202,7 @@ TEST(Cluster, FogctlGeofenceReportsTheIntrusionsOfThePublishedGlobalMap) {
   const Geofence fence = boxGeofence("front", {0, -4, -3}, {20, 4, 3});
   std::pair<int, std::string> set, query, unknown;
   RunOptions options;
-  options.frames = 30;
+  options.frames = 60;  // the queries run while the subscriber still collects
   options.timeout = 60s;
   const auto result = cli::runCluster(scratchDir("geofence"), t, options, [&](const cli::Cluster&) {
     std::this_thread::sleep_for(1500ms);
@@ -227,7 +227,10 @@ TEST(Cluster, FogctlGeofenceReportsTheIntrusionsOfThePublishedGlobalMap) {
     char containment[16] = {};
     if (std::sscanf(line.c_str(), "front object %u %15s", &index, containment) == 2) printed.emplace_back(index, containment);
   }
-  ASSERT_EQ(result->epochs.count(epoch), 1U) << "the subscriber did not receive epoch " << epoch;
+  ASSERT_EQ(result->epochs.count(epoch), 1U)
+      << "the subscriber did not receive epoch " << epoch << "; it received " << result->epochs.size()
+      << " epochs from " << (result->epochs.empty() ? 0 : result->epochs.begin()->first) << " to "
+      << (result->epochs.empty() ? 0 : result->epochs.rbegin()->first);
   std::vector<std::pair<std::size_t, std::string>> expected;
   for (const auto& hit : intrusions(result->epochs.at(epoch).map, fence)) {
     expected.emplace_back(hit.object_index, containmentName(hit.containment));

@@ -205,5 +205,31 @@ TEST(Metrics, RefusesAnAddressInUse) {
                std::runtime_error);
 }
 
+// A port held by another process (here: a plain listening socket) gives an error naming the
+// address and saying it is in use, not civetweb's "null context when constructing CivetServer".
+TEST(Metrics, NamesTheAddressWhenThePortIsInUse) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  ASSERT_GE(fd, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ASSERT_EQ(::bind(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr), 0);
+  ASSERT_EQ(::listen(fd, 1), 0);
+  socklen_t len = sizeof addr;
+  ASSERT_EQ(::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len), 0);
+  const std::string address = "127.0.0.1:" + std::to_string(ntohs(addr.sin_port));
+
+  std::string message;
+  try {
+    Metrics metrics(address, "edge-cluster", "n7");
+  } catch (const std::runtime_error& e) {
+    message = e.what();
+  }
+  ::close(fd);
+  EXPECT_NE(message.find(address), std::string::npos) << message;
+  EXPECT_NE(message.find("in use"), std::string::npos) << message;
+  EXPECT_EQ(message.find("null context"), std::string::npos) << message;
+}
+
 }  // namespace
 }  // namespace fogmap

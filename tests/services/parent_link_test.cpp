@@ -7,9 +7,13 @@
 #include <chrono>
 #include <condition_variable>
 #include <functional>
+#include <map>
 #include <mutex>
+#include <optional>
+#include <ostream>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <grpcpp/grpcpp.h>
@@ -33,24 +37,76 @@ bool eventually(const std::function<bool()>& condition, std::chrono::millisecond
   return condition();
 }
 
-// A parent that records every upload it reads and acknowledges those `ack_if` accepts.
+// A one-shot event a test waits on, bounded.
+class Signal {
+ public:
+  void set() {
+    {
+      std::lock_guard lock(mu_);
+      set_ = true;
+    }
+    cv_.notify_all();
+  }
+  bool wait(std::chrono::milliseconds timeout = 10s) {
+    std::unique_lock lock(mu_);
+    return cv_.wait_for(lock, timeout, [&] { return set_; });
+  }
+
+ private:
+  std::mutex mu_;
+  std::condition_variable cv_;
+  bool set_ = false;
+};
+
+v1::Ack answerWith(std::uint64_t sequence, v1::AckStatus status, const std::string& reason = "") {
+  v1::Ack ack;
+  ack.set_sequence(sequence);
+  ack.set_status(status);
+  ack.set_reason(reason);
+  return ack;
+}
+
+// What a parent writes back for an upload that came on stream `stream_number` (from 1): nothing,
+// one answer, or (misbehaving) several.
+using Answer = std::function<std::vector<v1::Ack>(const v1::Upload& upload, int stream_number)>;
+
+// Applies the uploads `ack_if` accepts and leaves the others unanswered.
+Answer applyIf(std::function<bool(std::uint64_t)> ack_if) {
+  return [ack_if = std::move(ack_if)](const v1::Upload& u, int /*stream_number*/) {
+    return ack_if(u.sequence()) ? std::vector<v1::Ack>{answerWith(u.sequence(), v1::ACK_STATUS_APPLIED)}
+                                : std::vector<v1::Ack>{};
+  };
+}
+
+// A parent that records every upload it reads, with the number of the stream it came on (from 1),
+// and writes back what `answer` says. With `end_first_stream_after`, the first stream is ended
+// by the parent after that many uploads, so that the link opens a second one.
 class RecordingIngest final : public v1::MapIngest::Service {
  public:
-  explicit RecordingIngest(std::function<bool(std::uint64_t)> ack_if = [](std::uint64_t) { return true; })
-      : ack_if_(std::move(ack_if)) {}
+  explicit RecordingIngest(Answer answer = applyIf([](std::uint64_t) { return true; }),
+                           std::size_t end_first_stream_after = 0)
+      : answer_(std::move(answer)), end_first_stream_after_(end_first_stream_after) {}
 
   grpc::Status Push(grpc::ServerContext* /*context*/, grpc::ServerReaderWriter<v1::Ack, v1::Upload>* stream) override {
+    int stream_number = 0;
+    {
+      std::lock_guard lock(mu_);
+      stream_number = ++streams_;
+    }
+    std::size_t read = 0;
     v1::Upload upload;
     while (stream->Read(&upload)) {
       {
         std::lock_guard lock(mu_);
         received_.push_back(upload);
+        stream_of_.push_back(stream_number);
       }
       cv_.notify_all();
-      if (ack_if_(upload.sequence())) {
-        v1::Ack ack;
-        ack.set_sequence(upload.sequence());
-        if (!stream->Write(ack)) break;
+      for (const v1::Ack& ack : answer_(upload, stream_number)) {
+        if (!stream->Write(ack)) return grpc::Status::OK;
+      }
+      if (stream_number == 1 && ++read == end_first_stream_after_) {
+        return grpc::Status(grpc::StatusCode::UNAVAILABLE, "ended by the test");
       }
     }
     return grpc::Status::OK;
@@ -69,16 +125,29 @@ class RecordingIngest final : public v1::MapIngest::Service {
     return out;
   }
 
+  // The sequences that arrived on stream `number` (from 1), in arrival order.
+  std::vector<std::uint64_t> sequencesOnStream(int number) const {
+    std::lock_guard lock(mu_);
+    std::vector<std::uint64_t> out;
+    for (std::size_t i = 0; i < received_.size(); ++i) {
+      if (stream_of_[i] == number) out.push_back(received_[i].sequence());
+    }
+    return out;
+  }
+
   std::vector<v1::Upload> uploads() const {
     std::lock_guard lock(mu_);
     return received_;
   }
 
  private:
-  std::function<bool(std::uint64_t)> ack_if_;
+  Answer answer_;
+  std::size_t end_first_stream_after_;
   mutable std::mutex mu_;
   std::condition_variable cv_;
+  int streams_ = 0;
   std::vector<v1::Upload> received_;
+  std::vector<int> stream_of_;
 };
 
 // A real gRPC server on 127.0.0.1; port 0 picks a free port.
@@ -125,13 +194,28 @@ v1::Upload pointsUpload(std::uint64_t epoch) {
   return u;
 }
 
-// Hooks that count into atomics the test reads.
+// Hooks that count into atomics and logs the test reads.
 struct HookCounts {
   std::atomic<int> maps{0};
   std::atomic<int> points{0};
   std::atomic<std::size_t> bytes{0};
   std::atomic<int> reconnects{0};
-  std::atomic<int> dropped{0};
+
+  using Drop = std::pair<std::uint64_t, bool>;  // dropped_total, first_of_burst
+  using Refusal = std::pair<std::uint64_t, std::string>;
+
+  std::vector<Drop> drops() const {
+    std::lock_guard lock(mu);
+    return drops_;
+  }
+  std::vector<Refusal> refusals() const {
+    std::lock_guard lock(mu);
+    return refusals_;
+  }
+  std::vector<std::uint64_t> lates() const {
+    std::lock_guard lock(mu);
+    return lates_;
+  }
 
   ParentLinkHooks hooks() {
     ParentLinkHooks h;
@@ -141,17 +225,87 @@ struct HookCounts {
       bytes += n;
     };
     h.on_reconnect = [this] { ++reconnects; };
-    h.on_dropped = [this] { ++dropped; };
+    h.on_dropped = [this](std::uint64_t total, bool first_of_burst) {
+      std::lock_guard lock(mu);
+      drops_.emplace_back(total, first_of_burst);
+    };
+    h.on_refused = [this](std::uint64_t sequence, const std::string& reason) {
+      std::lock_guard lock(mu);
+      refusals_.emplace_back(sequence, reason);
+    };
+    h.on_late = [this](std::uint64_t sequence) {
+      std::lock_guard lock(mu);
+      lates_.push_back(sequence);
+    };
     return h;
   }
+
+ private:
+  mutable std::mutex mu;
+  std::vector<Drop> drops_;
+  std::vector<Refusal> refusals_;
+  std::vector<std::uint64_t> lates_;
+};
+
+// How one upload was settled, as its Settled callback saw it.
+struct Outcome {
+  std::optional<v1::AckStatus> status;
+  std::string reason;
+  bool operator==(const Outcome&) const = default;
+};
+
+std::ostream& operator<<(std::ostream& os, const Outcome& o) {
+  if (!o.status) return os << "nullopt";
+  return os << v1::AckStatus_Name(*o.status) << " '" << o.reason << "'";
+}
+
+const Outcome kApplied{v1::ACK_STATUS_APPLIED, ""};
+const Outcome kDroppedOrAbandoned{std::nullopt, ""};
+
+// Every Settled call, keyed by the upload the test tagged it with.
+class SettledLog {
+ public:
+  ParentLink::Settled callbackFor(std::uint64_t key) {
+    return [this, key](std::optional<v1::AckStatus> status, const std::string& reason) {
+      {
+        std::lock_guard lock(mu_);
+        outcomes_[key].push_back({status, reason});
+      }
+      cv_.notify_all();
+    };
+  }
+
+  // Every call made for `key`, in order: exactly one is expected once settled.
+  std::vector<Outcome> of(std::uint64_t key) const {
+    std::lock_guard lock(mu_);
+    const auto it = outcomes_.find(key);
+    return it == outcomes_.end() ? std::vector<Outcome>{} : it->second;
+  }
+
+  bool waitFor(std::uint64_t key, std::chrono::milliseconds timeout = 10s) {
+    std::unique_lock lock(mu_);
+    return cv_.wait_for(lock, timeout, [&] { return outcomes_.contains(key); });
+  }
+
+ private:
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  std::map<std::uint64_t, std::vector<Outcome>> outcomes_;
 };
 
 ParentLinkConfig configFor(const std::string& target) {
   ParentLinkConfig c;
   c.target = target;
+  c.first_sequence = 1;  // the tests name uploads by sequence
   c.backoff_initial = 20ms;
   c.backoff_max = 500ms;
   return c;
+}
+
+// Serialised size of an upload once the link has given it `sequence`.
+std::size_t sizeWithSequence(v1::Upload u, std::uint64_t sequence) {
+  u.set_sequence(sequence);
+  return u.ByteSizeLong();
 }
 
 // A port that was free a moment ago and now has no listener.
@@ -193,11 +347,15 @@ TEST(ParentLink, DeliversUploadsInOrderAndFlushes) {
   EXPECT_EQ(counts.points.load(), kUploads / 4);
   EXPECT_EQ(counts.bytes.load(), expected_bytes);
   EXPECT_EQ(counts.reconnects.load(), 0);
-  EXPECT_EQ(counts.dropped.load(), 0);
+  EXPECT_TRUE(counts.drops().empty());
+  EXPECT_EQ(link.unacknowledgedBytes(), 0U);
+  EXPECT_EQ(link.dropped(), 0U);
+  EXPECT_EQ(link.refused(), 0U);
+  EXPECT_EQ(link.late(), 0U);
 }
 
 TEST(ParentLink, FlushTimesOutWhileUploadsAreUnacknowledged) {
-  RecordingIngest service([](std::uint64_t) { return false; });
+  RecordingIngest service(applyIf([](std::uint64_t) { return false; }));
   TestParent parent(service);
   ASSERT_TRUE(parent.started());
   ParentLink link(configFor(parent.target()), {});
@@ -211,7 +369,7 @@ TEST(ParentLink, ResendsUnacknowledgedUploadsAfterParentRestart) {
   constexpr std::uint64_t kUploads = 10;
   constexpr std::uint64_t kAcked = 4;
   HookCounts counts;
-  auto first_service = std::make_unique<RecordingIngest>([](std::uint64_t s) { return s <= kAcked; });
+  auto first_service = std::make_unique<RecordingIngest>(applyIf([](std::uint64_t s) { return s <= kAcked; }));
   auto first_parent = std::make_unique<TestParent>(*first_service);
   ASSERT_TRUE(first_parent->started());
   const int port = first_parent->port();
@@ -267,23 +425,330 @@ TEST(ParentLink, UploadsQueuedBeforeParentStartsAreDelivered) {
   EXPECT_EQ(counts.reconnects.load(), 0);  // the first stream is a connect, not a reconnect
 }
 
-TEST(ParentLink, DropsOldestUploadsBeyondMaxUnacked) {
+// --- 1. The queue is bounded in bytes, oldest dropped first, every drop counted and reported.
+
+TEST(ParentLink, DropsOldestUploadsBeyondMaxUnackedBytes) {
   const int port = closedPort();
   ASSERT_GT(port, 0);
   HookCounts counts;
+  SettledLog settled;
   ParentLinkConfig config = configFor("127.0.0.1:" + std::to_string(port));
-  config.max_unacked = 4;
+  const std::size_t each = sizeWithSequence(pointsUpload(1), 1);  // all seven are this size
+  config.max_unacked_bytes = 3 * each + each / 2;
   ParentLink link(config, counts.hooks());
-  for (std::uint64_t i = 1; i <= 7; ++i) link.send(mapUpload(i));
-  EXPECT_EQ(counts.dropped.load(), 3);
-  EXPECT_EQ(link.unacknowledged(), 4U);
+  for (std::uint64_t i = 1; i <= 7; ++i) link.send(pointsUpload(i), settled.callbackFor(i));
+
+  EXPECT_EQ(link.dropped(), 4U);
+  EXPECT_EQ(link.unacknowledged(), 3U);
+  EXPECT_EQ(link.unacknowledgedBytes(), 3 * each);
+  EXPECT_EQ(counts.drops(), (std::vector<HookCounts::Drop>{{1, true}, {2, false}, {3, false}, {4, false}}));
+  for (std::uint64_t i = 1; i <= 4; ++i) EXPECT_EQ(settled.of(i), std::vector<Outcome>{kDroppedOrAbandoned}) << i;
+  for (std::uint64_t i = 5; i <= 7; ++i) EXPECT_TRUE(settled.of(i).empty()) << i;
 
   RecordingIngest service;
   TestParent parent(service, port);
   ASSERT_TRUE(parent.started());
   ASSERT_TRUE(link.flush(15s));
-  EXPECT_EQ(service.sequences(), (std::vector<std::uint64_t>{4, 5, 6, 7}));
+  EXPECT_EQ(service.sequences(), (std::vector<std::uint64_t>{5, 6, 7}));
+  EXPECT_EQ(link.unacknowledgedBytes(), 0U);
+  for (std::uint64_t i = 5; i <= 7; ++i) EXPECT_EQ(settled.of(i), std::vector<Outcome>{kApplied}) << i;
+  for (std::uint64_t i = 1; i <= 4; ++i) EXPECT_EQ(settled.of(i).size(), 1U) << i;
 }
+
+TEST(ParentLink, KeepsManySmallUploadsWithinTheByteBound) {
+  const int port = closedPort();
+  ASSERT_GT(port, 0);
+  HookCounts counts;
+  ParentLink link(configFor("127.0.0.1:" + std::to_string(port)), counts.hooks());  // 64 MiB
+  constexpr std::uint64_t kUploads = 1000;  // far more than any count bound the link had
+  std::size_t bytes = 0;
+  for (std::uint64_t i = 1; i <= kUploads; ++i) {
+    bytes += sizeWithSequence(mapUpload(i), i);
+    link.send(mapUpload(i));
+  }
+  EXPECT_EQ(link.unacknowledged(), kUploads);
+  EXPECT_EQ(link.unacknowledgedBytes(), bytes);
+  EXPECT_EQ(link.dropped(), 0U);
+  EXPECT_TRUE(counts.drops().empty());
+}
+
+TEST(ParentLink, DropsAnUploadThatAloneExceedsTheBound) {
+  const int port = closedPort();
+  ASSERT_GT(port, 0);
+  HookCounts counts;
+  SettledLog settled;
+  ParentLinkConfig config = configFor("127.0.0.1:" + std::to_string(port));
+  config.max_unacked_bytes = 500;
+  ASSERT_GT(sizeWithSequence(pointsUpload(2), 2), config.max_unacked_bytes);
+  ParentLink link(config, counts.hooks());
+  link.send(mapUpload(1), settled.callbackFor(1));
+  link.send(pointsUpload(2), settled.callbackFor(2));
+
+  EXPECT_EQ(link.dropped(), 1U);
+  EXPECT_EQ(link.unacknowledged(), 1U);  // the older one stays: dropping it would not make room
+  EXPECT_EQ(link.unacknowledgedBytes(), sizeWithSequence(mapUpload(1), 1));
+  EXPECT_EQ(counts.drops(), (std::vector<HookCounts::Drop>{{1, true}}));
+  EXPECT_EQ(settled.of(2), std::vector<Outcome>{kDroppedOrAbandoned});
+  EXPECT_TRUE(settled.of(1).empty());
+
+  RecordingIngest service;
+  TestParent parent(service, port);
+  ASSERT_TRUE(parent.started());
+  link.send(mapUpload(3), settled.callbackFor(3));
+  ASSERT_TRUE(link.flush(15s));
+  EXPECT_EQ(service.sequences(), (std::vector<std::uint64_t>{1, 3}));
+  EXPECT_EQ(settled.of(1), std::vector<Outcome>{kApplied});
+  EXPECT_EQ(settled.of(3), std::vector<Outcome>{kApplied});
+}
+
+TEST(ParentLink, DropBurstEndsWhenAnUploadIsAnswered) {
+  RecordingIngest service(applyIf([](std::uint64_t s) { return s >= 6; }));
+  TestParent parent(service);
+  ASSERT_TRUE(parent.started());
+  HookCounts counts;
+  SettledLog settled;
+  ParentLinkConfig config = configFor(parent.target());
+  const std::size_t each = sizeWithSequence(pointsUpload(1), 1);
+  config.max_unacked_bytes = 3 * each + each / 2;
+  ParentLink link(config, counts.hooks());
+
+  for (std::uint64_t i = 1; i <= 5; ++i) link.send(pointsUpload(i));  // drops 1, 2
+  link.send(pointsUpload(6), settled.callbackFor(6));                 // drops 3; 6 is answered
+  ASSERT_TRUE(settled.waitFor(6));
+  EXPECT_EQ(settled.of(6), std::vector<Outcome>{kApplied});
+  ASSERT_EQ(link.unacknowledged(), 2U);  // 4 and 5, never answered
+  link.send(pointsUpload(7));
+  link.send(pointsUpload(8));  // drops 4: a new burst
+
+  EXPECT_EQ(counts.drops(), (std::vector<HookCounts::Drop>{{1, true}, {2, false}, {3, false}, {4, true}}));
+  EXPECT_EQ(link.dropped(), 4U);
+}
+
+TEST(ParentLink, DropBurstEndsWhenTheQueueIsLeftEmpty) {
+  const int port = closedPort();
+  ASSERT_GT(port, 0);
+  HookCounts counts;
+  ParentLinkConfig config = configFor("127.0.0.1:" + std::to_string(port));
+  config.max_unacked_bytes = 500;
+  ParentLink link(config, counts.hooks());
+  link.send(pointsUpload(1));  // too large: dropped, the queue is left empty
+  link.send(pointsUpload(2));  // again
+  link.send(mapUpload(3));     // fits
+  link.send(pointsUpload(4));  // dropped: a new burst (the queue was left empty before)
+  link.send(pointsUpload(5));  // dropped while 3 waits: the same burst
+  EXPECT_EQ(counts.drops(), (std::vector<HookCounts::Drop>{{1, true}, {2, true}, {3, true}, {4, false}}));
+  EXPECT_EQ(link.unacknowledged(), 1U);
+}
+
+// --- 2. Any answer settles an upload for good; refused and late ones are counted and reported.
+
+TEST(ParentLink, AnsweredUploadsAreNeverResentAndRefusedAndLateAreReported) {
+  // The first stream: 1 applied, 2 refused, 3 late, 4 unanswered, 5 refused, 6 unanswered, then
+  // the parent ends it. Later streams apply everything.
+  RecordingIngest service(
+      [](const v1::Upload& u, int stream_number) {
+        const std::uint64_t s = u.sequence();
+        if (stream_number > 1) return std::vector<v1::Ack>{answerWith(s, v1::ACK_STATUS_APPLIED)};
+        switch (s) {
+          case 1: return std::vector<v1::Ack>{answerWith(s, v1::ACK_STATUS_APPLIED)};
+          case 2: return std::vector<v1::Ack>{answerWith(s, v1::ACK_STATUS_REFUSED, "bad epoch")};
+          case 3: return std::vector<v1::Ack>{answerWith(s, v1::ACK_STATUS_LATE)};
+          case 5: return std::vector<v1::Ack>{answerWith(s, v1::ACK_STATUS_REFUSED, "too big")};
+          default: return std::vector<v1::Ack>{};
+        }
+      },
+      /*end_first_stream_after=*/6);
+  TestParent parent(service);
+  ASSERT_TRUE(parent.started());
+  HookCounts counts;
+  SettledLog settled;
+  ParentLink link(configFor(parent.target()), counts.hooks());
+  for (std::uint64_t i = 1; i <= 6; ++i) link.send(mapUpload(i), settled.callbackFor(i));
+  ASSERT_TRUE(link.flush(15s));
+
+  EXPECT_EQ(service.sequencesOnStream(1), (std::vector<std::uint64_t>{1, 2, 3, 4, 5, 6}));
+  EXPECT_EQ(service.sequencesOnStream(2), (std::vector<std::uint64_t>{4, 6}));
+  EXPECT_EQ(service.sequences().size(), 8U);
+  EXPECT_EQ(counts.reconnects.load(), 1);
+
+  EXPECT_EQ(link.refused(), 2U);
+  EXPECT_EQ(link.late(), 1U);
+  EXPECT_EQ(counts.refusals(), (std::vector<HookCounts::Refusal>{{2, "bad epoch"}, {5, "too big"}}));
+  EXPECT_EQ(counts.lates(), (std::vector<std::uint64_t>{3}));
+  EXPECT_EQ(settled.of(1), std::vector<Outcome>{kApplied});
+  EXPECT_EQ(settled.of(2), (std::vector<Outcome>{{v1::ACK_STATUS_REFUSED, "bad epoch"}}));
+  EXPECT_EQ(settled.of(3), (std::vector<Outcome>{{v1::ACK_STATUS_LATE, ""}}));
+  EXPECT_EQ(settled.of(4), std::vector<Outcome>{kApplied});
+  EXPECT_EQ(settled.of(5), (std::vector<Outcome>{{v1::ACK_STATUS_REFUSED, "too big"}}));
+  EXPECT_EQ(settled.of(6), std::vector<Outcome>{kApplied});
+}
+
+// --- 3. Sequence numbers never repeat across restarts of the sender.
+
+TEST(ParentLink, SequencesStartAtTheWallClockInMicroseconds) {
+  RecordingIngest service;
+  TestParent parent(service);
+  ASSERT_TRUE(parent.started());
+  ParentLinkConfig config = configFor(parent.target());
+  config.first_sequence.reset();
+  const auto micros = [] {
+    return static_cast<std::uint64_t>(
+        std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
+            .count());
+  };
+  const std::uint64_t before = micros();
+  ParentLink link(config, {});
+  const std::uint64_t after = micros();
+  link.send(mapUpload(1));
+  link.send(mapUpload(2));
+  ASSERT_TRUE(link.flush(10s));
+
+  const auto sequences = service.sequences();
+  ASSERT_EQ(sequences.size(), 2U);
+  EXPECT_GE(sequences[0], before);
+  EXPECT_LE(sequences[0], after);
+  EXPECT_EQ(sequences[1], sequences[0] + 1);
+}
+
+TEST(ParentLink, SequencesDoNotRepeatAcrossRestartsOfTheSender) {
+  RecordingIngest service;
+  TestParent parent(service);
+  ASSERT_TRUE(parent.started());
+  ParentLinkConfig config = configFor(parent.target());
+  config.first_sequence.reset();
+  for (int run = 0; run < 2; ++run) {
+    ParentLink link(config, {});
+    for (std::uint64_t i = 1; i <= 3; ++i) link.send(mapUpload(i));
+    ASSERT_TRUE(link.flush(10s));
+  }
+  const auto sequences = service.sequences();
+  ASSERT_EQ(sequences.size(), 6U);
+  EXPECT_TRUE(std::is_sorted(sequences.begin(), sequences.end()));
+  EXPECT_EQ(std::adjacent_find(sequences.begin(), sequences.end()), sequences.end()) << "a sequence repeated";
+}
+
+TEST(ParentLink, SequencesIncreaseByOneFromFirstSequence) {
+  RecordingIngest service;
+  TestParent parent(service);
+  ASSERT_TRUE(parent.started());
+  ParentLinkConfig config = configFor(parent.target());
+  constexpr std::uint64_t kFirst = 1'700'000'000'000'000;
+  config.first_sequence = kFirst;
+  ParentLink link(config, {});
+  for (std::uint64_t i = 1; i <= 3; ++i) link.send(mapUpload(i));
+  ASSERT_TRUE(link.flush(10s));
+  EXPECT_EQ(service.sequences(), (std::vector<std::uint64_t>{kFirst, kFirst + 1, kFirst + 2}));
+}
+
+// --- 4. Each upload is settled exactly once, outside the link's lock.
+
+TEST(ParentLink, SettledIsCalledOnceWhenAnUploadIsAnsweredTwice) {
+  // 1 to 3 are answered twice (applied, then refused); 4 once, so that once 4 is settled every
+  // earlier answer has been read (answers arrive in order on the stream).
+  RecordingIngest service([](const v1::Upload& u, int /*stream_number*/) {
+    const std::uint64_t s = u.sequence();
+    std::vector<v1::Ack> answers{answerWith(s, v1::ACK_STATUS_APPLIED)};
+    if (s <= 3) answers.push_back(answerWith(s, v1::ACK_STATUS_REFUSED, "seen before"));
+    return answers;
+  });
+  TestParent parent(service);
+  ASSERT_TRUE(parent.started());
+  HookCounts counts;
+  SettledLog settled;
+  ParentLink link(configFor(parent.target()), counts.hooks());
+  for (std::uint64_t i = 1; i <= 4; ++i) link.send(mapUpload(i), settled.callbackFor(i));
+  ASSERT_TRUE(link.flush(10s));
+  for (std::uint64_t i = 1; i <= 4; ++i) EXPECT_EQ(settled.of(i), std::vector<Outcome>{kApplied}) << i;
+  EXPECT_EQ(link.refused(), 0U);
+  EXPECT_TRUE(counts.refusals().empty());
+}
+
+TEST(ParentLink, SettledReportsUploadsAbandonedByTheDestructor) {
+  const int port = closedPort();
+  ASSERT_GT(port, 0);
+  SettledLog settled;
+  {
+    ParentLink link(configFor("127.0.0.1:" + std::to_string(port)), {});
+    for (std::uint64_t i = 1; i <= 3; ++i) link.send(mapUpload(i), settled.callbackFor(i));
+    EXPECT_TRUE(settled.of(1).empty());
+    EXPECT_EQ(link.dropped(), 0U);
+  }
+  for (std::uint64_t i = 1; i <= 3; ++i) EXPECT_EQ(settled.of(i), std::vector<Outcome>{kDroppedOrAbandoned}) << i;
+}
+
+TEST(ParentLink, SettledMayCallBackIntoTheLink) {
+  RecordingIngest service;
+  TestParent parent(service);
+  ASSERT_TRUE(parent.started());
+  ParentLinkConfig config = configFor(parent.target());
+  config.max_unacked_bytes = 500;
+  // Declared before the link, so that they outlive the link's threads.
+  Signal chain_done;
+  std::function<ParentLink::Settled(std::uint64_t)> relay;
+  std::unique_ptr<ParentLink> link;
+  link = std::make_unique<ParentLink>(config, ParentLinkHooks{});
+
+  // On the reader thread: each answered upload sends the next, as a relay would, up to 5.
+  constexpr std::uint64_t kChain = 5;
+  relay = [&](std::uint64_t epoch) -> ParentLink::Settled {
+    return [&, epoch](std::optional<v1::AckStatus> status, const std::string& /*reason*/) {
+      if (!status) return;
+      (void)link->unacknowledged();
+      if (epoch == kChain) {
+        chain_done.set();
+      } else {
+        link->send(mapUpload(epoch + 1), relay(epoch + 1));
+      }
+    };
+  };
+  link->send(mapUpload(1), relay(1));
+  const bool chained = chain_done.wait();
+
+  // In send(): a dropped upload's callback queries the link. Run on a thread of its own so that a
+  // deadlock fails the test instead of hanging it.
+  // (Shared, as the thread may outlive this test when it fails.)
+  auto drop_done = std::make_shared<Signal>();
+  auto seen_dropped = std::make_shared<std::atomic<std::uint64_t>>(0);
+  std::thread([link = link.get(), drop_done, seen_dropped] {
+    link->send(pointsUpload(1), [link, seen_dropped](std::optional<v1::AckStatus> /*status*/,
+                                                     const std::string& /*reason*/) { *seen_dropped = link->dropped(); });
+    drop_done->set();
+  }).detach();
+  const bool dropped_returned = drop_done->wait();
+
+  EXPECT_TRUE(chained);
+  EXPECT_TRUE(dropped_returned);
+  if (!chained || !dropped_returned) {
+    (void)link.release();  // deadlocked: leak it, its destructor would wait forever
+    return;
+  }
+  EXPECT_EQ(seen_dropped->load(), 1U);
+  ASSERT_TRUE(link->flush(10s));
+  EXPECT_EQ(service.sequences(), (std::vector<std::uint64_t>{1, 2, 3, 4, 5}));
+}
+
+TEST(ParentLink, FlushWaitsForSettledCallbacksToReturn) {
+  RecordingIngest service;
+  TestParent parent(service);
+  ASSERT_TRUE(parent.started());
+  Signal entered;  // declared before the link, so they outlive its threads
+  Signal release;
+  std::atomic<bool> returned{false};
+  ParentLink link(configFor(parent.target()), {});
+  link.send(mapUpload(1), [&](std::optional<v1::AckStatus> /*status*/, const std::string& /*reason*/) {
+    entered.set();
+    (void)release.wait();
+    returned = true;
+  });
+  ASSERT_TRUE(entered.wait());
+  EXPECT_EQ(link.unacknowledged(), 0U);  // answered, but its callback has not returned
+  EXPECT_FALSE(link.flush(50ms));
+  release.set();
+  EXPECT_TRUE(link.flush(10s));
+  EXPECT_TRUE(returned.load());
+}
+
+// --- 5. Unchanged behaviour: reconnects, backoff, prompt destruction.
 
 TEST(ParentLink, DestructorReturnsPromptlyWhenParentIsGone) {
   const int port = closedPort();
@@ -298,7 +763,7 @@ TEST(ParentLink, DestructorReturnsPromptlyWhenParentIsGone) {
 }
 
 TEST(ParentLink, DestructorReturnsPromptlyWithOpenStream) {
-  RecordingIngest service([](std::uint64_t) { return false; });
+  RecordingIngest service(applyIf([](std::uint64_t) { return false; }));
   TestParent parent(service);
   ASSERT_TRUE(parent.started());
   auto link = std::make_unique<ParentLink>(configFor(parent.target()), ParentLinkHooks{});

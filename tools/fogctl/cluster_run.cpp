@@ -50,6 +50,7 @@ static void collect(const std::string& target, bool labels, std::uint64_t frames
   auto stub = v1::GlobalMapService::NewStub(channel);
   v1::SubscribeRequest request;
   request.set_include_point_labels(labels);
+  request.set_on_time_only(true);  // the live picture, as geofences see it; revisions would overwrite it
   auto reader = stub->Subscribe(&context, request);
   v1::GlobalMap message;
   while (reader->Read(&message)) {

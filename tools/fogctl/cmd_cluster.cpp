@@ -2,11 +2,13 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <thread>
 #include <vector>
 
+#include "common/admission.hpp"
 #include "common/cloud_io.hpp"
 #include "common/clustering.hpp"
 #include "common/preprocess.hpp"
@@ -33,23 +35,41 @@ Expected<ClusteringParams> clusteringParams(const Args& args) {
   if (!eps) return eps.error();
   const auto min_points = args.getInt("min-points", static_cast<long>(p.min_points));
   if (!min_points) return min_points.error();
-  if (!(*eps > 0.0)) return invalidArgument("--eps must be positive");
-  if (*min_points < 1) return invalidArgument("--min-points must be at least 1");
   const auto threads = args.getInt("threads", static_cast<long>(std::max(1U, std::thread::hardware_concurrency())));
   if (!threads) return threads.error();
   if (*threads < 1 || *threads > 256) return invalidArgument("--threads must be between 1 and 256");
   p.eps_m = *eps;
-  p.min_points = static_cast<std::size_t>(*min_points);
+  // A negative count would wrap to a huge size_t; 0 gets validateClusteringParams' own message.
+  p.min_points = static_cast<std::size_t>(std::max(0L, *min_points));
   p.threads = static_cast<std::size_t>(*threads);
+  if (const Status valid = validateClusteringParams(p); !valid) {
+    return invalidArgument("--eps/--min-points: " + valid.error().message);
+  }
   return p;
 }
 
-Expected<Cloud> loadScan(const Args& args) {
+// Reads --input within --max-scan-bytes; non-finite points are kept in place (they cluster as
+// noise) when `keep_non_finite`, so that the cloud lines up with the file point for point.
+Expected<Cloud> loadScan(const Args& args, bool keep_non_finite) {
   if (!args.has("input")) return invalidArgument("--input SCAN is required");
-  auto loaded = readCloud(args.get("input"));
-  if (!loaded) return loaded.error();
+  const auto max_bytes = args.getInt("max-scan-bytes", static_cast<long>(kDefaultMaxScanBytes));
+  if (!max_bytes || *max_bytes < 1) return invalidArgument("--max-scan-bytes expects a positive number of bytes");
+  const ReadLimits limits{static_cast<std::uintmax_t>(*max_bytes), keep_non_finite};
+  const std::filesystem::path input = args.get("input");
+  auto loaded = readCloud(input, limits);
+  if (!loaded) {
+    std::error_code ec;
+    const auto size = std::filesystem::file_size(input, ec);
+    if (!ec && size > limits.max_bytes) {
+      return Error{loaded.error().code, loaded.error().message + "; raise the bound with --max-scan-bytes"};
+    }
+    return loaded.error();
+  }
   if (loaded->dropped_non_finite > 0) {
     std::cerr << "fogctl: dropped " << loaded->dropped_non_finite << " non-finite points\n";
+  }
+  if (loaded->kept_non_finite > 0) {
+    std::cerr << "fogctl: " << loaded->kept_non_finite << " non-finite points, labelled noise\n";
   }
   if (!args.has("remove-ground")) return std::move(loaded->points);
   auto ground = removeGround(loaded->points, GroundParams{});
@@ -63,11 +83,12 @@ double median(std::vector<double> v) {
 }
 
 int benchClustering(int argc, char** argv) {
-  const auto args = Args::parse(argc, argv, 3, {"input", "eps", "min-points", "repeat", "threads"}, {"remove-ground", "json"});
+  const auto args =
+      Args::parse(argc, argv, 3, {"input", "eps", "min-points", "repeat", "threads", "max-scan-bytes"}, {"remove-ground", "json"});
   if (!args) return fail(args.error());
   const auto params = clusteringParams(*args);
   if (!params) return fail(params.error());
-  const auto cloud = loadScan(*args);
+  const auto cloud = loadScan(*args, false);
   if (!cloud) return fail(cloud.error());
   const auto repeat = args->getInt("repeat", 5);
   if (!repeat || *repeat < 1) return fail(invalidArgument("--repeat expects a positive integer"));
@@ -126,7 +147,8 @@ int benchClustering(int argc, char** argv) {
 }  // namespace
 
 int runCluster(int argc, char** argv) {
-  const auto args = Args::parse(argc, argv, 2, {"input", "eps", "min-points", "labels", "method", "threads"}, {"remove-ground"});
+  const auto args =
+      Args::parse(argc, argv, 2, {"input", "eps", "min-points", "labels", "method", "threads", "max-scan-bytes"}, {"remove-ground"});
   if (!args) return fail(args.error());
   const auto params = clusteringParams(*args);
   if (!params) return fail(params.error());
@@ -137,7 +159,7 @@ int runCluster(int argc, char** argv) {
   } else if (method_name != "fogmap") {
     return fail(invalidArgument("--method must be fogmap or pcl, got '" + method_name + "'"));
   }
-  const auto cloud = loadScan(*args);
+  const auto cloud = loadScan(*args, true);
   if (!cloud) return fail(cloud.error());
   const auto start = Clock::now();
   const Clustering clustering = clusterPoints(*cloud, *params, method);
@@ -154,7 +176,8 @@ int runCluster(int argc, char** argv) {
 
 int runBench(int argc, char** argv) {
   if (argc < 3 || std::string(argv[2]) != "clustering") {
-    std::cerr << "usage: fogctl bench clustering --input SCAN [--eps 0.35 --min-points 10] [--remove-ground] [--json]\n";
+    std::cerr << "usage: fogctl bench clustering --input SCAN [--eps 0.35 --min-points 10] [--remove-ground] [--json]"
+                 " [--max-scan-bytes N]\n";
     return 2;
   }
   return benchClustering(argc, argv);

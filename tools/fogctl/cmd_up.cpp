@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <atomic>
+#include <condition_variable>
+#include <mutex>
 #include <cmath>
 #include <set>
 #include <cstdlib>
@@ -34,7 +36,29 @@ int fail(const Error& e) {
   return e.code == ErrorCode::kInvalidArgument ? 2 : 1;
 }
 
-std::filesystem::path defaultStateDir(const TopologyConfig& t) { return std::filesystem::path(".fogmap") / t.name; }
+// State directories are absolute, so that up and down find the same one from any working
+// directory: --state is taken relative to where fogctl runs, the default (.fogmap/NAME) relative
+// to the topology file.
+std::filesystem::path absoluteDir(const std::filesystem::path& dir) {
+  std::error_code ec;
+  const auto absolute = std::filesystem::weakly_canonical(std::filesystem::absolute(dir), ec);
+  return ec ? std::filesystem::absolute(dir).lexically_normal() : absolute;
+}
+
+std::filesystem::path stateDir(const Args& args, const std::filesystem::path& topology_file, const TopologyConfig& t) {
+  if (args.has("state")) return absoluteDir(args.get("state"));
+  return absoluteDir(std::filesystem::absolute(topology_file).parent_path() / ".fogmap" / t.name);
+}
+
+// A word the shell reads back unchanged: as is when it is plain, else in single quotes.
+std::string shellWord(const std::string& word) {
+  const bool plain = !word.empty() && word.find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz"
+                                                             "0123456789_./:=@%+,-") == std::string::npos;
+  if (plain) return word;
+  std::string quoted = "'";
+  for (const char c : word) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return quoted + "'";
+}
 
 // The root aggregator's address: --target HOST:PORT, or the root of the topology file given.
 Expected<std::string> rootTarget(const Args& args, const std::string& usage) {
@@ -73,7 +97,7 @@ int runUp(int argc, char** argv) {
   if (!topology) return fail(topology.error());
   const auto timeout_s = args->getDouble("timeout-s", 30.0);
   if (!timeout_s) return fail(timeout_s.error());
-  const std::filesystem::path state = args->has("state") ? std::filesystem::path(args->get("state")) : defaultStateDir(*topology);
+  const std::filesystem::path state = stateDir(*args, file, *topology);
   installStopHandlers();
   auto cluster = startCluster(file, *topology, state, std::chrono::milliseconds(static_cast<long>(*timeout_s * 1000)));
   if (!cluster) return fail(cluster.error());
@@ -86,7 +110,7 @@ int runUp(int argc, char** argv) {
   std::printf("cluster '%s' is up (%zu services, mode %s); logs in %s\n", topology->name.c_str(), topology->nodes.size(),
               modeName(topology->mode), (state / "logs").c_str());
   if (args->has("detach")) {
-    std::printf("stop it with: fogctl down %s\n", file.c_str());
+    std::printf("stop it with: fogctl down --state %s\n", shellWord(state.string()).c_str());
     return 0;
   }
   std::printf("Ctrl-C stops the cluster\n");
@@ -102,17 +126,24 @@ int runDown(int argc, char** argv) {
   if (!args) return fail(args.error());
   std::filesystem::path state;
   if (args->has("state")) {
-    state = args->get("state");
+    state = absoluteDir(args->get("state"));
   } else if (args->positional().size() == 1) {
     const auto topology = loadTopology(args->positional()[0]);
     if (!topology) return fail(topology.error());
-    state = defaultStateDir(*topology);
+    state = stateDir(*args, args->positional()[0], *topology);
   } else {
     return fail(invalidArgument("usage: fogctl down TOPOLOGY.yaml | --state DIR"));
   }
-  const Status s = stopRecorded(state, std::chrono::milliseconds(5000));
-  if (!s) return fail(s.error());
-  std::printf("stopped the cluster recorded in %s\n", state.c_str());
+  const auto report = stopRecorded(state, std::chrono::milliseconds(5000));
+  if (!report) return fail(report.error());
+  for (const auto& n : report->gone) {
+    std::fprintf(stderr, "fogctl: pid %d (%s) has already exited\n", static_cast<int>(n.pid), n.name.c_str());
+  }
+  for (const auto& n : report->replaced) {
+    std::fprintf(stderr, "fogctl: pid %d (%s) is no longer the service fogctl started; left alone\n", static_cast<int>(n.pid),
+                 n.name.c_str());
+  }
+  std::printf("stopped %zu service(s) of the cluster recorded in %s\n", report->stopped.size(), state.c_str());
   return 0;
 }
 
@@ -189,66 +220,152 @@ int runSplit(int argc, char** argv) {
   return 0;
 }
 
+namespace {
+
+// How long watch waits for the root to accept a connection.
+constexpr std::chrono::seconds kConnectTimeout{5};
+
+// Connects the channel within kConnectTimeout: an empty string, or why not.
+std::string connect(grpc::Channel& channel) {
+  const auto deadline = std::chrono::steady_clock::now() + kConnectTimeout;
+  auto state = channel.GetState(true);
+  while (state != GRPC_CHANNEL_READY) {
+    if (state == GRPC_CHANNEL_TRANSIENT_FAILURE || state == GRPC_CHANNEL_SHUTDOWN) return "the connection failed";
+    if (stopRequested()) return "interrupted";
+    const auto now = std::chrono::steady_clock::now();
+    if (now >= deadline) return "no connection within " + std::to_string(kConnectTimeout.count()) + " s";
+    // In slices, so that Ctrl-C is seen.
+    const auto slice = std::min<std::chrono::steady_clock::duration>(deadline - now, std::chrono::milliseconds(100));
+    channel.WaitForStateChange(state, std::chrono::system_clock::now() + slice);
+    state = channel.GetState(true);
+  }
+  return {};
+}
+
+void printGlobalMap(const v1::GlobalMap& message, long shown) {
+  auto global = fromProto(message);
+  if (!global) {
+    std::fprintf(stderr, "fogctl: malformed global map: %s\n", global.error().message.c_str());
+    return;
+  }
+  const auto& h = global->header;
+  const double e2e_ms = static_cast<double>(global->published_time_ns - h.sensor_time_ns) / 1e6;
+  std::string contributing;
+  for (const auto n : h.contributing_nodes) contributing += std::to_string(n) + " ";
+  std::string missing;
+  for (const auto n : h.missing_nodes) missing += std::to_string(n) + " ";
+  std::printf("epoch %lu  objects %zu  ellipsoids %zu  merge %.3f ms  e2e %.1f ms  nodes [ %s]  missing [ %s]\n",
+              static_cast<unsigned long>(h.epoch), global->map.objects.size(), global->map.ellipsoidCount(),
+              global->merge_seconds * 1e3, e2e_ms, contributing.c_str(), missing.c_str());
+  // The largest objects first: position (box centre) and size (box extent) in metres.
+  std::vector<const MapObject*> objects;
+  for (const auto& o : global->map.objects) objects.push_back(&o);
+  std::sort(objects.begin(), objects.end(), [](const MapObject* a, const MapObject* b) {
+    return (a->box.max - a->box.min).prod() > (b->box.max - b->box.min).prod();
+  });
+  for (long k = 0; k < std::min<long>(shown, static_cast<long>(objects.size())); ++k) {
+    const auto& o = *objects[static_cast<std::size_t>(k)];
+    const Eigen::Vector3d c = 0.5 * (o.box.min + o.box.max);
+    const Eigen::Vector3d s = o.box.max - o.box.min;
+    std::set<std::uint32_t> nodes;
+    for (const auto& e : o.ellipsoids) nodes.insert(e.node());
+    std::string from;
+    for (const auto n : nodes) from += std::to_string(n) + " ";
+    std::printf("  object at (%7.2f, %7.2f, %5.2f) m  size %5.2f x %5.2f x %4.2f m  %zu ellipsoids from nodes [ %s]\n",
+                c.x(), c.y(), c.z(), s.x(), s.y(), s.z(), o.ellipsoids.size(), from.c_str());
+  }
+  std::fflush(stdout);
+}
+
+}  // namespace
+
 int runWatch(int argc, char** argv) {
-  const auto args = Args::parse(argc, argv, 2, {"target", "count", "objects"}, {});
+  const auto args = Args::parse(argc, argv, 2, {"target", "count", "objects", "idle-s", "timeout-s"}, {});
   if (!args) return fail(args.error());
-  const auto target_or = rootTarget(*args, "fogctl watch TOPOLOGY.yaml | --target HOST:PORT [--count N] [--objects 10]");
+  const auto target_or =
+      rootTarget(*args, "fogctl watch TOPOLOGY.yaml | --target HOST:PORT [--count N] [--objects 10] [--idle-s 10] [--timeout-s 0]");
   if (!target_or) return fail(target_or.error());
   const std::string target = *target_or;
   const auto count = args->getInt("count", 0);
   const auto shown = args->getInt("objects", 10);
   if (!count || *count < 0 || !shown || *shown < 0) return fail(invalidArgument("--count and --objects must be non-negative"));
+  const auto idle_s = args->getDouble("idle-s", 10.0);
+  if (!idle_s || !(*idle_s > 0.0)) return fail(invalidArgument("--idle-s must be a positive number of seconds"));
+  const auto timeout_s = args->getDouble("timeout-s", 0.0);
+  if (!timeout_s || *timeout_s < 0.0) return fail(invalidArgument("--timeout-s must be a non-negative number of seconds"));
   installStopHandlers();
   auto channel = makeChannel(target, 64U << 20);
+  if (const std::string problem = connect(*channel); !problem.empty()) {
+    if (stopRequested()) return 0;
+    std::fprintf(stderr, "fogctl: cannot reach the root at %s: %s (is the cluster up?)\n", target.c_str(), problem.c_str());
+    return 1;
+  }
   auto stub = v1::GlobalMapService::NewStub(channel);
   grpc::ClientContext context;
   v1::SubscribeRequest request;
   auto reader = stub->Subscribe(&context, request);
-  std::thread canceller([&] {
-    while (!stopRequested()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+
+  // The watchdog ends the stream on Ctrl-C or after --timeout-s without a map, and says so after
+  // every --idle-s without one: a silent root is reported, never waited on silently.
+  using Clock = std::chrono::steady_clock;
+  const auto seconds = [](double s) { return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s)); };
+  std::atomic<long> received{0};
+  std::atomic<bool> gave_up{false};
+  std::mutex mutex;
+  std::condition_variable finished_cv;
+  bool finished = false;
+  std::thread watchdog([&] {
+    long seen = 0;
+    long idle_periods = 0;
+    auto quiet_since = Clock::now();
+    std::unique_lock<std::mutex> lock(mutex);
+    while (!finished_cv.wait_for(lock, std::chrono::milliseconds(50), [&] { return finished; })) {
+      if (stopRequested()) break;
+      const auto now = Clock::now();
+      if (received.load() != seen) {
+        seen = received.load();
+        idle_periods = 0;
+        quiet_since = now;
+        continue;
+      }
+      if (*timeout_s > 0.0 && now - quiet_since >= seconds(*timeout_s)) {
+        gave_up = true;
+        break;
+      }
+      if (now - quiet_since >= seconds(*idle_s * static_cast<double>(idle_periods + 1))) {
+        ++idle_periods;
+        std::fprintf(stderr, "fogctl: no global map from the root at %s for %g s\n", target.c_str(),
+                     *idle_s * static_cast<double>(idle_periods));
+      }
+    }
     context.TryCancel();
   });
+
   v1::GlobalMap message;
-  long received = 0;
+  bool counted_out = false;
   while (reader->Read(&message)) {
-    auto global = fromProto(message);
-    if (!global) {
-      std::fprintf(stderr, "fogctl: malformed global map: %s\n", global.error().message.c_str());
-      continue;
+    printGlobalMap(message, *shown);
+    ++received;
+    if (*count > 0 && received.load() >= *count) {
+      counted_out = true;
+      break;
     }
-    const auto& h = global->header;
-    const double e2e_ms = static_cast<double>(global->published_time_ns - h.sensor_time_ns) / 1e6;
-    std::string contributing;
-    for (const auto n : h.contributing_nodes) contributing += std::to_string(n) + " ";
-    std::string missing;
-    for (const auto n : h.missing_nodes) missing += std::to_string(n) + " ";
-    std::printf("epoch %lu  objects %zu  ellipsoids %zu  merge %.3f ms  e2e %.1f ms  nodes [ %s]  missing [ %s]\n",
-                static_cast<unsigned long>(h.epoch), global->map.objects.size(), global->map.ellipsoidCount(),
-                global->merge_seconds * 1e3, e2e_ms, contributing.c_str(), missing.c_str());
-    // The largest objects first: position (box centre) and size (box extent) in metres.
-    std::vector<const MapObject*> objects;
-    for (const auto& o : global->map.objects) objects.push_back(&o);
-    std::sort(objects.begin(), objects.end(), [](const MapObject* a, const MapObject* b) {
-      return (a->box.max - a->box.min).prod() > (b->box.max - b->box.min).prod();
-    });
-    for (long k = 0; k < std::min<long>(*shown, static_cast<long>(objects.size())); ++k) {
-      const auto& o = *objects[static_cast<std::size_t>(k)];
-      const Eigen::Vector3d c = 0.5 * (o.box.min + o.box.max);
-      const Eigen::Vector3d s = o.box.max - o.box.min;
-      std::set<std::uint32_t> nodes;
-      for (const auto& e : o.ellipsoids) nodes.insert(e.node());
-      std::string from;
-      for (const auto n : nodes) from += std::to_string(n) + " ";
-      std::printf("  object at (%7.2f, %7.2f, %5.2f) m  size %5.2f x %5.2f x %4.2f m  %zu ellipsoids from nodes [ %s]\n",
-                  c.x(), c.y(), c.z(), s.x(), s.y(), s.z(), o.ellipsoids.size(), from.c_str());
-    }
-    std::fflush(stdout);
-    if (*count > 0 && ++received >= *count) break;
   }
-  context.TryCancel();
-  requestStop();
-  canceller.join();
-  return 0;
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    finished = true;
+  }
+  finished_cv.notify_all();
+  watchdog.join();
+  const grpc::Status status = reader->Finish();
+  if (counted_out || stopRequested()) return 0;
+  if (gave_up) {
+    std::fprintf(stderr, "fogctl: no global map from the root at %s for %g s; giving up\n", target.c_str(), *timeout_s);
+    return 1;
+  }
+  const std::string why = status.ok() ? "it ended the stream" : status.error_message();
+  std::fprintf(stderr, "fogctl: lost the root at %s: %s\n", target.c_str(), why.empty() ? "the stream failed" : why.c_str());
+  return 1;
 }
 
 int runGeofence(int argc, char** argv) {

@@ -11,6 +11,9 @@
 
 #include <atomic>
 #include <fstream>
+#include <iterator>
+#include <optional>
+#include <sstream>
 #include <thread>
 
 namespace fogmap::cli {
@@ -62,6 +65,57 @@ Expected<pid_t> spawn(const std::filesystem::path& binary, const std::vector<std
   }
   ::close(fd);
   return pid;
+}
+
+}  // namespace
+
+namespace {
+
+// Field 22 of /proc/PID/stat, the start time in clock ticks after boot; nullopt when there is no
+// such process. The command name (field 2) may hold spaces and parentheses: fields after the
+// last ')' are counted.
+std::optional<std::uint64_t> startTicks(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  if (!in) return std::nullopt;
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto paren = text.rfind(')');
+  if (paren == std::string::npos) return std::nullopt;
+  std::istringstream fields(text.substr(paren + 1));
+  std::string field;
+  for (int k = 3; k < 22; ++k) {
+    if (!(fields >> field)) return std::nullopt;
+  }
+  std::uint64_t ticks = 0;
+  if (!(fields >> ticks)) return std::nullopt;
+  return ticks;
+}
+
+// The process's arguments, as the services were given them.
+std::vector<std::string> commandLine(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/cmdline");
+  std::vector<std::string> args;
+  std::string arg;
+  while (std::getline(in, arg, '\0')) args.push_back(arg);
+  return args;
+}
+
+// Still the process fogctl started for `node`: the start time recorded (when there is one) and a
+// command line that runs that node.
+bool isStartedService(const RunningNode& node) {
+  const auto ticks = startTicks(node.pid);
+  if (!ticks || (node.start_ticks != 0 && *ticks != node.start_ticks)) return false;
+  const auto args = commandLine(node.pid);
+  for (std::size_t i = 0; i + 1 < args.size(); ++i) {
+    if (args[i] == "--node" && args[i + 1] == node.name) return true;
+  }
+  return false;
+}
+
+// The pid still names the process that was started (before signalling it again).
+bool sameProcess(const RunningNode& node) {
+  if (node.start_ticks == 0) return true;
+  const auto ticks = startTicks(node.pid);
+  return ticks && *ticks == node.start_ticks;
 }
 
 }  // namespace
@@ -149,8 +203,9 @@ Expected<Cluster> startCluster(const std::filesystem::path& topology_file, const
       stopCluster(cluster, std::chrono::milliseconds(2000));
       return pid.error();
     }
-    cluster.nodes.push_back({n->name, *pid, log});
-    pids << *pid << ' ' << n->name << '\n';
+    // The child's start time is fixed at fork, so reading it now is reading the service's.
+    cluster.nodes.push_back({n->name, *pid, log, startTicks(*pid).value_or(0)});
+    pids << *pid << ' ' << n->name << ' ' << cluster.nodes.back().start_ticks << '\n';
   }
   pids.close();
   // Ready = every service answers on /metrics (servers listen before metrics start).
@@ -176,14 +231,14 @@ Expected<Cluster> startCluster(const std::filesystem::path& topology_file, const
 void stopCluster(const Cluster& cluster, std::chrono::milliseconds grace) {
   // Edges first (they flush to their parents), then aggregators from the leaves up.
   for (auto it = cluster.nodes.rbegin(); it != cluster.nodes.rend(); ++it) {
-    if (it->pid > 0) ::kill(it->pid, SIGTERM);
+    if (it->pid > 0 && sameProcess(*it)) ::kill(it->pid, SIGTERM);
   }
   const auto deadline = std::chrono::steady_clock::now() + grace;
   for (const auto& n : cluster.nodes) {
     while (n.pid > 0 && running(n.pid) && std::chrono::steady_clock::now() < deadline) {
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
-    if (n.pid > 0 && running(n.pid)) {
+    if (n.pid > 0 && running(n.pid) && sameProcess(n)) {
       ::kill(n.pid, SIGKILL);
       ::waitpid(n.pid, nullptr, 0);
     }
@@ -192,16 +247,33 @@ void stopCluster(const Cluster& cluster, std::chrono::milliseconds grace) {
   std::filesystem::remove(cluster.state_dir / "pids", ec);
 }
 
-Status stopRecorded(const std::filesystem::path& state_dir, std::chrono::milliseconds grace) {
-  std::ifstream in(state_dir / "pids");
-  if (!in) return notFound("no running cluster recorded in " + (state_dir / "pids").string());
+Expected<StopReport> stopRecorded(const std::filesystem::path& state_dir, std::chrono::milliseconds grace) {
+  const auto file = state_dir / "pids";
+  std::ifstream in(file);
+  if (!in) return notFound("no running cluster recorded in " + file.string());
+  StopReport report;
   Cluster cluster;
   cluster.state_dir = state_dir;
-  pid_t pid = 0;
-  std::string name;
-  while (in >> pid >> name) cluster.nodes.push_back({name, pid, {}});
+  std::string line;
+  for (int number = 1; std::getline(in, line); ++number) {
+    if (line.empty()) continue;
+    std::istringstream fields(line);
+    RunningNode node;
+    if (!(fields >> node.pid >> node.name) || node.pid <= 0) {
+      return invalidArgument(file.string() + ":" + std::to_string(number) + ": not 'PID NODE [START_TICKS]'");
+    }
+    fields >> node.start_ticks;  // absent in records of an older fogctl: the command line decides
+    if (!startTicks(node.pid)) {
+      report.gone.push_back(node);
+    } else if (!isStartedService(node)) {
+      report.replaced.push_back(node);
+    } else {
+      report.stopped.push_back(node);
+      cluster.nodes.push_back(node);
+    }
+  }
   stopCluster(cluster, grace);
-  return {};
+  return report;
 }
 
 bool allRunning(const Cluster& cluster) {

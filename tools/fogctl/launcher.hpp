@@ -1,6 +1,7 @@
 #pragma once
 // Starts and stops the services of a topology as local processes.
 #include <chrono>
+#include <cstdint>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -16,6 +17,9 @@ struct RunningNode {
   std::string name;
   pid_t pid = -1;
   std::filesystem::path log;
+  // The process's start time (/proc/PID/stat, clock ticks after boot): with the pid, it names the
+  // process even after the pid is reused. 0 when unknown (records of an older fogctl).
+  std::uint64_t start_ticks = 0;
 };
 
 struct Cluster {
@@ -33,14 +37,20 @@ void requestStop();
 std::filesystem::path binaryDir();
 
 // Starts every node of the topology (aggregators first), logs under state_dir/logs, records the
-// pids in state_dir/pids, and waits until every /metrics endpoint answers (bounded by timeout).
+// pids (with their start times) in state_dir/pids, and waits until every /metrics endpoint answers (bounded by timeout).
 // On failure everything started is stopped again.
 Expected<Cluster> startCluster(const std::filesystem::path& topology_file, const TopologyConfig& topology,
                                const std::filesystem::path& state_dir, std::chrono::milliseconds timeout);
 // SIGTERM, then SIGKILL after the grace period; reaps the children.
 void stopCluster(const Cluster& cluster, std::chrono::milliseconds grace);
-// Stops the processes recorded in state_dir/pids by another fogctl invocation.
-Status stopRecorded(const std::filesystem::path& state_dir, std::chrono::milliseconds grace);
+struct StopReport {
+  std::vector<RunningNode> stopped;
+  std::vector<RunningNode> gone;      // no process with the pid any more
+  std::vector<RunningNode> replaced;  // the pid now names another process: left alone
+};
+// Stops the processes recorded in state_dir/pids by another fogctl invocation; only those that are
+// still the services started (same start time, command line naming the node) are signalled.
+Expected<StopReport> stopRecorded(const std::filesystem::path& state_dir, std::chrono::milliseconds grace);
 // True while the process runs (reaps it when it has exited).
 bool isRunning(pid_t pid);
 // True when every process of the cluster is still running.

@@ -1,44 +1,149 @@
 // fogctl: the command-line front of fogmap.
+#include <cstdio>
 #include <cstring>
-#include <iostream>
 #include <string>
+#include <vector>
 
+#include "common/cloud_io.hpp"
 #include "tools/fogctl/commands.hpp"
 
 namespace {
 
-void usage() {
-  std::cerr << "usage: fogctl <command> [flags]\n"
-               "  cluster --input SCAN [--eps 0.35] [--min-points 10] [--labels OUT.txt] [--method fogmap|pcl] [--remove-ground] [--threads N]\n"
-               "  bench clustering --input SCAN [--eps 0.35] [--min-points 10] [--remove-ground] [--repeat 5] [--threads N] [--json]\n"
-               "  demo [--input DIR] [--nodes 4] [--topology star|tree] [--frames 20] [--report FILE] [--png FILE] [--alpha 1.5]\n"
-               "  up TOPOLOGY.yaml [--detach] [--state DIR]       start every service as a local process\n"
-               "  down TOPOLOGY.yaml | --state DIR                stop a detached cluster\n"
-               "  watch TOPOLOGY.yaml | --target HOST:PORT [--count N] [--objects 10]   print the live global map\n"
-               "  geofence set TOPOLOGY.yaml | --target HOST:PORT --name NAME --box XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX\n"
-               "  geofence query TOPOLOGY.yaml | --target HOST:PORT [--name NAME]   objects of the global map in the geofences\n"
-               "  topology star|tree --edges K --source DIR [--base-port P] [--mode madc|baseline|ext] [--frames N] [--out FILE]\n"
-               "  split --input SCAN --views K [--overlap-deg 10] --out DIR   cut a scan into virtual LiDARs\n";
+struct Command {
+  std::string name;
+  std::string synopsis;  // its line in `fogctl --help`
+  std::string usage;     // `fogctl NAME --help`
+  int (*run)(int, char**);
+};
+
+const std::vector<Command>& commands() {
+  static const std::vector<Command> all = {
+      {"cluster",
+       "--input SCAN [--eps 0.35] [--min-points 10] [--labels OUT.txt] [--method fogmap|pcl] [--remove-ground] [--threads N]",
+       "usage: fogctl cluster --input SCAN [--eps 0.35] [--min-points 10] [--labels OUT.txt] [--method fogmap|pcl]\n"
+       "                      [--remove-ground] [--threads N] [--max-scan-bytes N]\n"
+       "Clusters one scan (KITTI .bin, nuScenes .pcd.bin, PCD) and prints the number of clusters.\n"
+       "  --eps M              clustering radius in metres, 0.001 to 100 (default 0.35)\n"
+       "  --min-points N       smallest cluster, in points (default 10)\n"
+       "  --labels FILE        one label per point of the file, in its order: the cluster, -1 for noise\n"
+       "                       (non-finite points are noise); with --remove-ground, per non-ground point\n"
+       "  --method fogmap|pcl  fogmap's grid clustering or PCL's, the reference (default fogmap)\n"
+       "  --remove-ground      remove the ground before clustering\n"
+       "  --threads N          threads for the neighbour search (default: one per core)\n"
+       "  --max-scan-bytes N   refuse larger files unread (default " + std::to_string(fogmap::kDefaultMaxScanBytes) + ")\n",
+       fogmap::cli::runCluster},
+      {"bench",
+       "clustering --input SCAN [--eps 0.35] [--min-points 10] [--remove-ground] [--repeat 5] [--threads N] [--json]",
+       "usage: fogctl bench clustering --input SCAN [--eps 0.35] [--min-points 10] [--remove-ground] [--repeat 5]\n"
+       "                               [--threads N] [--json] [--max-scan-bytes N]\n"
+       "Times fogmap's clustering against PCL's on one scan (median of --repeat runs) and checks that\n"
+       "both give the same partition; exits 1 when they do not.\n",
+       fogmap::cli::runBench},
+      {"demo",
+       "[--input DIR] [--nodes 4] [--topology star|tree] [--frames 20] [--report FILE] [--png FILE] [--alpha 1.5]",
+       "usage: fogctl demo [--input DIR] [--nodes 4] [--topology star|tree] [--frames 20] [--report FILE] [--png FILE]\n"
+       "                   [--alpha 1.5] [--base-port 46000] [--state DIR]\n"
+       "Runs a local MAD-C cluster and the baseline over the same frames and compares them: bytes,\n"
+       "latency, Rand index; writes a JSON report and a bird's-eye PNG (under --state, default .fogmap/demo).\n",
+       fogmap::cli::runDemo},
+      {"up",
+       "TOPOLOGY.yaml [--detach] [--state DIR]       start every service as a local process",
+       "usage: fogctl up TOPOLOGY.yaml [--detach] [--state DIR] [--timeout-s 30]\n"
+       "Starts every service of the topology as a local process and waits until each serves /metrics.\n"
+       "  --detach       leave the cluster running and print the command that stops it\n"
+       "  --state DIR    where the pids and logs go (default: .fogmap/NAME next to the topology file)\n"
+       "  --timeout-s S  how long the services may take to start (default 30)\n",
+       fogmap::cli::runUp},
+      {"down",
+       "TOPOLOGY.yaml | --state DIR                stop a detached cluster",
+       "usage: fogctl down TOPOLOGY.yaml | --state DIR\n"
+       "Stops a cluster started by fogctl up --detach. Only processes that are still the services fogctl\n"
+       "started are signalled; records of processes that are gone or were replaced are reported and left alone.\n",
+       fogmap::cli::runDown},
+      {"watch",
+       "TOPOLOGY.yaml | --target HOST:PORT [--count N] [--objects 10]   print the live global map",
+       "usage: fogctl watch TOPOLOGY.yaml | --target HOST:PORT [--count N] [--objects 10] [--idle-s 10] [--timeout-s 0]\n"
+       "Prints the root aggregator's global maps as they come. Exits 1 when the root cannot be reached\n"
+       "within 5 s, when it goes away, or after --timeout-s without a map.\n"
+       "  --count N      stop after N maps (default 0: until Ctrl-C)\n"
+       "  --objects N    objects listed per map, the largest first (default 10)\n"
+       "  --idle-s S     say so after every S seconds without a global map (default 10)\n"
+       "  --timeout-s S  give up after S seconds without a global map (default 0: never)\n",
+       fogmap::cli::runWatch},
+      {"geofence",
+       "set|query TOPOLOGY.yaml | --target HOST:PORT [--name NAME] [--box XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX]",
+       "usage: fogctl geofence set TOPOLOGY.yaml | --target HOST:PORT --name NAME --box XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX\n"
+       "       fogctl geofence query TOPOLOGY.yaml | --target HOST:PORT [--name NAME]\n"
+       "set: defines (or replaces) a box geofence on the root aggregator.\n"
+       "query: the objects of the latest global map inside or crossing the geofences (or the one named).\n",
+       fogmap::cli::runGeofence},
+      {"topology",
+       "star|tree --edges K --source DIR [--base-port P] [--mode madc|baseline|ext] [--frames N] [--out FILE]",
+       "usage: fogctl topology star|tree --edges K --source DIR [--base-port 50000] [--mode madc|baseline|ext]\n"
+       "                       [--frames N] [--out FILE]\n"
+       "Writes a topology file: K virtual LiDARs cut from the scans in DIR, under one sink (star) or a\n"
+       "tree of aggregators; to stdout unless --out.\n",
+       fogmap::cli::runTopology},
+      {"split",
+       "--input SCAN --views K [--overlap-deg 10] --out DIR   cut a scan into virtual LiDARs",
+       "usage: fogctl split --input SCAN --views K [--overlap-deg 10] --out DIR\n"
+       "Cuts a scan into K overlapping sectors, one KITTI .bin per virtual LiDAR, and prints their poses.\n",
+       fogmap::cli::runSplit},
+  };
+  return all;
+}
+
+void usage(std::FILE* to) {
+  std::fprintf(to, "usage: fogctl <command> [flags]\n");
+  for (const auto& c : commands()) std::fprintf(to, "  %s %s\n", c.name.c_str(), c.synopsis.c_str());
+  std::fprintf(to, "fogctl <command> --help (or fogctl help <command>) describes a command's flags.\n");
+}
+
+const Command* find(const std::string& name) {
+  for (const auto& c : commands()) {
+    if (c.name == name) return &c;
+  }
+  return nullptr;
+}
+
+bool asksForHelp(int argc, char** argv) {
+  for (int i = 2; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--help") == 0 || std::strcmp(argv[i], "-h") == 0) return true;
+  }
+  return false;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 2 || std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "help") == 0) {
-    usage();
-    return argc < 2 ? 2 : 0;
+  if (argc < 2) {
+    usage(stderr);
+    return 2;
   }
-  const std::string command = argv[1];
-  if (command == "cluster") return fogmap::cli::runCluster(argc, argv);
-  if (command == "bench") return fogmap::cli::runBench(argc, argv);
-  if (command == "up") return fogmap::cli::runUp(argc, argv);
-  if (command == "down") return fogmap::cli::runDown(argc, argv);
-  if (command == "topology") return fogmap::cli::runTopology(argc, argv);
-  if (command == "split") return fogmap::cli::runSplit(argc, argv);
-  if (command == "watch") return fogmap::cli::runWatch(argc, argv);
-  if (command == "geofence") return fogmap::cli::runGeofence(argc, argv);
-  if (command == "demo") return fogmap::cli::runDemo(argc, argv);
-  std::cerr << "fogctl: unknown command '" << command << "'\n";
-  usage();
-  return 2;
+  const std::string first = argv[1];
+  if (first == "--help" || first == "-h" || first == "help") {
+    if (first == "help" && argc > 2) {
+      const Command* c = find(argv[2]);
+      if (c == nullptr) {
+        std::fprintf(stderr, "fogctl: unknown command '%s'\n", argv[2]);
+        usage(stderr);
+        return 2;
+      }
+      std::fputs(c->usage.c_str(), stdout);
+      return 0;
+    }
+    usage(stdout);
+    return 0;
+  }
+  const Command* command = find(first);
+  if (command == nullptr) {
+    std::fprintf(stderr, "fogctl: unknown command '%s'\n", first.c_str());
+    usage(stderr);
+    return 2;
+  }
+  if (asksForHelp(argc, argv)) {
+    std::fputs(command->usage.c_str(), stdout);
+    return 0;
+  }
+  return command->run(argc, argv);
 }

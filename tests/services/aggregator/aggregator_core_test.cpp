@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <limits>
+#include <map>
 #include <random>
 #include <set>
 
@@ -15,14 +17,25 @@ namespace fogmap {
 namespace {
 
 constexpr std::int64_t kMs = 1'000'000;
+constexpr std::int64_t kPeriodNs = 100 * kMs;  // the cluster period of every test
 constexpr std::int64_t kT0 = 1'700'000'000'000'000'000;  // an arbitrary unix time in ns
+constexpr std::uint64_t kE0 = kT0 / kPeriodNs;           // the epoch holding kT0
 constexpr std::uint32_t kRoot = 100;
+constexpr std::size_t kWireBytes = 1000;  // the serialised size the tests claim for an upload
+
+// Epoch k of the tests, and a time `offset_ms` after its start (its deadline at one level is
+// offset 80).
+std::uint64_t E(std::int64_t k) { return static_cast<std::uint64_t>(static_cast<std::int64_t>(kE0) + k); }
+std::int64_t at(std::int64_t k, double offset_ms) {
+  return static_cast<std::int64_t>(E(k)) * kPeriodNs + static_cast<std::int64_t>(offset_ms * kMs);
+}
 
 AggregatorConfig starConfig(std::vector<std::uint32_t> edges, Mode mode = Mode::kMadc, bool is_root = true) {
   AggregatorConfig config;
   config.node = kRoot;
   config.mode = mode;
   config.is_root = is_root;
+  config.period_ms = 100.0;
   config.deadline_ms = 80.0;
   for (const auto edge : edges) config.children.push_back({edge, {edge}});
   return config;
@@ -77,36 +90,71 @@ MapMessage mapMessage(std::uint32_t node, std::uint64_t epoch, Map map, std::int
   return message;
 }
 
-Arrival accept(MergeAggregator& aggregator, const MapMessage& message, std::int64_t now_ns) {
-  const auto arrival = aggregator.onMap(message, now_ns);
-  EXPECT_TRUE(arrival.ok()) << (arrival.ok() ? "" : arrival.error().message);
-  return arrival.ok() ? *arrival : Arrival::kAccepted;
+// Numbers every child's uploads as its stream would: one sequence after the other, and a
+// fingerprint that differs for different uploads (a re-send reuses its key).
+class Streams {
+ public:
+  UploadKey next(std::uint32_t child) {
+    const std::uint64_t sequence = ++sequences_[child];
+    return {sequence, sequence * 7919 + child};
+  }
+
+ private:
+  std::map<std::uint32_t, std::uint64_t> sequences_;
+};
+
+Outcome send(MergeAggregator& aggregator, Streams& streams, std::uint32_t child, const MapMessage& message,
+             std::int64_t now_ns) {
+  return aggregator.onMap(child, streams.next(child), message, kWireBytes, now_ns);
+}
+
+// Sends a map on its own node's stream and expects it admitted with `expected`.
+void accept(MergeAggregator& aggregator, Streams& streams, const MapMessage& message, std::int64_t now_ns,
+            Arrival expected = Arrival::kAccepted) {
+  const Outcome outcome = send(aggregator, streams, message.header.node, message, now_ns);
+  ASSERT_TRUE(outcome.ok()) << outcome.refused->message;
+  EXPECT_EQ(outcome.arrival, expected);
+}
+
+// Sends a map and expects it refused for `reason`.
+void expectRefused(MergeAggregator& aggregator, Streams& streams, std::uint32_t child, const MapMessage& message,
+                   std::int64_t now_ns, Refusal reason) {
+  const Outcome outcome = send(aggregator, streams, child, message, now_ns);
+  ASSERT_FALSE(outcome.ok()) << "admitted, expected refused as " << refusalName(reason);
+  EXPECT_EQ(outcome.refused->reason, reason) << outcome.refused->message;
+  EXPECT_FALSE(outcome.refused->message.empty());
 }
 
 const GlobalMapMessage& globalOf(const EpochOutput& output) { return std::get<GlobalMapMessage>(output.message); }
 
+// ---------------------------------------------------------------------------------------------
+// Collect, merge, emit.
+
 TEST(MergeAggregator, EmitsOnceEveryChildReportedAndEqualsMergeAll) {
   std::mt19937_64 rng(7);
+  Streams streams;
   auto aggregator = makeAggregator(starConfig({1, 2, 3}));
   connectAll(aggregator, {1, 2, 3});
   std::vector<Map> maps;
-  for (std::uint32_t node = 1; node <= 3; ++node) maps.push_back(randomLocalMap(rng, node, 5, 12));
+  for (std::uint32_t node = 1; node <= 3; ++node) maps.push_back(randomLocalMap(rng, node, E(5), 12));
 
-  EXPECT_EQ(accept(aggregator, mapMessage(2, 5, maps[1], kT0 + 3 * kMs), kT0 + 10 * kMs), Arrival::kAccepted);
-  EXPECT_EQ(accept(aggregator, mapMessage(1, 5, maps[0], kT0 + 1 * kMs), kT0 + 11 * kMs), Arrival::kAccepted);
-  EXPECT_TRUE(aggregator.poll(kT0 + 12 * kMs).empty()) << "child 3 is live and has not reported";
-  EXPECT_EQ(accept(aggregator, mapMessage(3, 5, maps[2], kT0 + 2 * kMs), kT0 + 13 * kMs), Arrival::kAccepted);
+  accept(aggregator, streams, mapMessage(2, E(5), maps[1], at(5, 3)), at(5, 10));
+  accept(aggregator, streams, mapMessage(1, E(5), maps[0], at(5, 1)), at(5, 11));
+  EXPECT_TRUE(aggregator.poll(at(5, 12)).empty()) << "child 3 is live and has not reported";
+  accept(aggregator, streams, mapMessage(3, E(5), maps[2], at(5, 2)), at(5, 13));
 
-  const auto outputs = aggregator.poll(kT0 + 14 * kMs);
+  const auto outputs = aggregator.poll(at(5, 14));
   ASSERT_EQ(outputs.size(), 1U);
   EXPECT_TRUE(outputs[0].complete);
+  EXPECT_EQ(outputs[0].revision, 0U);
+  EXPECT_FALSE(outputs[0].late);
   const auto& global = globalOf(outputs[0]);
   const auto expected = mergeAll(maps);
   EXPECT_EQ(global.map, expected.map);
   EXPECT_LT(global.map.objects.size(), 36U) << "the scene is dense enough that some objects merge";
   EXPECT_EQ(global.header.node, kRoot);
-  EXPECT_EQ(global.header.epoch, 5U);
-  EXPECT_EQ(global.header.sensor_time_ns, kT0 + 1 * kMs) << "the earliest contribution";
+  EXPECT_EQ(global.header.epoch, E(5));
+  EXPECT_EQ(global.header.sensor_time_ns, at(5, 1)) << "the earliest contribution";
   EXPECT_EQ(global.header.contributing_nodes, (std::vector<std::uint32_t>{1, 2, 3}));
   EXPECT_TRUE(global.header.missing_nodes.empty());
   EXPECT_EQ(global.mode, Mode::kMadc);
@@ -114,120 +162,304 @@ TEST(MergeAggregator, EmitsOnceEveryChildReportedAndEqualsMergeAll) {
   EXPECT_LE(global.pairs_tested, global.pairs_all);
   EXPECT_EQ(global.pairs_tested, outputs[0].stats.pairs_tested);
   EXPECT_TRUE(global.point_labels.empty());
+  ASSERT_TRUE(aggregator.latestGlobalMap().has_value());
+  EXPECT_EQ(aggregator.latestGlobalMap()->header.epoch, E(5));
 
-  EXPECT_TRUE(aggregator.poll(kT0 + 1000 * kMs).empty()) << "an epoch is emitted once";
+  EXPECT_TRUE(aggregator.poll(at(20, 0)).empty()) << "an epoch is emitted once";
   EXPECT_EQ(aggregator.counters().emitted, 1U);
 }
 
 TEST(MergeAggregator, IntermediateSendsItsMergeToTheParentWithItsOwnId) {
   std::mt19937_64 rng(8);
-  auto config = starConfig({1, 2}, Mode::kMadc, /*is_root=*/false);
-  auto aggregator = makeAggregator(config);
+  Streams streams;
+  auto aggregator = makeAggregator(starConfig({1, 2}, Mode::kMadc, /*is_root=*/false));
   connectAll(aggregator, {1, 2});
-  const std::vector<Map> maps{randomLocalMap(rng, 1, 9, 6), randomLocalMap(rng, 2, 9, 6)};
-  accept(aggregator, mapMessage(1, 9, maps[0]), kT0);
-  accept(aggregator, mapMessage(2, 9, maps[1]), kT0);
-  const auto outputs = aggregator.poll(kT0);
+  const std::vector<Map> maps{randomLocalMap(rng, 1, E(9), 6), randomLocalMap(rng, 2, E(9), 6)};
+  accept(aggregator, streams, mapMessage(1, E(9), maps[0]), at(9, 5));
+  accept(aggregator, streams, mapMessage(2, E(9), maps[1]), at(9, 5));
+  const auto outputs = aggregator.poll(at(9, 6));
   ASSERT_EQ(outputs.size(), 1U);
   const auto& up = std::get<MapMessage>(outputs[0].message);
   EXPECT_EQ(up.header.node, kRoot);
-  EXPECT_EQ(up.header.epoch, 9U);
+  EXPECT_EQ(up.header.epoch, E(9));
   EXPECT_EQ(up.header.contributing_nodes, (std::vector<std::uint32_t>{1, 2}));
   EXPECT_EQ(up.map, mergeAll(maps).map);
+  EXPECT_FALSE(aggregator.latestGlobalMap().has_value()) << "only the root holds a global map";
 }
 
-TEST(MergeAggregator, DisconnectedChildIsNotWaitedFor) {
+TEST(MergeAggregator, DisconnectedChildIsNotWaitedForAfterItsGrace) {
   std::mt19937_64 rng(9);
+  Streams streams;
   auto aggregator = makeAggregator(starConfig({1, 2, 3}));
   connectAll(aggregator, {1, 2, 3});
-  aggregator.childDisconnected(3);
-  EXPECT_EQ(aggregator.liveChildren(), 2U);
-  EXPECT_EQ(aggregator.staleChildren(), 1U);
+  aggregator.childDisconnected(3, at(0, 0));
+  // Grace: one period and one deadline, 180 ms.
+  EXPECT_EQ(aggregator.liveChildren(at(1, 79)), 3U);
+  EXPECT_EQ(aggregator.liveChildren(at(1, 80)), 2U);
+  EXPECT_EQ(aggregator.staleChildren(at(1, 80)), 1U);
 
-  accept(aggregator, mapMessage(1, 1, randomLocalMap(rng, 1, 1, 4)), kT0);
-  accept(aggregator, mapMessage(2, 1, randomLocalMap(rng, 2, 1, 4)), kT0);
-  const auto outputs = aggregator.poll(kT0 + 1 * kMs);  // long before the deadline
+  accept(aggregator, streams, mapMessage(1, E(2), randomLocalMap(rng, 1, E(2), 4)), at(2, 5));
+  accept(aggregator, streams, mapMessage(2, E(2), randomLocalMap(rng, 2, E(2), 4)), at(2, 5));
+  const auto outputs = aggregator.poll(at(2, 6));  // long before the deadline
   ASSERT_EQ(outputs.size(), 1U);
   EXPECT_TRUE(outputs[0].complete);
   EXPECT_EQ(globalOf(outputs[0]).header.missing_nodes, (std::vector<std::uint32_t>{3}));
 }
 
-TEST(MergeAggregator, SilentConnectedChildDelaysEmissionUntilTheDeadline) {
+TEST(MergeAggregator, BriefReconnectKeepsTheChildWaitedFor) {
   std::mt19937_64 rng(10);
+  Streams streams;
+  auto aggregator = makeAggregator(starConfig({1, 2}));
+  connectAll(aggregator, {1, 2});
+  const auto first = mapMessage(1, E(1), randomLocalMap(rng, 1, E(1), 4));
+  const auto second = mapMessage(2, E(1), randomLocalMap(rng, 2, E(1), 4));
+  accept(aggregator, streams, first, at(1, 5));
+  aggregator.childDisconnected(2, at(1, 10));  // its stream broke; it will reconnect and re-send
+  EXPECT_TRUE(aggregator.poll(at(1, 20)).empty()) << "child 2 is within its grace: still waited for";
+  ASSERT_TRUE(aggregator.childConnected(2).ok());
+  accept(aggregator, streams, second, at(1, 40));
+  const auto outputs = aggregator.poll(at(1, 41));
+  ASSERT_EQ(outputs.size(), 1U);
+  EXPECT_TRUE(outputs[0].complete);
+  EXPECT_EQ(globalOf(outputs[0]).header.contributing_nodes, (std::vector<std::uint32_t>{1, 2}));
+}
+
+TEST(MergeAggregator, OverlappingStreamsOfOneChildKeepItLive) {
+  auto aggregator = makeAggregator(starConfig({1, 2}));
+  connectAll(aggregator, {1, 2});
+  // Child 1 reconnects: the new stream opens before the old one is noticed closed.
+  ASSERT_TRUE(aggregator.childConnected(1).ok());
+  aggregator.childDisconnected(1, at(0, 0));
+  EXPECT_EQ(aggregator.liveChildren(at(10, 0)), 2U) << "the new stream keeps the child live";
+  aggregator.childDisconnected(1, at(10, 0));
+  EXPECT_EQ(aggregator.liveChildren(at(20, 0)), 1U);
+}
+
+TEST(MergeAggregator, SilentConnectedChildDelaysEmissionUntilTheAbsoluteDeadline) {
+  std::mt19937_64 rng(10);
+  Streams streams;
   auto aggregator = makeAggregator(starConfig({1, 2, 3}));
   connectAll(aggregator, {1, 2, 3});
-  accept(aggregator, mapMessage(1, 4, randomLocalMap(rng, 1, 4, 4)), kT0);
-  accept(aggregator, mapMessage(2, 4, randomLocalMap(rng, 2, 4, 4)), kT0 + 30 * kMs);
+  accept(aggregator, streams, mapMessage(1, E(4), randomLocalMap(rng, 1, E(4), 4)), at(4, 30));
+  accept(aggregator, streams, mapMessage(2, E(4), randomLocalMap(rng, 2, E(4), 4)), at(4, 60));
 
-  EXPECT_TRUE(aggregator.poll(kT0 + 80 * kMs - 1).empty()) << "deadline = first arrival + 80 ms";
-  const auto outputs = aggregator.poll(kT0 + 80 * kMs);
+  // The deadline is the epoch's start + 80 ms, not the first arrival + 80 ms.
+  EXPECT_TRUE(aggregator.poll(at(4, 80) - 1).empty());
+  const auto outputs = aggregator.poll(at(4, 80));
   ASSERT_EQ(outputs.size(), 1U);
   EXPECT_FALSE(outputs[0].complete);
+  EXPECT_FALSE(outputs[0].late);
   EXPECT_EQ(globalOf(outputs[0]).header.contributing_nodes, (std::vector<std::uint32_t>{1, 2}));
   EXPECT_EQ(globalOf(outputs[0]).header.missing_nodes, (std::vector<std::uint32_t>{3}));
 }
 
-TEST(MergeAggregator, LateMapIsCountedAndDropped) {
-  std::mt19937_64 rng(11);
-  auto aggregator = makeAggregator(starConfig({1, 2}));
-  connectAll(aggregator, {1, 2});
-  accept(aggregator, mapMessage(1, 4, randomLocalMap(rng, 1, 4, 4)), kT0);
-  ASSERT_EQ(aggregator.poll(kT0 + 80 * kMs).size(), 1U);
-
-  EXPECT_EQ(accept(aggregator, mapMessage(2, 4, randomLocalMap(rng, 2, 4, 4)), kT0 + 81 * kMs), Arrival::kLate);
-  EXPECT_EQ(aggregator.counters().late, 1U);
-  EXPECT_EQ(aggregator.pendingEpochs(), 0U) << "a late map opens no epoch";
-  EXPECT_TRUE(aggregator.poll(kT0 + 1000 * kMs).empty());
-  // The next epoch is unaffected.
-  EXPECT_EQ(accept(aggregator, mapMessage(2, 5, randomLocalMap(rng, 2, 5, 4)), kT0 + 90 * kMs), Arrival::kAccepted);
-}
-
-TEST(MergeAggregator, DuplicateDeliveryAfterReconnectIsHarmless) {
-  std::mt19937_64 rng(12);
-  auto aggregator = makeAggregator(starConfig({1, 2}));
-  connectAll(aggregator, {1, 2});
-  const auto first = mapMessage(1, 3, randomLocalMap(rng, 1, 3, 8));
-  const auto second = mapMessage(2, 3, randomLocalMap(rng, 2, 3, 8));
-  accept(aggregator, first, kT0);
-  // Child 1 reconnects (the new stream opens before the old one is noticed closed) and re-sends.
-  ASSERT_TRUE(aggregator.childConnected(1).ok());
-  aggregator.childDisconnected(1);
-  EXPECT_EQ(aggregator.liveChildren(), 2U) << "the new stream keeps the child live";
-  accept(aggregator, first, kT0 + 1 * kMs);
-  accept(aggregator, second, kT0 + 2 * kMs);
-
-  const auto outputs = aggregator.poll(kT0 + 3 * kMs);
-  ASSERT_EQ(outputs.size(), 1U);
-  const std::vector<Map> maps{first.map, second.map};
-  EXPECT_EQ(globalOf(outputs[0]).map, mergeAll(maps).map);
-}
-
 TEST(MergeAggregator, EmitsDueEpochsOldestFirst) {
   std::mt19937_64 rng(13);
+  Streams streams;
   auto aggregator = makeAggregator(starConfig({1, 2}));
   connectAll(aggregator, {1, 2});
-  accept(aggregator, mapMessage(1, 7, randomLocalMap(rng, 1, 7, 2)), kT0);
-  accept(aggregator, mapMessage(1, 6, randomLocalMap(rng, 1, 6, 2)), kT0 + 1 * kMs);
-  accept(aggregator, mapMessage(1, 8, randomLocalMap(rng, 1, 8, 2)), kT0 + 50 * kMs);
-  const auto outputs = aggregator.poll(kT0 + 81 * kMs);
+  accept(aggregator, streams, mapMessage(1, E(7), randomLocalMap(rng, 1, E(7), 2)), at(7, 10));
+  accept(aggregator, streams, mapMessage(1, E(6), randomLocalMap(rng, 1, E(6), 2)), at(7, 11));
+  accept(aggregator, streams, mapMessage(1, E(8), randomLocalMap(rng, 1, E(8), 2)), at(7, 50));
+  const auto outputs = aggregator.poll(at(7, 81));
   ASSERT_EQ(outputs.size(), 2U) << "epoch 8 is not due yet";
-  EXPECT_EQ(outputs[0].epoch, 6U);
-  EXPECT_EQ(outputs[1].epoch, 7U);
+  EXPECT_EQ(outputs[0].epoch, E(6));
+  EXPECT_EQ(outputs[1].epoch, E(7));
   EXPECT_EQ(aggregator.pendingEpochs(), 1U);
 }
 
-TEST(MergeAggregator, DropsTheOldestEpochBeyondMaxPending) {
+TEST(MergeAggregator, TreeOfThreeLevelsNeverDropsAnOnTimeMap) {
+  // root (3 levels) over {mid (2 levels) over leaf (1 level) over edges 1 and 2, edge 3}. Edge 2
+  // is connected and silent, so the leaf waits out its deadline; each hop then takes almost a
+  // whole deadline. With deadlines counted from each aggregator's first arrival the root emitted
+  // at edge 3's arrival + 80 ms and refused the mid's on-time map as late.
+  std::mt19937_64 rng(30);
+  Streams streams;
+  constexpr std::uint32_t kLeaf = 10;
+  constexpr std::uint32_t kMid = 20;
+  AggregatorConfig leaf_config = starConfig({1, 2}, Mode::kMadc, /*is_root=*/false);
+  leaf_config.node = kLeaf;
+  AggregatorConfig mid_config = starConfig({}, Mode::kMadc, /*is_root=*/false);
+  mid_config.node = kMid;
+  mid_config.levels = 2;
+  mid_config.children = {{kLeaf, {1, 2}}};
+  AggregatorConfig root_config = starConfig({}, Mode::kMadc, /*is_root=*/true);
+  root_config.levels = 3;
+  root_config.children = {{kMid, {1, 2}}, {3, {3}}};
+  auto leaf = makeAggregator(leaf_config);
+  auto mid = makeAggregator(mid_config);
+  auto root = makeAggregator(root_config);
+  connectAll(leaf, {1, 2});
+  connectAll(mid, {kLeaf});
+  connectAll(root, {kMid, 3});
+
+  const Map edge1 = randomLocalMap(rng, 1, E(1), 5);
+  const Map edge3 = randomLocalMap(rng, 3, E(1), 5);
+  accept(root, streams, mapMessage(3, E(1), edge3), at(1, 5));
+  accept(leaf, streams, mapMessage(1, E(1), edge1), at(1, 5));
+  EXPECT_TRUE(root.poll(at(1, 86)).empty()) << "the root waits for the mid until its own deadline";
+
+  EXPECT_TRUE(leaf.poll(at(1, 79)).empty());
+  auto from_leaf = leaf.poll(at(1, 80));
+  ASSERT_EQ(from_leaf.size(), 1U);
+  EXPECT_FALSE(from_leaf[0].complete) << "edge 2 never reported";
+  const auto& leaf_map = std::get<MapMessage>(from_leaf[0].message);
+  accept(mid, streams, leaf_map, at(1, 159));  // one hop of 79 ms
+  auto from_mid = mid.poll(at(1, 159));
+  ASSERT_EQ(from_mid.size(), 1U);
+  EXPECT_TRUE(from_mid[0].complete);
+  const auto& mid_map = std::get<MapMessage>(from_mid[0].message);
+  EXPECT_TRUE(root.poll(at(1, 238)).empty());
+  accept(root, streams, mid_map, at(1, 239));  // another hop of 80 ms: still on time
+  const auto outputs = root.poll(at(1, 239));
+  ASSERT_EQ(outputs.size(), 1U);
+  EXPECT_TRUE(outputs[0].complete);
+  EXPECT_FALSE(outputs[0].late);
+  const auto& global = globalOf(outputs[0]);
+  EXPECT_EQ(global.header.contributing_nodes, (std::vector<std::uint32_t>{1, 3}));
+  EXPECT_EQ(global.header.missing_nodes, (std::vector<std::uint32_t>{2}));
+  const std::vector<Map> maps{edge1, edge3};
+  EXPECT_EQ(global.map, mergeAll(maps).map);
+  EXPECT_EQ(root.counters().late, 0U);
+}
+
+TEST(MergeAggregator, EarlyMapCannotEmitItsEpochBeforeTheEpochBegins) {
+  std::mt19937_64 rng(31);
+  Streams streams;
+  auto aggregator = makeAggregator(starConfig({1, 2}));
+  connectAll(aggregator, {1, 2});
+  // Both children report epoch 1 in epoch 0 (within the admission window; a clock ahead).
+  accept(aggregator, streams, mapMessage(1, E(1), randomLocalMap(rng, 1, E(1), 3)), at(0, 50));
+  accept(aggregator, streams, mapMessage(2, E(1), randomLocalMap(rng, 2, E(1), 3)), at(0, 60));
+  EXPECT_TRUE(aggregator.poll(at(0, 99)).empty());
+  const auto outputs = aggregator.poll(at(1, 0));
+  ASSERT_EQ(outputs.size(), 1U);
+  EXPECT_TRUE(outputs[0].complete);
+}
+
+TEST(MergeAggregator, DrainEmitsEveryOpenEpoch) {
+  std::mt19937_64 rng(32);
+  Streams streams;
+  auto aggregator = makeAggregator(starConfig({1, 2}));
+  connectAll(aggregator, {1, 2});
+  accept(aggregator, streams, mapMessage(1, E(1), randomLocalMap(rng, 1, E(1), 3)), at(1, 5));
+  accept(aggregator, streams, mapMessage(1, E(2), randomLocalMap(rng, 1, E(2), 3)), at(1, 50));
+  const auto outputs = aggregator.drain(at(1, 60));
+  ASSERT_EQ(outputs.size(), 2U) << "shutdown abandons no accepted map";
+  EXPECT_EQ(outputs[0].epoch, E(1));
+  EXPECT_EQ(outputs[1].epoch, E(2));
+  EXPECT_FALSE(outputs[0].complete);
+  EXPECT_EQ(globalOf(outputs[1]).header.contributing_nodes, (std::vector<std::uint32_t>{1}));
+  EXPECT_EQ(aggregator.pendingEpochs(), 0U);
+}
+
+TEST(MergeAggregator, LateMapIsMergedIntoARevisionFlaggedLate) {
+  std::mt19937_64 rng(11);
+  Streams streams;
+  auto aggregator = makeAggregator(starConfig({1, 2}));
+  connectAll(aggregator, {1, 2});
+  const auto first = mapMessage(1, E(4), randomLocalMap(rng, 1, E(4), 4));
+  const auto second = mapMessage(2, E(4), randomLocalMap(rng, 2, E(4), 4));
+  accept(aggregator, streams, first, at(4, 5));
+  const auto on_time = aggregator.poll(at(4, 80));
+  ASSERT_EQ(on_time.size(), 1U);
+  EXPECT_EQ(globalOf(on_time[0]).header.missing_nodes, (std::vector<std::uint32_t>{2}));
+
+  // Child 2's map arrives after the emission (say, re-sent after a reconnect): not lost.
+  accept(aggregator, streams, second, at(4, 120), Arrival::kLate);
+  EXPECT_EQ(aggregator.counters().late, 1U);
+  EXPECT_EQ(aggregator.pendingEpochs(), 0U) << "a late map opens no epoch";
+  const auto revisions = aggregator.poll(at(4, 121));
+  ASSERT_EQ(revisions.size(), 1U);
+  EXPECT_EQ(revisions[0].epoch, E(4));
+  EXPECT_EQ(revisions[0].revision, 1U);
+  EXPECT_TRUE(revisions[0].late);
+  const auto& revised = globalOf(revisions[0]);
+  EXPECT_EQ(revised.revision, 1U);
+  EXPECT_TRUE(revised.late);
+  EXPECT_EQ(revised.header.contributing_nodes, (std::vector<std::uint32_t>{1, 2}));
+  const std::vector<Map> maps{first.map, second.map};
+  EXPECT_EQ(revised.map, mergeAll(maps).map);
+  EXPECT_EQ(aggregator.counters().revisions, 1U);
+  EXPECT_EQ(aggregator.counters().late_emits, 1U);
+  EXPECT_EQ(aggregator.latestGlobalMap()->revision, 0U) << "geofences answer on on-time maps";
+  EXPECT_TRUE(aggregator.poll(at(4, 200)).empty()) << "one revision per batch of late maps";
+
+  // Past the admission window the epoch is forgotten: a stale re-send is refused, counted.
+  expectRefused(aggregator, streams, 2, second, at(8, 0), Refusal::kClockSkew);
+  EXPECT_TRUE(aggregator.poll(at(8, 0)).empty());
+  EXPECT_EQ(aggregator.retainedEpochs(), 0U);
+}
+
+TEST(MergeAggregator, StallEmitsStaleEpochsFlaggedLate) {
+  std::mt19937_64 rng(33);
+  Streams streams;
+  auto aggregator = makeAggregator(starConfig({1, 2}));
+  connectAll(aggregator, {1, 2});
+  accept(aggregator, streams, mapMessage(1, E(1), randomLocalMap(rng, 1, E(1), 3)), at(1, 5));
+  accept(aggregator, streams, mapMessage(1, E(2), randomLocalMap(rng, 1, E(2), 3)), at(2, 5));
+  // The aggregator stalls (SIGSTOP, a long GC of the host) and polls again at epoch 3 + 70 ms:
+  // epoch 1's deadline + one period passed, so it is stale; epoch 2 is merely due.
+  const auto outputs = aggregator.poll(at(3, 70));
+  ASSERT_EQ(outputs.size(), 2U);
+  EXPECT_TRUE(outputs[0].late) << "emitted more than a period after its deadline";
+  EXPECT_FALSE(outputs[1].late);
+  EXPECT_EQ(aggregator.latestGlobalMap()->header.epoch, E(2));
+  EXPECT_EQ(aggregator.counters().late_emits, 1U);
+}
+
+TEST(MergeAggregator, DropsTheOldestEpochBeyondMaxPendingAndSaysSo) {
   std::mt19937_64 rng(14);
+  Streams streams;
   auto config = starConfig({1, 2});
   config.max_pending_epochs = 2;
   auto aggregator = makeAggregator(config);
   connectAll(aggregator, {1, 2});
-  for (std::uint64_t epoch = 1; epoch <= 3; ++epoch) {
-    accept(aggregator, mapMessage(1, epoch, randomLocalMap(rng, 1, epoch, 2)), kT0);
+  for (std::int64_t k = 1; k <= 3; ++k) {
+    accept(aggregator, streams, mapMessage(1, E(k), randomLocalMap(rng, 1, E(k), 2)), at(1, 0));
   }
   EXPECT_EQ(aggregator.pendingEpochs(), 2U);
   EXPECT_EQ(aggregator.counters().dropped_epochs, 1U);
-  EXPECT_EQ(accept(aggregator, mapMessage(2, 1, randomLocalMap(rng, 2, 1, 2)), kT0), Arrival::kLate);
+  const auto outputs = aggregator.poll(at(2, 80));
+  ASSERT_EQ(outputs.size(), 1U);
+  EXPECT_EQ(outputs[0].epoch, E(2));
+  EXPECT_EQ(globalOf(outputs[0]).header.dropped_uploads, 1U) << "the dropped epoch shows in the header";
+}
+
+TEST(MergeAggregator, DroppedUploadsOfTheSubtreeAppearInTheHeader) {
+  std::mt19937_64 rng(34);
+  Streams streams;
+  auto aggregator = makeAggregator(starConfig({1, 2}, Mode::kMadc, /*is_root=*/false));
+  connectAll(aggregator, {1, 2});
+  auto first = mapMessage(1, E(1), randomLocalMap(rng, 1, E(1), 2));
+  first.header.dropped_uploads = 7;
+  auto second = mapMessage(2, E(1), randomLocalMap(rng, 2, E(1), 2));
+  second.header.dropped_uploads = 2;
+  accept(aggregator, streams, first, at(1, 5));
+  accept(aggregator, streams, second, at(1, 5));
+  aggregator.setLinkDrops(3);  // this node's own link to its parent
+  const auto outputs = aggregator.poll(at(1, 6));
+  ASSERT_EQ(outputs.size(), 1U);
+  EXPECT_EQ(std::get<MapMessage>(outputs[0].message).header.dropped_uploads, 12U);
+}
+
+TEST(MergeAggregator, FailedFrameCompletesTheChildButDoesNotContribute) {
+  std::mt19937_64 rng(35);
+  Streams streams;
+  auto aggregator = makeAggregator(starConfig({1, 2}));
+  connectAll(aggregator, {1, 2});
+  accept(aggregator, streams, mapMessage(1, E(1), randomLocalMap(rng, 1, E(1), 3)), at(1, 5));
+  MapMessage failed = mapMessage(2, E(1), {});
+  failed.header.contributing_nodes.clear();
+  failed.header.failed_nodes = {2};
+  accept(aggregator, streams, failed, at(1, 6));
+  const auto outputs = aggregator.poll(at(1, 7));
+  ASSERT_EQ(outputs.size(), 1U) << "the failed frame answered for child 2: no wait for the deadline";
+  EXPECT_TRUE(outputs[0].complete);
+  const auto& header = globalOf(outputs[0]).header;
+  EXPECT_EQ(header.contributing_nodes, (std::vector<std::uint32_t>{1}));
+  EXPECT_EQ(header.missing_nodes, (std::vector<std::uint32_t>{2}));
+  EXPECT_EQ(header.failed_nodes, (std::vector<std::uint32_t>{2}));
 }
 
 TEST(MergeAggregator, ResolvesStreamsToDirectChildrenInATree) {
@@ -245,29 +477,237 @@ TEST(MergeAggregator, ResolvesStreamsToDirectChildrenInATree) {
   const auto unknown = aggregator.childConnected(42);
   ASSERT_FALSE(unknown.ok());
   EXPECT_EQ(unknown.error().code, ErrorCode::kInvalidArgument);
-  EXPECT_EQ(aggregator.liveChildren(), 3U);
-  aggregator.childDisconnected(11);
-  EXPECT_EQ(aggregator.liveChildren(), 2U);
+  EXPECT_EQ(aggregator.counters().refused.at(Refusal::kUnknownNode), 1U);
+  EXPECT_EQ(aggregator.liveChildren(at(0, 0)), 3U);
+  aggregator.childDisconnected(11, at(0, 0));
+  EXPECT_EQ(aggregator.liveChildren(at(2, 0)), 2U);
 }
 
-TEST(MergeAggregator, RejectsInvalidConfigAndMismatchedUploads) {
-  auto duplicate = starConfig({1, 1});
-  EXPECT_FALSE(MergeAggregator::create(duplicate).ok());
+TEST(MergeAggregator, RejectsInvalidConfig) {
+  EXPECT_FALSE(MergeAggregator::create(starConfig({1, 1})).ok());
   auto no_deadline = starConfig({1});
   no_deadline.deadline_ms = 0.0;
   EXPECT_FALSE(MergeAggregator::create(no_deadline).ok());
+  auto no_period = starConfig({1});
+  no_period.period_ms = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(MergeAggregator::create(no_period).ok());
   AggregatorConfig shared_sensor = starConfig({});
   shared_sensor.children = {{10, {1}}, {11, {1}}};
   EXPECT_FALSE(MergeAggregator::create(shared_sensor).ok());
+  auto no_window = starConfig({1});
+  no_window.admission.window_periods = 0.0;
+  EXPECT_FALSE(MergeAggregator::create(no_window).ok());
+}
 
+TEST(MergeAggregator, AggregatorConfigForDerivesChildrenLevelsAndSchedule) {
+  TopologyConfig topology;
+  topology.name = "t";
+  topology.period_ms = 50.0;
+  topology.deadline_ms = 20.0;
+  topology.admission.max_ellipsoids_per_map = 77;
+  const auto node = [](std::string name, Role role, std::uint32_t id, std::string parent) {
+    NodeConfig n;
+    n.name = std::move(name);
+    n.role = role;
+    n.id = id;
+    n.parent = std::move(parent);
+    return n;
+  };
+  topology.nodes = {node("root", Role::kAggregator, 100, ""), node("mid", Role::kAggregator, 20, "root"),
+                    node("leaf", Role::kAggregator, 10, "mid"), node("e1", Role::kEdge, 1, "leaf"),
+                    node("e2", Role::kEdge, 2, "leaf"), node("e3", Role::kEdge, 3, "root")};
+  const auto root = aggregatorConfigFor(topology, "root");
+  ASSERT_TRUE(root.ok()) << root.error().message;
+  EXPECT_TRUE(root->is_root);
+  EXPECT_EQ(root->node, 100U);
+  EXPECT_EQ(root->levels, 3);
+  EXPECT_EQ(root->period_ms, 50.0);
+  EXPECT_EQ(root->deadline_ms, 20.0);
+  EXPECT_EQ(root->admission.max_ellipsoids_per_map, 77U);
+  ASSERT_EQ(root->children.size(), 2U);
+  std::map<std::uint32_t, std::vector<std::uint32_t>> children;
+  for (const auto& child : root->children) children[child.id] = child.sensors;
+  EXPECT_EQ(children.at(20), (std::vector<std::uint32_t>{1, 2}));
+  EXPECT_EQ(children.at(3), (std::vector<std::uint32_t>{3}));
+  const auto leaf = aggregatorConfigFor(topology, "leaf");
+  ASSERT_TRUE(leaf.ok());
+  EXPECT_FALSE(leaf->is_root);
+  EXPECT_EQ(leaf->levels, 1);
+  EXPECT_EQ(aggregatorConfigFor(topology, "mid")->levels, 2);
+  EXPECT_FALSE(aggregatorConfigFor(topology, "e1").ok()) << "an edge is not an aggregator";
+  EXPECT_FALSE(aggregatorConfigFor(topology, "nobody").ok());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Admission: what a hostile or broken child cannot do.
+
+TEST(MergeAggregator, RefusesEpochsOutsideTheAdmissionWindow) {
+  std::mt19937_64 rng(40);
+  Streams streams;
+  auto aggregator = makeAggregator(starConfig({1, 2}));  // window: 3 periods
+  connectAll(aggregator, {1, 2});
+  const std::int64_t now = at(0, 0);
+  // 500 ms ahead: it would start that epoch's clock early and be published partial.
+  expectRefused(aggregator, streams, 1, mapMessage(1, E(5), randomLocalMap(rng, 1, E(5), 2)), now, Refusal::kClockSkew);
+  // The last epoch there is: it would freeze the latest global map for good.
+  const std::uint64_t last = std::numeric_limits<std::uint64_t>::max();
+  expectRefused(aggregator, streams, 1, mapMessage(1, last, randomLocalMap(rng, 1, last, 2)), now, Refusal::kClockSkew);
+  // Long past: a stale re-send, or a clock far behind.
+  expectRefused(aggregator, streams, 1, mapMessage(1, E(-10), randomLocalMap(rng, 1, E(-10), 2)), now,
+                Refusal::kClockSkew);
+  EXPECT_EQ(aggregator.pendingEpochs(), 0U);
+  EXPECT_EQ(aggregator.counters().refused.at(Refusal::kClockSkew), 3U);
+  // The edges of the window are admitted: 3 periods ahead, and a deadline 3 periods ago.
+  accept(aggregator, streams, mapMessage(1, E(3), randomLocalMap(rng, 1, E(3), 2)), now);
+  accept(aggregator, streams, mapMessage(1, E(-4), randomLocalMap(rng, 1, E(-4), 2)), at(-1, 80));
+}
+
+TEST(MergeAggregator, FloodOfDistinctEpochsCannotJamTheRoot) {
+  std::mt19937_64 rng(41);
+  Streams streams;
+  auto aggregator = makeAggregator(starConfig({1, 2}));
+  connectAll(aggregator, {1, 2});
+  const Map junk = randomLocalMap(rng, 1, 0, 2);
+  for (std::uint64_t i = 0; i < 5000; ++i) {
+    const Outcome outcome = send(aggregator, streams, 1, mapMessage(1, (1ULL << 62) + i, junk), at(0, 0));
+    ASSERT_FALSE(outcome.ok());
+  }
+  EXPECT_EQ(aggregator.counters().refused.at(Refusal::kClockSkew), 5000U);
+  EXPECT_EQ(aggregator.pendingEpochs(), 0U);
+  EXPECT_EQ(aggregator.retainedEpochs(), 0U);
+  // The honest maps of the next epochs are published as if nothing happened.
+  for (std::int64_t k = 1; k <= 3; ++k) {
+    accept(aggregator, streams, mapMessage(1, E(k), randomLocalMap(rng, 1, E(k), 3)), at(k, 5));
+    accept(aggregator, streams, mapMessage(2, E(k), randomLocalMap(rng, 2, E(k), 3)), at(k, 6));
+    const auto outputs = aggregator.poll(at(k, 7));
+    ASSERT_EQ(outputs.size(), 1U);
+    EXPECT_TRUE(outputs[0].complete);
+    EXPECT_FALSE(outputs[0].late);
+    EXPECT_EQ(aggregator.latestGlobalMap()->header.epoch, E(k));
+  }
+}
+
+TEST(MergeAggregator, StreamSpeaksForOneNodeOnly) {
+  std::mt19937_64 rng(42);
+  Streams streams;
+  AggregatorConfig config = starConfig({1, 2});
+  config.children.push_back({10, {5, 6}});  // an intermediate over sensors 5 and 6
+  auto aggregator = makeAggregator(config);
+  connectAll(aggregator, {1, 2, 10});
+  // On child 1's stream: a map claiming to be node 2's.
+  expectRefused(aggregator, streams, 1, mapMessage(2, E(1), randomLocalMap(rng, 2, E(1), 2)), at(1, 5),
+                Refusal::kForgedNode);
+  // Node 1's own header, but speaking for node 2's sensor, or carrying its ellipsoids.
+  auto contributing = mapMessage(1, E(1), randomLocalMap(rng, 1, E(1), 2));
+  contributing.header.contributing_nodes = {1, 2};
+  expectRefused(aggregator, streams, 1, contributing, at(1, 5), Refusal::kForgedNode);
+  auto failed = mapMessage(1, E(1), {});
+  failed.header.failed_nodes = {2};
+  expectRefused(aggregator, streams, 1, failed, at(1, 5), Refusal::kForgedNode);
+  expectRefused(aggregator, streams, 1, mapMessage(1, E(1), randomLocalMap(rng, 2, E(1), 2)), at(1, 5),
+                Refusal::kForgedNode);
+  // The intermediate may carry its sensors' ellipsoids, not another child's.
+  auto relayed = mapMessage(10, E(1), randomLocalMap(rng, 5, E(1), 2));
+  relayed.header.contributing_nodes = {5, 6};
+  accept(aggregator, streams, relayed, at(1, 5));
+  auto foreign = mapMessage(10, E(1), randomLocalMap(rng, 1, E(1), 2));
+  foreign.header.contributing_nodes = {5};
+  expectRefused(aggregator, streams, 10, foreign, at(1, 5), Refusal::kForgedNode);
+  EXPECT_EQ(aggregator.counters().refused.at(Refusal::kForgedNode), 5U);
+  EXPECT_EQ(aggregator.counters().accepted, 1U);
+}
+
+TEST(MergeAggregator, RefusesMapsBeyondSizeAndValueBounds) {
+  std::mt19937_64 rng(43);
+  Streams streams;
+  AggregatorConfig config = starConfig({1});
+  config.admission.max_ellipsoids_per_map = 10;
+  auto aggregator = makeAggregator(config);
+  connectAll(aggregator, {1});
+  const std::int64_t now = at(1, 5);
+  expectRefused(aggregator, streams, 1, mapMessage(1, E(1), randomLocalMap(rng, 1, E(1), 11)), now, Refusal::kTooLarge);
+  const auto bytes = aggregator.onMap(1, streams.next(1), mapMessage(1, E(1), randomLocalMap(rng, 1, E(1), 2)),
+                                      config.admission.max_map_bytes + 1, now);
+  ASSERT_FALSE(bytes.ok());
+  EXPECT_EQ(bytes.refused->reason, Refusal::kTooLarge);
+
+  const auto with = [&](const Eigen::Vector3d& centre, const Eigen::Matrix3d& shape) {
+    Map map = randomLocalMap(rng, 1, E(1), 2);
+    std::vector<Ellipsoid> ellipsoids{map.objects[0].ellipsoids[0]};
+    ellipsoids[0].center = centre;
+    ellipsoids[0].shape = shape;
+    return mapMessage(1, E(1), localMap(std::move(ellipsoids)));
+  };
+  const Eigen::Matrix3d unit = Eigen::Matrix3d::Identity();
+  expectRefused(aggregator, streams, 1, with({1e30, 0, 0}, unit), now, Refusal::kOutOfWorld);
+  expectRefused(aggregator, streams, 1, with({0, 0, 2e4}, unit), now, Refusal::kOutOfWorld);
+  const Eigen::Matrix3d needle = Eigen::Vector3d(1e30, 1e-30, 1e-30).asDiagonal();  // condition 1e60
+  expectRefused(aggregator, streams, 1, with({0, 0, 0}, needle), now, Refusal::kBadShape);
+  const Eigen::Matrix3d thin = Eigen::Vector3d(1e7, 1, 1e-6).asDiagonal();  // in bounds, condition 1e13
+  expectRefused(aggregator, streams, 1, with({0, 0, 0}, thin), now, Refusal::kBadShape);
+  const Eigen::Matrix3d flat = Eigen::Vector3d(1, 1, 1e-20).asDiagonal();
+  expectRefused(aggregator, streams, 1, with({0, 0, 0}, flat), now, Refusal::kBadShape);
+  EXPECT_EQ(aggregator.pendingEpochs(), 0U) << "nothing refused opened an epoch";
+  accept(aggregator, streams, with({3, 4, 1}, unit), now);
+}
+
+TEST(MergeAggregator, SameSequenceWithOtherContentIsRefused) {
+  std::mt19937_64 rng(44);
+  auto aggregator = makeAggregator(starConfig({1, 2}));
+  connectAll(aggregator, {1, 2});
+  const auto first = mapMessage(1, E(1), randomLocalMap(rng, 1, E(1), 3));
+  const auto other = mapMessage(1, E(1), randomLocalMap(rng, 1, E(1), 5));
+  const UploadKey key{42, 1111};
+  ASSERT_TRUE(aggregator.onMap(1, key, first, kWireBytes, at(1, 5)).ok());
+  const Outcome resent = aggregator.onMap(1, key, first, kWireBytes, at(1, 6));
+  ASSERT_TRUE(resent.ok()) << "a re-sent copy is harmless";
+  EXPECT_EQ(aggregator.counters().duplicates, 1U);
+  const Outcome conflict = aggregator.onMap(1, UploadKey{42, 2222}, other, kWireBytes, at(1, 7));
+  ASSERT_FALSE(conflict.ok());
+  EXPECT_EQ(conflict.refused->reason, Refusal::kSequenceConflict);
+
+  // Only the first was merged.
+  Streams streams;
+  accept(aggregator, streams, mapMessage(2, E(1), {}), at(1, 8));
+  const auto outputs = aggregator.poll(at(1, 9));
+  ASSERT_EQ(outputs.size(), 1U);
+  EXPECT_EQ(globalOf(outputs[0]).map, first.map);
+}
+
+TEST(MergeAggregator, SameEllipsoidIdWithOtherGeometryIsRefused) {
+  std::mt19937_64 rng(45);
+  Streams streams;
+  auto aggregator = makeAggregator(starConfig({1, 2}));
+  connectAll(aggregator, {1, 2});
+  const auto first = mapMessage(1, E(1), randomLocalMap(rng, 1, E(1), 3));
+  accept(aggregator, streams, first, at(1, 5));
+  // A restarted edge re-sends the same map under a new sequence: the same ids, same geometry.
+  accept(aggregator, streams, first, at(1, 6));
+  // The same ids with other geometry: one of them is wrong, and MERGE must not pick silently.
+  expectRefused(aggregator, streams, 1, mapMessage(1, E(1), randomLocalMap(rng, 1, E(1), 3)), at(1, 7),
+                Refusal::kEllipsoidConflict);
+  accept(aggregator, streams, mapMessage(2, E(1), {}), at(1, 8));
+  const auto outputs = aggregator.poll(at(1, 9));
+  ASSERT_EQ(outputs.size(), 1U);
+  EXPECT_EQ(globalOf(outputs[0]).map, first.map);
+}
+
+TEST(MergeAggregator, RefusesUploadsOfTheWrongModeOrFromStrangers) {
+  Streams streams;
   auto madc = makeAggregator(starConfig({1}));
-  EXPECT_FALSE(madc.onMap(mapMessage(9, 1, {}), kT0).ok()) << "not a child";
+  expectRefused(madc, streams, 9, mapMessage(9, E(1), {}), at(1, 0), Refusal::kUnknownNode);
   PointChunk chunk;
   chunk.header.node = 1;
-  EXPECT_FALSE(madc.onPoints(chunk, kT0).ok()) << "points in madc mode";
+  chunk.header.epoch = E(1);
+  const Outcome points = madc.onPoints(1, streams.next(1), chunk, kWireBytes, at(1, 0));
+  ASSERT_FALSE(points.ok());
+  EXPECT_EQ(points.refused->reason, Refusal::kWrongMode);
   auto baseline = makeAggregator(starConfig({1}, Mode::kBaseline));
-  EXPECT_FALSE(baseline.onMap(mapMessage(1, 1, {}), kT0).ok()) << "maps in baseline mode";
+  expectRefused(baseline, streams, 1, mapMessage(1, E(1), {}), at(1, 0), Refusal::kWrongMode);
   EXPECT_EQ(baseline.pendingEpochs(), 0U);
+  EXPECT_EQ(madc.refuse(Refusal::kMalformed, "a message that does not convert").reason, Refusal::kMalformed);
+  EXPECT_EQ(madc.counters().refused.at(Refusal::kMalformed), 1U);
+  EXPECT_EQ(madc.counters().refusedTotal(), 3U);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -319,30 +759,40 @@ std::vector<PointChunk> chunksOf(std::uint32_t node, std::uint64_t epoch, const 
   return chunks;
 }
 
-void acceptChunk(MergeAggregator& aggregator, PointChunk chunk, std::int64_t now_ns) {
-  const auto arrival = aggregator.onPoints(std::move(chunk), now_ns);
-  ASSERT_TRUE(arrival.ok()) << arrival.error().message;
-  EXPECT_EQ(arrival->arrival, Arrival::kAccepted);
+void acceptChunk(MergeAggregator& aggregator, Streams& streams, std::uint32_t child, PointChunk chunk,
+                 std::int64_t now_ns) {
+  const Outcome outcome = aggregator.onPoints(child, streams.next(child), std::move(chunk), kWireBytes, now_ns);
+  ASSERT_TRUE(outcome.ok()) << outcome.refused->message;
+  EXPECT_EQ(outcome.arrival, Arrival::kAccepted);
 }
 
-TEST(MergeAggregator, BaselineRootClustersTheUnionAndLabelsEveryPoint) {
+TEST(MergeAggregator, BaselineRootLeavesTheClusteringToTheCallerAndLabelsEveryPoint) {
   std::mt19937_64 rng(21);
+  Streams streams;
   const auto clouds = twoSensorScene(rng);
   auto aggregator = makeAggregator(starConfig({1, 2}, Mode::kBaseline));
   connectAll(aggregator, {1, 2});
   // Sensor 2 first and chunks out of order: the result must still follow sensor-id order.
-  auto chunks2 = chunksOf(2, 3, clouds[1], 3);
-  auto chunks1 = chunksOf(1, 3, clouds[0], 4);
-  for (int k : {2, 0, 1}) acceptChunk(aggregator, chunks2[static_cast<std::size_t>(k)], kT0);
-  for (int k : {3, 1, 0}) acceptChunk(aggregator, chunks1[static_cast<std::size_t>(k)], kT0);
-  EXPECT_TRUE(aggregator.poll(kT0 + 1 * kMs).empty()) << "sensor 1's scan is incomplete";
-  acceptChunk(aggregator, chunks1[2], kT0 + 2 * kMs);
-  acceptChunk(aggregator, chunks1[2], kT0 + 2 * kMs);  // a re-sent chunk changes nothing
+  auto chunks2 = chunksOf(2, E(3), clouds[1], 3);
+  auto chunks1 = chunksOf(1, E(3), clouds[0], 4);
+  for (int k : {2, 0, 1}) acceptChunk(aggregator, streams, 2, chunks2[static_cast<std::size_t>(k)], at(3, 5));
+  for (int k : {3, 1, 0}) acceptChunk(aggregator, streams, 1, chunks1[static_cast<std::size_t>(k)], at(3, 5));
+  EXPECT_TRUE(aggregator.poll(at(3, 6)).empty()) << "sensor 1's scan is incomplete";
+  const UploadKey key = streams.next(1);
+  ASSERT_TRUE(aggregator.onPoints(1, key, chunks1[2], kWireBytes, at(3, 7)).ok());
+  ASSERT_TRUE(aggregator.onPoints(1, key, chunks1[2], kWireBytes, at(3, 7)).ok()) << "a re-sent chunk is harmless";
+  EXPECT_EQ(aggregator.counters().duplicates, 1U);
 
-  const auto outputs = aggregator.poll(kT0 + 3 * kMs);
+  const auto outputs = aggregator.poll(at(3, 8));
   ASSERT_EQ(outputs.size(), 1U);
   EXPECT_TRUE(outputs[0].complete);
-  const auto& global = globalOf(outputs[0]);
+  // The core hands out the job; the clustering runs outside the lock, and published() records it.
+  ASSERT_TRUE(std::holds_alternative<BaselineJob>(outputs[0].message));
+  EXPECT_FALSE(aggregator.latestGlobalMap().has_value());
+  const GlobalMapMessage global = clusterCentrally(std::get<BaselineJob>(outputs[0].message));
+  aggregator.published(global);
+  ASSERT_TRUE(aggregator.latestGlobalMap().has_value());
+  EXPECT_EQ(aggregator.latestGlobalMap()->header.epoch, E(3));
 
   Cloud all = clouds[0];
   all.insert(all.end(), clouds[1].begin(), clouds[1].end());
@@ -353,7 +803,7 @@ TEST(MergeAggregator, BaselineRootClustersTheUnionAndLabelsEveryPoint) {
   const auto summaries = summarizeClusters(all, central);
   for (std::size_t k = 0; k < summaries.size(); ++k) {
     ASSERT_EQ(global.map.objects[k].ellipsoids.size(), 1U);
-    const EllipsoidId id{kRoot, 3, static_cast<std::uint32_t>(k)};
+    const EllipsoidId id{kRoot, E(3), static_cast<std::uint32_t>(k)};
     EXPECT_EQ(global.map.objects[k].ellipsoids[0], ellipsoidFromSummary(summaries[k], id, params.ellipsoidParams()));
   }
   ASSERT_EQ(global.point_labels.size(), 2U);
@@ -369,45 +819,70 @@ TEST(MergeAggregator, BaselineRootClustersTheUnionAndLabelsEveryPoint) {
 
 TEST(MergeAggregator, BaselineRootSkipsSensorsUnderDeadChildren) {
   std::mt19937_64 rng(22);
+  Streams streams;
   const auto clouds = twoSensorScene(rng);
   AggregatorConfig config = starConfig({}, Mode::kBaseline);
   config.children = {{10, {1, 2}}, {3, {3}}};  // an intermediate over sensors 1 and 2, and edge 3
   auto aggregator = makeAggregator(config);
-  ASSERT_TRUE(aggregator.childConnected(1).ok());  // the intermediate's stream, named by a relayed chunk
-  for (auto& chunk : chunksOf(1, 2, clouds[0], 2)) acceptChunk(aggregator, chunk, kT0);
-  EXPECT_TRUE(aggregator.poll(kT0 + 1 * kMs).empty()) << "sensor 2 is below a live child";
-  for (auto& chunk : chunksOf(2, 2, clouds[1], 2)) acceptChunk(aggregator, chunk, kT0);
-  const auto outputs = aggregator.poll(kT0 + 2 * kMs);
+  const auto child = aggregator.childConnected(1);  // the intermediate's stream, named by a relayed chunk
+  ASSERT_TRUE(child.ok());
+  ASSERT_EQ(*child, 10U);
+  for (auto& chunk : chunksOf(1, E(2), clouds[0], 2)) acceptChunk(aggregator, streams, 10, chunk, at(2, 5));
+  EXPECT_TRUE(aggregator.poll(at(2, 6)).empty()) << "sensor 2 is below a live child";
+  for (auto& chunk : chunksOf(2, E(2), clouds[1], 2)) acceptChunk(aggregator, streams, 10, chunk, at(2, 7));
+  const auto outputs = aggregator.poll(at(2, 8));
   ASSERT_EQ(outputs.size(), 1U) << "edge 3 never connected: not waited for";
   EXPECT_TRUE(outputs[0].complete);
-  EXPECT_EQ(globalOf(outputs[0]).header.missing_nodes, (std::vector<std::uint32_t>{3}));
+  const auto& job = std::get<BaselineJob>(outputs[0].message);
+  EXPECT_EQ(job.message.header.missing_nodes, (std::vector<std::uint32_t>{3}));
+  EXPECT_EQ(job.scans.size(), 2U);
+}
+
+TEST(MergeAggregator, BaselineChunksSpeakForTheirStreamsSensorsOnly) {
+  std::mt19937_64 rng(25);
+  Streams streams;
+  const auto clouds = twoSensorScene(rng);
+  auto aggregator = makeAggregator(starConfig({1, 2}, Mode::kBaseline));
+  connectAll(aggregator, {1, 2});
+  const auto chunk = chunksOf(2, E(1), clouds[1], 2)[0];
+  const Outcome forged = aggregator.onPoints(1, streams.next(1), chunk, kWireBytes, at(1, 5));
+  ASSERT_FALSE(forged.ok());
+  EXPECT_EQ(forged.refused->reason, Refusal::kForgedNode);
+  auto far = chunksOf(1, E(1), clouds[0], 1)[0];
+  far.points[3].x = 1e30F;
+  const Outcome out_of_world = aggregator.onPoints(1, streams.next(1), far, kWireBytes, at(1, 5));
+  ASSERT_FALSE(out_of_world.ok());
+  EXPECT_EQ(out_of_world.refused->reason, Refusal::kOutOfWorld);
+  const Outcome future = aggregator.onPoints(1, streams.next(1), chunksOf(1, E(9), clouds[0], 1)[0], kWireBytes,
+                                             at(1, 5));
+  ASSERT_FALSE(future.ok());
+  EXPECT_EQ(future.refused->reason, Refusal::kClockSkew);
+  EXPECT_EQ(aggregator.pendingEpochs(), 0U);
 }
 
 TEST(MergeAggregator, IntermediateRelaysPointChunksAtOnce) {
   std::mt19937_64 rng(23);
+  Streams streams;
   const auto clouds = twoSensorScene(rng);
   auto aggregator = makeAggregator(starConfig({1, 2}, Mode::kBaseline, /*is_root=*/false));
-  const auto chunk = chunksOf(1, 2, clouds[0], 2)[1];
-  const auto arrival = aggregator.onPoints(chunk, kT0);
-  ASSERT_TRUE(arrival.ok());
-  EXPECT_EQ(arrival->arrival, Arrival::kRelay);
-  ASSERT_TRUE(arrival->relay.has_value());
-  // PointChunk's defaulted == is deleted (Point has none), so compare what a relay must keep.
-  const PointChunk& relayed = *arrival->relay;
-  EXPECT_EQ(relayed.header, chunk.header);
-  EXPECT_EQ(relayed.chunk, chunk.chunk);
-  EXPECT_EQ(relayed.first_point, chunk.first_point);
-  ASSERT_EQ(relayed.points.size(), chunk.points.size());
-  for (std::size_t i = 0; i < chunk.points.size(); ++i) EXPECT_EQ(relayed.points[i].xyz(), chunk.points[i].xyz());
+  connectAll(aggregator, {1, 2});
+  const auto chunk = chunksOf(1, E(2), clouds[0], 2)[1];
+  const Outcome outcome = aggregator.onPoints(1, streams.next(1), chunk, kWireBytes, at(2, 5));
+  ASSERT_TRUE(outcome.ok());
+  EXPECT_EQ(outcome.arrival, Arrival::kRelay);
+  ASSERT_TRUE(outcome.relay.has_value());
+  EXPECT_EQ(*outcome.relay, chunk);
   EXPECT_EQ(aggregator.pendingEpochs(), 0U);
-  EXPECT_TRUE(aggregator.poll(kT0 + 1000 * kMs).empty());
+  EXPECT_TRUE(aggregator.poll(at(5, 0)).empty());
+  EXPECT_EQ(aggregator.counters().relayed, 1U);
 }
 
 TEST(MergeAggregator, ExtRootLabelsPointsWithTheirGlobalObjects) {
   std::mt19937_64 rng(24);
+  Streams streams;
   const auto clouds = twoSensorScene(rng);
   const MadcParams params;
-  const std::uint64_t epoch = 6;
+  const std::uint64_t epoch = E(6);
   auto aggregator = makeAggregator(starConfig({1, 2}, Mode::kExt));
   connectAll(aggregator, {1, 2});
   std::vector<LocalMapResult> locals;
@@ -415,13 +890,15 @@ TEST(MergeAggregator, ExtRootLabelsPointsWithTheirGlobalObjects) {
   for (std::uint32_t s = 0; s < 2; ++s) {
     locals.push_back(genLocalMap(clouds[s], s + 1, epoch, params));
     maps.push_back(locals.back().map);
-    accept(aggregator, mapMessage(s + 1, epoch, locals.back().map), kT0);
+    accept(aggregator, streams, mapMessage(s + 1, epoch, locals.back().map), at(6, 5));
   }
-  EXPECT_TRUE(aggregator.poll(kT0 + 1 * kMs).empty()) << "ext waits for the points too";
+  EXPECT_TRUE(aggregator.poll(at(6, 6)).empty()) << "ext waits for the points too";
   for (std::uint32_t s = 0; s < 2; ++s) {
-    for (auto& chunk : chunksOf(s + 1, epoch, clouds[s], 3, locals[s].clustering.labels)) acceptChunk(aggregator, chunk, kT0);
+    for (auto& chunk : chunksOf(s + 1, epoch, clouds[s], 3, locals[s].clustering.labels)) {
+      acceptChunk(aggregator, streams, s + 1, chunk, at(6, 7));
+    }
   }
-  const auto outputs = aggregator.poll(kT0 + 2 * kMs);
+  const auto outputs = aggregator.poll(at(6, 8));
   ASSERT_EQ(outputs.size(), 1U);
   const auto& global = globalOf(outputs[0]);
   const Map expected = mergeAll(maps).map;
@@ -458,9 +935,9 @@ TEST(MergeAggregator, ExtRootLabelsPointsWithTheirGlobalObjects) {
 // ---------------------------------------------------------------------------------------------
 // Geofences.
 
-Ellipsoid ball(std::uint32_t node, std::uint32_t index, const Eigen::Vector3d& centre) {
+Ellipsoid ball(std::uint32_t node, std::uint64_t epoch, std::uint32_t index, const Eigen::Vector3d& centre) {
   Ellipsoid e;
-  e.id = {node, 1, index};
+  e.id = {node, epoch, index};
   e.center = centre;
   e.shape = Eigen::Matrix3d::Identity() * 0.25;  // radius 0.5 m
   e.point_count = 10;
@@ -468,6 +945,7 @@ Ellipsoid ball(std::uint32_t node, std::uint32_t index, const Eigen::Vector3d& c
 }
 
 TEST(MergeAggregator, GeofencesAreSetReplacedAndQueriedOnTheLatestGlobalMap) {
+  Streams streams;
   auto aggregator = makeAggregator(starConfig({1}));
   connectAll(aggregator, {1});
   EXPECT_EQ(*aggregator.setGeofence(boxGeofence("zone", {-1, -1, -1}, {1, 1, 1})), 1U);
@@ -476,16 +954,17 @@ TEST(MergeAggregator, GeofencesAreSetReplacedAndQueriedOnTheLatestGlobalMap) {
   EXPECT_EQ(before->epoch, 0U);
   EXPECT_TRUE(before->intrusions.empty()) << "no global map yet";
 
-  accept(aggregator, mapMessage(1, 1, localMap({ball(1, 0, {0, 0, 0}), ball(1, 1, {10, 0, 0})})), kT0);
-  ASSERT_EQ(aggregator.poll(kT0).size(), 1U);
+  accept(aggregator, streams, mapMessage(1, E(1), localMap({ball(1, E(1), 0, {0, 0, 0}), ball(1, E(1), 1, {10, 0, 0})})),
+         at(1, 5));
+  ASSERT_EQ(aggregator.poll(at(1, 6)).size(), 1U);
   const auto inside = aggregator.queryGeofences("zone");
   ASSERT_TRUE(inside.ok());
-  EXPECT_EQ(inside->epoch, 1U);
+  EXPECT_EQ(inside->epoch, E(1));
   ASSERT_EQ(inside->intrusions.size(), 1U);
   EXPECT_EQ(inside->intrusions[0].geofence, "zone");
   EXPECT_EQ(inside->intrusions[0].object_index, 0U);
   EXPECT_EQ(inside->intrusions[0].containment, Containment::kInside);
-  EXPECT_EQ(inside->intrusions[0].ellipsoids, (std::vector<EllipsoidId>{{1, 1, 0}}));
+  EXPECT_EQ(inside->intrusions[0].ellipsoids, (std::vector<EllipsoidId>{{1, E(1), 0}}));
 
   // Same name: replaced, not added. The new zone cuts the second ball.
   EXPECT_EQ(*aggregator.setGeofence(boxGeofence("zone", {10, -1, -1}, {11, 1, 1})), 1U);
@@ -505,6 +984,26 @@ TEST(MergeAggregator, GeofencesAreSetReplacedAndQueriedOnTheLatestGlobalMap) {
 
   auto intermediate = makeAggregator(starConfig({1}, Mode::kMadc, /*is_root=*/false));
   EXPECT_FALSE(intermediate.setGeofence(boxGeofence("zone", {-1, -1, -1}, {1, 1, 1})).ok());
+}
+
+TEST(MergeAggregator, GeofencesAnswerOnTheNewestOnTimeEpochOnly) {
+  Streams streams;
+  auto aggregator = makeAggregator(starConfig({1, 2}));
+  connectAll(aggregator, {1, 2});
+  ASSERT_TRUE(aggregator.setGeofence(boxGeofence("zone", {-1, -1, -1}, {1, 1, 1})).ok());
+  accept(aggregator, streams, mapMessage(1, E(2), localMap({ball(1, E(2), 0, {0, 0, 0})})), at(2, 5));
+  ASSERT_EQ(aggregator.poll(at(2, 80)).size(), 1U);
+  // A late revision of an older epoch, and an older epoch emitted after a newer one, change nothing.
+  accept(aggregator, streams, mapMessage(2, E(2), localMap({ball(2, E(2), 0, {30, 0, 0})})), at(2, 90), Arrival::kLate);
+  ASSERT_EQ(aggregator.poll(at(2, 91)).size(), 1U);
+  GlobalMapMessage older;
+  older.header.epoch = E(1);
+  aggregator.published(older);
+  const auto report = aggregator.queryGeofences("zone");
+  ASSERT_TRUE(report.ok());
+  EXPECT_EQ(report->epoch, E(2));
+  EXPECT_EQ(aggregator.latestGlobalMap()->revision, 0U);
+  EXPECT_EQ(report->intrusions.size(), 1U);
 }
 
 }  // namespace

@@ -1,0 +1,15 @@
+#pragma once
+// The one clock of fogmap: unix time in nanoseconds. Sensor timestamps, epoch boundaries and
+// deadlines all use it, so end-to-end latency and admission compare like with like. Every unit
+// whose behaviour depends on time takes a NowNs, so tests drive time by hand.
+#include <cstdint>
+#include <functional>
+
+namespace fogmap {
+
+using NowNs = std::function<std::int64_t()>;
+
+// The system clock (unix epoch), in nanoseconds.
+std::int64_t systemNowNs();
+
+}  // namespace fogmap

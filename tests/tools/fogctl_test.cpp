@@ -1,0 +1,602 @@
+// fogctl as a user runs it: the real binary in a child process, its stdout, stderr and exit code;
+// a root aggregator stood in for by an in-process GlobalMapService on loopback where one is needed.
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <chrono>
+#include <condition_variable>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <iterator>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+
+#include "common/topology.hpp"
+#include "fogmap/v1/fogmap.grpc.pb.h"
+#include "services/common/proto_convert.hpp"
+#include "tools/fogctl/launcher.hpp"
+
+namespace fogmap {
+namespace {
+
+using namespace std::chrono_literals;
+namespace fs = std::filesystem;
+
+fs::path fogctlBinary() { return cli::binaryDir() / "fogctl"; }
+
+// A fresh directory under the system temp dir, removed with everything in it at the end.
+class ScratchDir {
+ public:
+  explicit ScratchDir(const std::string& name)
+      : path_(fs::temp_directory_path() / ("fogctl-test-" + std::to_string(::getpid()) + "-" + name)) {
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~ScratchDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  ScratchDir(const ScratchDir&) = delete;
+  ScratchDir& operator=(const ScratchDir&) = delete;
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+struct Outcome {
+  int code = -1;  // exit code; 128 + signal when killed; -1 when it had to be killed at the limit
+  std::string out;
+  std::string err;
+};
+
+// A child process with its stdout and stderr captured; every wait on it is bounded.
+class Child {
+ public:
+  Child(const std::vector<std::string>& args, const fs::path& cwd) {
+    int out[2];
+    int err[2];
+    if (::pipe2(out, O_CLOEXEC) != 0 || ::pipe2(err, O_CLOEXEC) != 0) return;
+    // Everything the child touches is prepared before fork: it only calls async-signal-safe functions.
+    std::vector<std::string> storage = args;
+    std::vector<char*> argv;
+    for (auto& a : storage) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    const std::string dir = cwd.string();
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      if (!dir.empty() && ::chdir(dir.c_str()) != 0) ::_exit(126);
+      ::dup2(out[1], STDOUT_FILENO);
+      ::dup2(err[1], STDERR_FILENO);
+      ::execv(argv[0], argv.data());
+      ::_exit(127);
+    }
+    ::close(out[1]);
+    ::close(err[1]);
+    out_fd_ = out[0];
+    err_fd_ = err[0];
+  }
+  ~Child() {
+    if (pid_ > 0 && !reaped_) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+    }
+    closeFd(out_fd_);
+    closeFd(err_fd_);
+  }
+  Child(const Child&) = delete;
+  Child& operator=(const Child&) = delete;
+
+  bool started() const { return pid_ > 0; }
+  pid_t pid() const { return pid_; }
+
+  // Reads the output until `done(out, err)` holds, both streams close, or `limit` passes.
+  bool readUntil(const std::function<bool(const std::string&, const std::string&)>& done,
+                 std::chrono::milliseconds limit) {
+    const auto deadline = std::chrono::steady_clock::now() + limit;
+    while (!done(out_, err_)) {
+      if (out_fd_ < 0 && err_fd_ < 0) return false;
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+      if (left.count() <= 0) return false;
+      pollfd fds[2] = {{out_fd_, POLLIN, 0}, {err_fd_, POLLIN, 0}};
+      if (::poll(fds, 2, static_cast<int>(left.count())) <= 0) continue;
+      drain(fds[0], out_fd_, out_);
+      drain(fds[1], err_fd_, err_);
+    }
+    return true;
+  }
+
+  // Waits for the child to exit (its streams close), killing it when `limit` passes first.
+  Outcome finish(std::chrono::milliseconds limit = 60s) {
+    readUntil([](const std::string&, const std::string&) { return false; }, limit);
+    const bool timed_out = out_fd_ >= 0 || err_fd_ >= 0;
+    if (timed_out) ::kill(pid_, SIGKILL);
+    int status = 0;
+    ::waitpid(pid_, &status, 0);
+    reaped_ = true;
+    Outcome o;
+    o.out = out_;
+    o.err = err_;
+    if (timed_out) {
+      o.code = -1;
+    } else if (WIFEXITED(status)) {
+      o.code = WEXITSTATUS(status);
+    } else if (WIFSIGNALED(status)) {
+      o.code = 128 + WTERMSIG(status);
+    }
+    return o;
+  }
+
+  const std::string& out() const { return out_; }
+  const std::string& err() const { return err_; }
+
+ private:
+  static void closeFd(int& fd) {
+    if (fd >= 0) ::close(fd);
+    fd = -1;
+  }
+  static void drain(const pollfd& p, int& fd, std::string& into) {
+    if (fd < 0 || (p.revents & (POLLIN | POLLHUP | POLLERR)) == 0) return;
+    char buffer[4096];
+    const ssize_t n = ::read(fd, buffer, sizeof buffer);
+    if (n > 0) {
+      into.append(buffer, static_cast<std::size_t>(n));
+    } else {
+      closeFd(fd);
+    }
+  }
+
+  pid_t pid_ = -1;
+  bool reaped_ = false;
+  int out_fd_ = -1;
+  int err_fd_ = -1;
+  std::string out_;
+  std::string err_;
+};
+
+// Runs fogctl with `args` in `cwd` (the test's own when empty) and waits for it, bounded.
+Outcome fogctl(const std::vector<std::string>& args, const fs::path& cwd = {}, std::chrono::milliseconds limit = 60s) {
+  std::vector<std::string> argv{fogctlBinary().string()};
+  argv.insert(argv.end(), args.begin(), args.end());
+  Child child(argv, cwd);
+  if (!child.started()) return {};
+  return child.finish(limit);
+}
+
+std::string describe(const Outcome& o) { return "exit " + std::to_string(o.code) + "\nstdout:\n" + o.out + "\nstderr:\n" + o.err; }
+
+bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+// Ports the kernel hands out as free right now (held together so they are distinct).
+std::vector<std::uint16_t> freePorts(std::size_t count) {
+  std::vector<int> fds;
+  std::vector<std::uint16_t> ports;
+  for (std::size_t i = 0; i < count; ++i) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t len = sizeof addr;
+    if (fd < 0 || ::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0 ||
+        ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) != 0) {
+      ADD_FAILURE() << "cannot get a free port";
+      return {};
+    }
+    fds.push_back(fd);
+    ports.push_back(ntohs(addr.sin_port));
+  }
+  for (const int fd : fds) ::close(fd);
+  return ports;
+}
+
+// KITTI .bin: float32 x, y, z, reflectance per point.
+void writeKitti(const fs::path& file, const std::vector<std::array<float, 3>>& points) {
+  std::ofstream out(file, std::ios::binary);
+  for (const auto& p : points) {
+    const float record[4] = {p[0], p[1], p[2], 0.5F};
+    out.write(reinterpret_cast<const char*>(record), sizeof record);
+  }
+}
+
+std::vector<std::string> lines(const std::string& text) {
+  std::vector<std::string> out;
+  std::istringstream in(text);
+  std::string line;
+  while (std::getline(in, line)) out.push_back(line);
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// --help
+
+// The commands `fogctl --help` lists (the first word of each indented line), and at least these.
+std::set<std::string> listedCommands() {
+  std::set<std::string> commands{"cluster", "bench", "demo", "up", "down", "watch", "geofence", "topology", "split"};
+  for (const auto& line : lines(fogctl({"--help"}).out)) {
+    if (line.rfind("  ", 0) != 0 || line.size() < 3 || line[2] == ' ') continue;
+    commands.insert(line.substr(2, line.find(' ', 2) - 2));
+  }
+  return commands;
+}
+
+TEST(FogctlHelp, TopLevelHelpGoesToStdout) {
+  const Outcome o = fogctl({"--help"});
+  EXPECT_EQ(o.code, 0) << describe(o);
+  EXPECT_TRUE(contains(o.out, "usage: fogctl <command>")) << describe(o);
+}
+
+TEST(FogctlHelp, EveryCommandAnswersHelpWithItsUsageOnStdout) {
+  for (const auto& command : listedCommands()) {
+    const Outcome o = fogctl({command, "--help"});
+    EXPECT_EQ(o.code, 0) << command << "\n" << describe(o);
+    EXPECT_TRUE(contains(o.out, "usage: fogctl " + command)) << command << "\n" << describe(o);
+    EXPECT_TRUE(o.err.empty()) << command << "\n" << describe(o);
+  }
+}
+
+TEST(FogctlHelp, SubcommandsAndFlagsBeforeHelpStillGiveUsage) {
+  for (const auto& args : {std::vector<std::string>{"bench", "clustering", "--help"},
+                           std::vector<std::string>{"geofence", "set", "--help"},
+                           std::vector<std::string>{"geofence", "query", "--help"},
+                           std::vector<std::string>{"cluster", "--eps", "0.5", "--help"},
+                           std::vector<std::string>{"split", "-h"},
+                           std::vector<std::string>{"help", "watch"}}) {
+    const Outcome o = fogctl(args);
+    EXPECT_EQ(o.code, 0) << args[0] << " " << args[1] << "\n" << describe(o);
+    EXPECT_TRUE(contains(o.out, "usage: fogctl " + (args[0] == "help" ? args[1] : args[0]))) << describe(o);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// watch, against a stand-in root
+
+// A root aggregator's GlobalMapService: every subscriber gets `maps` global maps, then the stream
+// stays open (without maps) until the server shuts down.
+class FakeRoot final : public v1::GlobalMapService::Service {
+ public:
+  explicit FakeRoot(int maps) : maps_(maps) {
+    grpc::ServerBuilder builder;
+    builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port_);
+    builder.RegisterService(this);
+    server_ = builder.BuildAndStart();
+  }
+  ~FakeRoot() override { shutdown(); }
+
+  std::string target() const { return "127.0.0.1:" + std::to_string(port_); }
+  bool running() const { return server_ != nullptr && port_ > 0; }
+  // Ends every open stream with an error, as a root that goes away does.
+  void shutdown() {
+    if (!server_) return;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stopping_ = true;
+    }
+    changed_.notify_all();
+    server_->Shutdown(std::chrono::system_clock::now() + 1s);
+    server_.reset();
+  }
+
+  grpc::Status Subscribe(grpc::ServerContext*, const v1::SubscribeRequest*,
+                         grpc::ServerWriter<v1::GlobalMap>* writer) override {
+    for (int k = 0; k < maps_; ++k) {
+      GlobalMapMessage global;
+      global.header.epoch = 100 + static_cast<std::uint64_t>(k);
+      if (!writer->Write(toProto(global))) return grpc::Status::CANCELLED;
+    }
+    std::unique_lock<std::mutex> lock(mutex_);
+    changed_.wait(lock, [&] { return stopping_; });
+    return {grpc::StatusCode::UNAVAILABLE, "root going away"};
+  }
+
+ private:
+  int maps_;
+  int port_ = 0;
+  std::unique_ptr<grpc::Server> server_;
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  bool stopping_ = false;
+};
+
+TEST(FogctlWatch, SaysItCannotReachAMissingRootAndFails) {
+  const auto ports = freePorts(1);
+  ASSERT_EQ(ports.size(), 1U);
+  const std::string target = "127.0.0.1:" + std::to_string(ports[0]);
+  const Outcome o = fogctl({"watch", "--target", target}, {}, 30s);
+  EXPECT_NE(o.code, 0) << describe(o);
+  EXPECT_NE(o.code, -1) << "still running after 30 s\n" << describe(o);
+  EXPECT_TRUE(contains(o.err, "cannot reach")) << describe(o);
+  EXPECT_TRUE(contains(o.err, target)) << describe(o);
+}
+
+TEST(FogctlWatch, SaysTheRootWentAwayAndFails) {
+  FakeRoot root(1);
+  ASSERT_TRUE(root.running());
+  Child watch({fogctlBinary().string(), "watch", "--target", root.target()}, {});
+  ASSERT_TRUE(watch.started());
+  ASSERT_TRUE(watch.readUntil([](const std::string& out, const std::string&) { return contains(out, "epoch 100"); }, 30s))
+      << "stdout:\n" << watch.out() << "\nstderr:\n" << watch.err();
+  root.shutdown();
+  const Outcome o = watch.finish(30s);
+  EXPECT_NE(o.code, 0) << describe(o);
+  EXPECT_NE(o.code, -1) << "still running 30 s after the root went away\n" << describe(o);
+  EXPECT_TRUE(contains(o.err, "lost the root")) << describe(o);
+  EXPECT_TRUE(contains(o.err, root.target())) << describe(o);
+}
+
+TEST(FogctlWatch, SaysWhenNoGlobalMapComesAndGivesUpAfterTheTimeout) {
+  FakeRoot root(0);
+  ASSERT_TRUE(root.running());
+  const Outcome o = fogctl({"watch", "--target", root.target(), "--idle-s", "0.2", "--timeout-s", "1"}, {}, 30s);
+  EXPECT_NE(o.code, 0) << describe(o);
+  EXPECT_NE(o.code, -1) << "still running after 30 s\n" << describe(o);
+  EXPECT_TRUE(contains(o.err, "no global map from the root at " + root.target() + " for 0.2 s")) << describe(o);
+  EXPECT_TRUE(contains(o.err, "giving up")) << describe(o);
+}
+
+TEST(FogctlWatch, EndsCleanlyAfterCountMaps) {
+  FakeRoot root(3);
+  ASSERT_TRUE(root.running());
+  const Outcome o = fogctl({"watch", "--target", root.target(), "--count", "2"}, {}, 30s);
+  EXPECT_EQ(o.code, 0) << describe(o);
+  EXPECT_TRUE(contains(o.out, "epoch 100")) << describe(o);
+  EXPECT_TRUE(contains(o.out, "epoch 101")) << describe(o);
+  EXPECT_FALSE(contains(o.out, "epoch 102")) << describe(o);
+}
+
+// ---------------------------------------------------------------------------------------------
+// cluster
+
+TEST(FogctlCluster, LabelsLineUpWithTheInputPointsNonFiniteOnesNoise) {
+  ScratchDir dir("labels");
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  // Two clusters along x (0.1 m apart, eps 0.35), an isolated point, and non-finite points between.
+  writeKitti(dir.path() / "scan.bin", {{0.0F, 0.0F, 0.0F},
+                                       {0.1F, 0.0F, 0.0F},
+                                       {nan, 0.0F, 0.0F},
+                                       {0.2F, 0.0F, 0.0F},
+                                       {10.0F, 0.0F, 0.0F},
+                                       {10.1F, nan, 0.0F},
+                                       {10.1F, 0.0F, 0.0F},
+                                       {10.2F, 0.0F, 0.0F},
+                                       {50.0F, 0.0F, 0.0F},
+                                       {inf, 1.0F, 1.0F},
+                                       {0.3F, 0.0F, 0.0F}});
+  const fs::path labels = dir.path() / "labels.txt";
+  const Outcome o = fogctl({"cluster", "--input", (dir.path() / "scan.bin").string(), "--eps", "0.35", "--min-points", "3",
+                            "--threads", "1", "--labels", labels.string()});
+  ASSERT_EQ(o.code, 0) << describe(o);
+  std::ifstream in(labels);
+  std::stringstream text;
+  text << in.rdbuf();
+  EXPECT_EQ(lines(text.str()), (std::vector<std::string>{"0", "0", "-1", "0", "1", "-1", "1", "1", "-1", "-1", "0"}))
+      << text.str();
+}
+
+TEST(FogctlCluster, RefusesAnEpsOutsideTheAcceptedRangeNamingIt) {
+  ScratchDir dir("eps");
+  writeKitti(dir.path() / "scan.bin", {{0.0F, 0.0F, 0.0F}, {0.1F, 0.0F, 0.0F}});
+  for (const std::string eps : {"1e-300", "0", "-1", "1000"}) {
+    const Outcome o = fogctl({"cluster", "--input", (dir.path() / "scan.bin").string(), "--eps", eps});
+    EXPECT_EQ(o.code, 2) << "--eps " << eps << "\n" << describe(o);
+    EXPECT_TRUE(contains(o.err, "eps")) << describe(o);
+    EXPECT_TRUE(contains(o.err, "between 0.001 and 100")) << describe(o);
+  }
+  const Outcome ok = fogctl({"cluster", "--input", (dir.path() / "scan.bin").string(), "--eps", "0.001", "--min-points", "1"});
+  EXPECT_EQ(ok.code, 0) << describe(ok);
+}
+
+TEST(FogctlCluster, RefusesASparseScanAboveTheDefaultSizeBound) {
+  ScratchDir dir("huge");
+  const fs::path file = dir.path() / "huge.bin";
+  { std::ofstream touch(file, std::ios::binary); }
+  fs::resize_file(file, 300ULL << 20);  // sparse: no disk used, 300 MiB of zero points if read
+  const Outcome o = fogctl({"cluster", "--input", file.string()}, {}, 30s);
+  EXPECT_EQ(o.code, 2) << describe(o);
+  EXPECT_TRUE(contains(o.err, "more than the scan size bound")) << describe(o);
+  EXPECT_TRUE(contains(o.err, "--max-scan-bytes")) << describe(o);
+}
+
+TEST(FogctlCluster, MaxScanBytesBoundsTheInput) {
+  ScratchDir dir("bound");
+  const fs::path file = dir.path() / "scan.bin";
+  writeKitti(file, {{0.0F, 0.0F, 0.0F}, {0.1F, 0.0F, 0.0F}, {0.2F, 0.0F, 0.0F}});  // 48 bytes
+  const Outcome refused = fogctl({"cluster", "--input", file.string(), "--max-scan-bytes", "47"});
+  EXPECT_EQ(refused.code, 2) << describe(refused);
+  EXPECT_TRUE(contains(refused.err, "more than the scan size bound of 47 bytes")) << describe(refused);
+  const Outcome accepted = fogctl({"cluster", "--input", file.string(), "--max-scan-bytes", "48", "--min-points", "1"});
+  EXPECT_EQ(accepted.code, 0) << describe(accepted);
+  for (const std::string bad : {"0", "-5", "lots"}) {
+    const Outcome o = fogctl({"cluster", "--input", file.string(), "--max-scan-bytes", bad});
+    EXPECT_EQ(o.code, 2) << bad << "\n" << describe(o);
+    EXPECT_TRUE(contains(o.err, "--max-scan-bytes")) << describe(o);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// up / down
+
+bool processGone(pid_t pid) {
+  std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
+  if (!stat) return true;
+  std::string text((std::istreambuf_iterator<char>(stat)), std::istreambuf_iterator<char>());
+  const auto paren = text.rfind(')');
+  return paren != std::string::npos && paren + 2 < text.size() && text[paren + 2] == 'Z';
+}
+
+std::string cmdline(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/cmdline");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  for (auto& c : text) {
+    if (c == '\0') c = ' ';
+  }
+  return text;
+}
+
+// The pids recorded in every `pids` file under `root`.
+std::vector<pid_t> recordedPids(const fs::path& root) {
+  std::vector<pid_t> out;
+  std::error_code ec;
+  for (fs::recursive_directory_iterator it(root, ec), end; !ec && it != end; it.increment(ec)) {
+    if (it->path().filename() != "pids") continue;
+    std::ifstream in(it->path());
+    pid_t pid = 0;
+    std::string rest;
+    while (in >> pid && std::getline(in, rest)) out.push_back(pid);
+  }
+  return out;
+}
+
+// Whatever happens in a test, the services it started do not outlive it: they are killed by pid
+// when their command line still names the test's topology file.
+class ServiceReaper {
+ public:
+  explicit ServiceReaper(fs::path topology) : topology_(std::move(topology)) {}
+  ~ServiceReaper() {
+    for (const pid_t pid : pids_) {
+      if (contains(cmdline(pid), topology_.string())) ::kill(pid, SIGKILL);
+    }
+  }
+  void track(const std::vector<pid_t>& pids) { pids_.insert(pids_.end(), pids.begin(), pids.end()); }
+
+ private:
+  fs::path topology_;
+  std::vector<pid_t> pids_;
+};
+
+// A one-edge star on free ports, written to dir/name.yaml; the edge replays the bundled scans
+// forever, so both services run until stopped.
+fs::path writeTopology(const fs::path& dir, const std::string& name) {
+  const auto ports = freePorts(3);
+  if (ports.size() != 3) return {};
+  TopologyConfig t = makeStarTopology(1, fs::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a", 40000);
+  t.name = name;
+  for (auto& n : t.nodes) {
+    if (n.role == Role::kAggregator) {
+      n.port = ports[0];
+      n.metrics_port = ports[1];
+    } else {
+      n.metrics_port = ports[2];
+      n.sensor->frames.reset();
+      n.sensor->loop = true;
+    }
+  }
+  const fs::path file = dir / (name + ".yaml");
+  std::ofstream(file) << toYaml(t);
+  return file;
+}
+
+// Splits a printed shell command on spaces, honouring single quotes.
+std::vector<std::string> shellWords(const std::string& command) {
+  std::vector<std::string> words;
+  std::string word;
+  bool quoted = false;
+  bool any = false;
+  for (const char c : command) {
+    if (c == '\'') {
+      quoted = !quoted;
+      any = true;
+    } else if (c == ' ' && !quoted) {
+      if (any) words.push_back(word);
+      word.clear();
+      any = false;
+    } else {
+      word += c;
+      any = true;
+    }
+  }
+  if (any) words.push_back(word);
+  return words;
+}
+
+TEST(FogctlUp, DetachedHintStopsTheClusterFromAnotherDirectory) {
+  ScratchDir dir("hint");
+  const fs::path here = dir.path() / "here";
+  const fs::path elsewhere = dir.path() / "elsewhere";
+  fs::create_directories(here);
+  fs::create_directories(elsewhere);
+  const fs::path topology = writeTopology(dir.path(), "hint-star");
+  ASSERT_FALSE(topology.empty());
+  ServiceReaper reaper(topology);
+
+  const Outcome up = fogctl({"up", topology.string(), "--detach", "--state", "run state"}, here, 90s);
+  reaper.track(recordedPids(dir.path()));
+  ASSERT_EQ(up.code, 0) << describe(up);
+  const std::vector<pid_t> pids = recordedPids(here / "run state");
+  ASSERT_EQ(pids.size(), 2U) << describe(up);
+
+  std::string hint;
+  for (const auto& line : lines(up.out)) {
+    if (line.rfind("stop it with: ", 0) == 0) hint = line.substr(std::strlen("stop it with: "));
+  }
+  const fs::path state = fs::canonical(here / "run state");
+  EXPECT_EQ(hint, "fogctl down --state '" + state.string() + "'") << describe(up);
+  const auto words = shellWords(hint);
+  ASSERT_GE(words.size(), 2U);
+  ASSERT_EQ(words[0], "fogctl");
+
+  const Outcome down = fogctl(std::vector<std::string>(words.begin() + 1, words.end()), elsewhere, 60s);
+  EXPECT_EQ(down.code, 0) << describe(down);
+  for (const pid_t pid : pids) EXPECT_TRUE(processGone(pid)) << "pid " << pid << " still runs\n" << describe(down);
+}
+
+TEST(FogctlUp, DefaultStateIsFoundByDownFromAnotherDirectory) {
+  ScratchDir dir("default-state");
+  const fs::path here = dir.path() / "here";
+  const fs::path elsewhere = dir.path() / "elsewhere";
+  fs::create_directories(here);
+  fs::create_directories(elsewhere);
+  const fs::path topology = writeTopology(here, "default-star");
+  ASSERT_FALSE(topology.empty());
+  ServiceReaper reaper(topology);
+
+  const Outcome up = fogctl({"up", "default-star.yaml", "--detach"}, here, 90s);
+  const std::vector<pid_t> pids = recordedPids(dir.path());
+  reaper.track(pids);
+  ASSERT_EQ(up.code, 0) << describe(up);
+  ASSERT_EQ(pids.size(), 2U) << describe(up);
+
+  const Outcome down = fogctl({"down", fs::relative(topology, elsewhere).string()}, elsewhere, 60s);
+  EXPECT_EQ(down.code, 0) << describe(down);
+  for (const pid_t pid : pids) EXPECT_TRUE(processGone(pid)) << "pid " << pid << " still runs\n" << describe(down);
+}
+
+TEST(FogctlDown, LeavesAloneARecordedPidThatIsNoLongerAService) {
+  ScratchDir dir("stale");
+  // An unrelated live process whose pid a stale record names: the state of a cluster that ended
+  // long ago, its pids since reused.
+  Child bystander({"/bin/sleep", "120"}, {});
+  ASSERT_TRUE(bystander.started());
+  const pid_t pid = bystander.pid();
+  const fs::path state = dir.path() / "state";
+  fs::create_directories(state);
+  {
+    // Without a start time (an older fogctl's record), and with a start time that is not the process's.
+    std::ofstream pids(state / "pids");
+    pids << pid << " edge-1\n" << pid << " sink 12345\n";
+  }
+  const Outcome down = fogctl({"down", "--state", state.string()}, dir.path(), 60s);
+  EXPECT_FALSE(processGone(pid)) << "fogctl down killed an unrelated process\n" << describe(down);
+  EXPECT_TRUE(contains(down.err, "pid " + std::to_string(pid) + " (edge-1)")) << describe(down);
+  EXPECT_TRUE(contains(down.err, "pid " + std::to_string(pid) + " (sink)")) << describe(down);
+  EXPECT_TRUE(contains(down.err, "left alone")) << describe(down);
+}
+
+}  // namespace
+}  // namespace fogmap
