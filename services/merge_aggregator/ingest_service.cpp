@@ -117,7 +117,14 @@ void IngestService::handle(const v1::Upload& upload, std::uint32_t child, const 
   };
   Outcome outcome;
   std::size_t points = 0;
-  if (upload.payload_case() == v1::Upload::kMap) {
+  const std::size_t max_bytes =
+      aggregator_.with([](MergeAggregator& core) { return core.config().admission.max_map_bytes; });
+  if (bytes > max_bytes) {
+    // Refused before it is converted: a huge message must not cost the conversion either.
+    outcome = refused(Refusal::kTooLarge, std::string(kindOf(upload)) + " upload of " + std::to_string(bytes) +
+                                              " bytes, more than the bound of " + std::to_string(max_bytes) +
+                                              " (admission max_map_bytes)");
+  } else if (upload.payload_case() == v1::Upload::kMap) {
     auto map = fromProto(upload.map());
     outcome = !map ? refused(Refusal::kMalformed, map.error().message)
                    : aggregator_.with([&](MergeAggregator& core) { return core.onMap(child, key, *map, bytes, now_ns_()); });

@@ -412,6 +412,43 @@ TEST(AggregatorService, EveryUploadIsAnsweredWithItsStatusAndRefusalsAreCounted)
   EXPECT_TRUE(late.finish().ok());
 }
 
+TEST(AggregatorService, MessagesAboveTheSizeBoundsAreRefusedAndOtherStreamsGoOn) {
+  Metrics metrics("", "merge-aggregator", "sink");
+  FakeClock clock(at(1, 5));
+  AggregatorServer server(rootConfig(Mode::kMadc, {1, 2}), clock, "", &metrics);
+  ASSERT_TRUE(server.started());
+  std::mt19937_64 rng(39);
+  auto plain_stub = server.ingestStub();
+  Child other(*plain_stub);
+  ASSERT_TRUE(other.writeMap(1, randomMap(rng, 2, E(1), 2)));
+  ASSERT_TRUE(other.answered(1));
+  auto channel = makeChannel(server.target(), 256U << 20);  // the client would send it
+  auto stub = v1::MapIngest::NewStub(channel);
+  Child child(*stub);
+  ASSERT_TRUE(child.writeMap(1, randomMap(rng, 1, E(1), 2)));
+  ASSERT_TRUE(child.answered(1));
+  // Above admission max_map_bytes (8 MiB), below the transport limit: answered and counted.
+  v1::Upload big;
+  *big.mutable_map() = toProto(randomMap(rng, 1, E(1), 1));
+  big.mutable_map()->mutable_objects(0)->mutable_ellipsoids(0)->mutable_shape()->Resize((9U << 20) / 4, 1.0F);
+  ASSERT_TRUE(child.write(2, big));
+  ASSERT_TRUE(child.answered(2, v1::ACK_STATUS_REFUSED));
+  server.emitter().pollOnce();
+  EXPECT_EQ(counterValue(metrics, "fogmap_refused_uploads_total", {"reason", "too_large"}), 1.0);
+  // Above the transport limit: gRPC ends the stream RESOURCE_EXHAUSTED before the service sees it.
+  v1::Upload huge;
+  *huge.mutable_map() = toProto(randomMap(rng, 1, E(1), 1));
+  huge.mutable_map()->mutable_objects(0)->mutable_ellipsoids(0)->mutable_shape()->Resize((kMaxMessageBytes / 4) + 16, 1.0F);
+  (void)child.write(3, huge);
+  EXPECT_FALSE(child.readAck().has_value());
+  const auto status = child.finish();
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << status.error_message();
+  // The other child's stream goes on.
+  ASSERT_TRUE(other.writeMap(2, randomMap(rng, 2, E(2), 2)));
+  EXPECT_TRUE(other.answered(2));
+  EXPECT_TRUE(other.finish().ok());
+}
+
 TEST(AggregatorService, StreamFromANodeThatIsNoChildIsRefused) {
   FakeClock clock(at(1, 5));
   AggregatorServer server(rootConfig(Mode::kMadc, {1, 2}), clock);

@@ -1,0 +1,236 @@
+// Integration: a hostile (or broken) client attacks a running root over gRPC while three honest
+// edges replay the bundled KITTI frames. The root must keep publishing every period with the
+// honest data, answer geofences on current epochs, refuse every attack and count it by reason.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <limits>
+#include <sstream>
+#include <thread>
+
+#include <grpcpp/grpcpp.h>
+
+#include "common/clock.hpp"
+#include "common/epochs.hpp"
+#include "fogmap/v1/fogmap.grpc.pb.h"
+#include "services/common/grpc_options.hpp"
+#include "services/common/proto_convert.hpp"
+#include "tests/support/free_ports.hpp"
+#include "tools/fogctl/cluster_run.hpp"
+#include "tools/fogctl/launcher.hpp"
+
+namespace fogmap {
+namespace {
+
+using namespace std::chrono_literals;
+
+constexpr std::uint32_t kHonestEdges = 3;
+
+std::filesystem::path dataDir() { return std::filesystem::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a"; }
+
+// The value of `family{...reason="reason"...}` in a Prometheus text page (0 when absent).
+double refusedCount(const std::string& page, const std::string& reason) {
+  std::istringstream lines(page);
+  std::string line;
+  double total = 0.0;
+  while (std::getline(lines, line)) {
+    if (line.rfind("fogmap_refused_uploads_total{", 0) != 0) continue;
+    if (line.find("reason=\"" + reason + "\"") == std::string::npos) continue;
+    total += std::strtod(line.substr(line.rfind(' ') + 1).c_str(), nullptr);
+  }
+  return total;
+}
+
+Ellipsoid ball(std::uint32_t node, std::uint64_t epoch, std::uint32_t index, const Eigen::Vector3d& centre) {
+  Ellipsoid e;
+  e.id = {node, epoch, index};
+  e.center = centre;
+  e.shape = Eigen::Matrix3d::Identity() * 0.25;
+  e.point_count = 10;
+  return e;
+}
+
+v1::Upload mapUpload(std::uint32_t node, std::uint64_t epoch, std::vector<Ellipsoid> ellipsoids) {
+  MapMessage message;
+  message.header.node = node;
+  message.header.epoch = epoch;
+  message.header.sensor_time_ns = systemNowNs();
+  message.header.contributing_nodes = {node};
+  message.map = localMap(std::move(ellipsoids));
+  v1::Upload upload;
+  *upload.mutable_map() = toProto(message);
+  return upload;
+}
+
+// The attacker: one stream to the root that claims to be edge 1, written and answered in lock step.
+class Attacker {
+ public:
+  explicit Attacker(const std::string& target) : channel_(makeChannel(target, 256U << 20)) {
+    stub_ = v1::MapIngest::NewStub(channel_);
+    context_.set_deadline(std::chrono::system_clock::now() + 60s);
+    stream_ = stub_->Push(&context_);
+  }
+  // Sends one upload under `sequence` and returns the root's answer (nullopt: the stream ended).
+  std::optional<v1::Ack> send(std::uint64_t sequence, v1::Upload upload) {
+    upload.set_sequence(sequence);
+    if (!stream_->Write(upload)) return std::nullopt;
+    v1::Ack ack;
+    if (!stream_->Read(&ack)) return std::nullopt;
+    return ack;
+  }
+  grpc::Status finish() {
+    stream_->WritesDone();
+    return stream_->Finish();
+  }
+
+ private:
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<v1::MapIngest::Stub> stub_;
+  grpc::ClientContext context_;
+  std::unique_ptr<grpc::ClientReaderWriter<v1::Upload, v1::Ack>> stream_;
+};
+
+TEST(HostileClient, RootKeepsPublishingHonestDataAndCountsEveryAttack) {
+  TopologyConfig t = makeStarTopology(kHonestEdges, dataDir(), 40000);
+  test_support::useFreePorts(t);
+  t.name = "hostile";
+  t.deadline_ms = 500.0;  // a loaded CI machine must not turn slow epochs into partial ones
+  for (auto& n : t.nodes) {
+    if (n.sensor) n.sensor->frames = 80;
+  }
+  const NodeConfig& root = *t.root();
+  const std::string target = root.host + ":" + std::to_string(root.port);
+  const auto schedule = EpochSchedule::create(t.period_ms, t.deadline_ms);
+  ASSERT_TRUE(schedule.ok());
+  const auto now_epoch = [&] { return schedule->epochAt(systemNowNs()); };
+
+  std::optional<v1::GeofenceReport> geofences;
+  std::uint64_t epoch_at_query = 0;
+  std::string metrics_page;
+  std::uint64_t attack_end_epoch = 0;
+  std::string answers;  // what the root said to each attack, for the failure messages
+  cli::RunOptions options;
+  options.frames = 60;
+  options.timeout = 90s;
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("fogmap-it-" + std::to_string(::getpid()) + "-hostile");
+  std::filesystem::create_directories(dir);
+  const auto result = cli::runCluster(dir, t, options, [&](const cli::Cluster&) {
+    // Let the honest edges get going, then attack on one stream that claims to be edge 1.
+    std::this_thread::sleep_for(500ms);
+    Attacker attacker(target);
+    std::uint64_t sequence = 1;
+    const auto expect_refused = [&](v1::Upload upload, const std::string& what) {
+      const auto ack = attacker.send(sequence++, std::move(upload));
+      ASSERT_TRUE(ack.has_value()) << what << ": the root closed the stream";
+      EXPECT_EQ(ack->status(), v1::ACK_STATUS_REFUSED) << what << ": " << ack->reason();
+      EXPECT_FALSE(ack->reason().empty()) << what;
+      if (what != "flood") answers += what + ": " + ack->reason() + "\n";
+    };
+    const std::uint64_t now = now_epoch();
+    // 1. A map 500 ms ahead, which used to open that epoch early and publish it forged.
+    expect_refused(mapUpload(1, now + 5, {ball(1, now + 5, 500, {0, 0, 0})}), "epoch 500 ms ahead");
+    // 2. The last epoch there is, which used to freeze the geofences on it.
+    const std::uint64_t last = std::numeric_limits<std::uint64_t>::max();
+    expect_refused(mapUpload(1, last, {ball(1, last, 500, {0, 0, 0})}), "epoch 2^64 - 1");
+    // 3. A flood of distinct epochs near 2^62, which used to jam the closed-epoch history.
+    for (std::uint64_t i = 0; i < 5000 && !::testing::Test::HasFailure(); ++i) {
+      const std::uint64_t epoch = (1ULL << 62) + i;
+      expect_refused(mapUpload(1, epoch, {ball(1, epoch, 500, {0, 0, 0})}), "flood");
+    }
+    // 4. Forged node ids: a map that says it is edge 2's, and edge 1's map carrying edge 2's ellipsoid.
+    const std::uint64_t next = now_epoch() + 1;
+    expect_refused(mapUpload(2, next, {ball(2, next, 500, {0, 0, 0})}), "map of another node");
+    expect_refused(mapUpload(1, next, {ball(2, next, 500, {0, 0, 0})}), "ellipsoid of another node");
+    // 5. Oversized and absurd maps: 1,000,000 ellipsoids (~54 MB, under the transport limit),
+    //    a centre at 1e30, a shape of condition 1e60.
+    {
+      v1::Upload huge = mapUpload(1, next, {ball(1, next, 500, {0, 0, 0})});
+      v1::MapObject* object = huge.mutable_map()->mutable_objects(0);
+      const v1::Ellipsoid one = object->ellipsoids(0);
+      for (std::uint32_t k = 1; k < 1'000'000; ++k) {
+        v1::Ellipsoid* e = object->add_ellipsoids();
+        *e = one;
+        e->mutable_id()->set_index(500 + k);
+      }
+      expect_refused(std::move(huge), "1,000,000 ellipsoids");
+    }
+    const std::uint64_t soon = now_epoch() + 1;  // building the huge map took a while
+    expect_refused(mapUpload(1, soon, {ball(1, soon, 500, {1e30, 0, 0})}), "centre at 1e30");
+    Ellipsoid needle = ball(1, soon, 500, {0, 0, 0});
+    needle.shape = Eigen::Vector3d(1e30, 1e-30, 1e-30).asDiagonal();
+    expect_refused(mapUpload(1, soon, {needle}), "condition 1e60");
+    // 6. Duplicates with other content. An epoch two back was emitted already, so whatever is
+    //    applied to it is a late revision that never replaces the live picture.
+    const std::uint64_t past = now_epoch() - 2;
+    const std::uint64_t reused = sequence++;
+    const auto first = attacker.send(reused, mapUpload(1, past, {}));
+    ASSERT_TRUE(first.has_value());
+    EXPECT_NE(first->status(), v1::ACK_STATUS_REFUSED) << first->reason();
+    const auto conflict = attacker.send(reused, mapUpload(1, past, {ball(1, past, 900, {40, 0, 0})}));
+    ASSERT_TRUE(conflict.has_value());
+    EXPECT_EQ(conflict->status(), v1::ACK_STATUS_REFUSED) << "same sequence, other content";
+    //    Edge 1's own ellipsoid 0 of that epoch, with other geometry.
+    expect_refused(mapUpload(1, past, {ball(1, past, 0, {-300, 300, 0})}), "same ellipsoid id, other geometry");
+    EXPECT_TRUE(attacker.finish().ok());
+    attack_end_epoch = now_epoch();
+
+    // Geofences answer on a current epoch.
+    auto channel = makeChannel(target, 64U << 20);
+    auto global = v1::GlobalMapService::NewStub(channel);
+    grpc::ClientContext set_context;
+    set_context.set_deadline(std::chrono::system_clock::now() + 10s);
+    v1::SetGeofenceReply reply;
+    ASSERT_TRUE(global->SetGeofence(&set_context, toProto(boxGeofence("front", {0, -4, -3}, {20, 4, 3})), &reply).ok());
+    std::this_thread::sleep_for(1s);
+    grpc::ClientContext query_context;
+    query_context.set_deadline(std::chrono::system_clock::now() + 10s);
+    v1::GeofenceQuery query;
+    v1::GeofenceReport report;
+    epoch_at_query = now_epoch();
+    ASSERT_TRUE(global->QueryGeofences(&query_context, query, &report).ok());
+    geofences = report;
+
+    const auto page = cli::httpGet(root.host, root.metrics_port, "/metrics", 2000ms);
+    ASSERT_TRUE(page.ok()) << page.error().message;
+    metrics_page = *page;
+  });
+  ASSERT_TRUE(result.ok()) << result.error().message;
+
+  // Every attack shows in its counter.
+  SCOPED_TRACE("the root's answers:\n" + answers);
+  EXPECT_GE(refusedCount(metrics_page, "clock_skew"), 5002.0);
+  EXPECT_GE(refusedCount(metrics_page, "forged_node"), 2.0);
+  EXPECT_GE(refusedCount(metrics_page, "too_large"), 1.0);
+  EXPECT_GE(refusedCount(metrics_page, "out_of_world"), 1.0);
+  EXPECT_GE(refusedCount(metrics_page, "bad_shape"), 1.0);
+  EXPECT_GE(refusedCount(metrics_page, "sequence_conflict"), 1.0);
+  EXPECT_GE(refusedCount(metrics_page, "ellipsoid_conflict"), 1.0);
+
+  // Geofences answered on an epoch of the last second, not on a forged one.
+  ASSERT_TRUE(geofences.has_value());
+  EXPECT_LE(geofences->epoch(), epoch_at_query);
+  EXPECT_GE(geofences->epoch() + 10, epoch_at_query) << "the geofences answered on an old epoch";
+
+  // The root published every period, on time, with the honest edges' data.
+  ASSERT_FALSE(result->epochs.empty());
+  const std::uint64_t first = result->epochs.begin()->first;
+  const std::uint64_t last = result->epochs.rbegin()->first;
+  EXPECT_GT(last, attack_end_epoch) << "nothing was published after the attacks";
+  EXPECT_EQ(result->epochs.size(), last - first + 1) << "an epoch was skipped between " << first << " and " << last;
+  std::size_t complete = 0;
+  for (const auto& [epoch, global] : result->epochs) {
+    EXPECT_FALSE(global.late) << "epoch " << epoch;
+    for (const auto& object : global.map.objects) {
+      for (const auto& e : object.ellipsoids) {
+        EXPECT_LT(e.id.index, 500U) << "an attacker's ellipsoid in epoch " << epoch;
+        EXPECT_EQ(e.id.frame, epoch) << "an ellipsoid of another epoch in epoch " << epoch;
+      }
+    }
+    if (global.header.contributing_nodes.size() == kHonestEdges) ++complete;
+  }
+  EXPECT_GE(complete, result->epochs.size() * 9 / 10) << "the honest edges' maps went missing";
+}
+
+}  // namespace
+}  // namespace fogmap
