@@ -30,6 +30,7 @@
 #include "common/topology.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "services/common/proto_convert.hpp"
+#include "tests/support/free_ports.hpp"
 #include "tools/fogctl/launcher.hpp"
 
 namespace fogmap {
@@ -183,28 +184,6 @@ std::string describe(const Outcome& o) { return "exit " + std::to_string(o.code)
 
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 
-// Ports the kernel hands out as free right now (held together so they are distinct).
-std::vector<std::uint16_t> freePorts(std::size_t count) {
-  std::vector<int> fds;
-  std::vector<std::uint16_t> ports;
-  for (std::size_t i = 0; i < count; ++i) {
-    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-    sockaddr_in addr{};
-    addr.sin_family = AF_INET;
-    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    socklen_t len = sizeof addr;
-    if (fd < 0 || ::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0 ||
-        ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) != 0) {
-      ADD_FAILURE() << "cannot get a free port";
-      return {};
-    }
-    fds.push_back(fd);
-    ports.push_back(ntohs(addr.sin_port));
-  }
-  for (const int fd : fds) ::close(fd);
-  return ports;
-}
-
 // KITTI .bin: float32 x, y, z, reflectance per point.
 void writeKitti(const fs::path& file, const std::vector<std::array<float, 3>>& points) {
   std::ofstream out(file, std::ios::binary);
@@ -314,7 +293,7 @@ class FakeRoot final : public v1::GlobalMapService::Service {
 };
 
 TEST(FogctlWatch, SaysItCannotReachAMissingRootAndFails) {
-  const auto ports = freePorts(1);
+  const auto ports = test_support::freePorts(1);
   ASSERT_EQ(ports.size(), 1U);
   const std::string target = "127.0.0.1:" + std::to_string(ports[0]);
   const Outcome o = fogctl({"watch", "--target", target}, {}, 30s);
@@ -483,7 +462,7 @@ class ServiceReaper {
 // A one-edge star on free ports, written to dir/name.yaml; the edge replays the bundled scans
 // forever, so both services run until stopped.
 fs::path writeTopology(const fs::path& dir, const std::string& name) {
-  const auto ports = freePorts(3);
+  const auto ports = test_support::freePorts(3);
   if (ports.size() != 3) return {};
   TopologyConfig t = makeStarTopology(1, fs::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a", 40000);
   t.name = name;

@@ -509,6 +509,43 @@ TEST(AggregatorService, OnTimeOnlySubscribersSkipLateRevisions) {
   EXPECT_TRUE(b.finish().ok());
 }
 
+TEST(AggregatorService, SlowSubscriberLosesItsOldestMapsCountedAndExported) {
+  Metrics metrics("", "merge-aggregator", "sink");
+  FakeClock clock(at(1, 5));
+  AggregatorServer server(rootConfig(Mode::kMadc, {1}), clock, "", &metrics);  // queues of 16
+  ASSERT_TRUE(server.started());
+  auto global_stub = server.globalStub();
+  Subscription stalled(*global_stub, /*point_labels=*/true);  // never reads until the end
+  ASSERT_TRUE(eventually([&] { return server.globalMaps().subscriberCount() == 1; }));
+  // 1 MB maps: the transport's flow-control window holds a few, the queue 16, the rest are dropped.
+  std::mt19937_64 rng(40);
+  GlobalMapMessage big;
+  big.header.node = kRoot;
+  big.map = randomMap(rng, 1, E(1), 1).map;
+  GlobalMapMessage labelled = big;
+  labelled.point_labels.push_back({1, std::vector<std::int32_t>(250'000, 3)});
+  constexpr int kPublished = 80;
+  for (int i = 0; i < kPublished; ++i) {
+    labelled.header.epoch = E(i);
+    server.globalMaps().publish(labelled);
+  }
+  const std::uint64_t dropped = server.globalMaps().droppedMessages();
+  EXPECT_GT(dropped, 0U);
+  EXPECT_LE(dropped, static_cast<std::uint64_t>(kPublished - 16));
+  EXPECT_EQ(counterValue(metrics, "fogmap_subscriber_drops_total", {}), static_cast<double>(dropped));
+  // What was not dropped still arrives, oldest first, and the newest map is among it.
+  std::uint64_t received = 0;
+  std::uint64_t last_epoch = 0;
+  while (received + dropped < kPublished) {
+    const auto map = stalled.next();
+    ASSERT_TRUE(map.has_value());
+    EXPECT_GT(map->header().epoch(), last_epoch);
+    last_epoch = map->header().epoch();
+    ++received;
+  }
+  EXPECT_EQ(last_epoch, E(kPublished - 1));
+}
+
 TEST(AggregatorService, DrainAtShutdownPublishesEveryOpenEpoch) {
   FakeClock clock(at(1, 5));
   AggregatorServer server(rootConfig(Mode::kMadc, {1, 2}), clock);
