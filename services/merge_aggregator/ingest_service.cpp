@@ -60,7 +60,12 @@ struct IngestService::AckWriter {
 };
 
 IngestService::IngestService(SharedAggregator& aggregator, Metrics* metrics, Relay relay, NowNs now_ns)
-    : aggregator_(aggregator), metrics_(metrics), relay_(std::move(relay)), now_ns_(std::move(now_ns)) {}
+    : aggregator_(aggregator),
+      metrics_(metrics),
+      relay_(std::move(relay)),
+      now_ns_(std::move(now_ns)),
+      // The configuration is fixed once the core exists: read the bound once, not per upload.
+      max_map_bytes_(aggregator.with([](MergeAggregator& core) { return core.config().admission.max_map_bytes; })) {}
 
 grpc::Status IngestService::Push(grpc::ServerContext* /*context*/,
                                  grpc::ServerReaderWriter<v1::Ack, v1::Upload>* stream) {
@@ -117,12 +122,10 @@ void IngestService::handle(const v1::Upload& upload, std::uint32_t child, const 
   };
   Outcome outcome;
   std::size_t points = 0;
-  const std::size_t max_bytes =
-      aggregator_.with([](MergeAggregator& core) { return core.config().admission.max_map_bytes; });
-  if (bytes > max_bytes) {
+  if (bytes > max_map_bytes_) {
     // Refused before it is converted: a huge message must not cost the conversion either.
     outcome = refused(Refusal::kTooLarge, std::string(kindOf(upload)) + " upload of " + std::to_string(bytes) +
-                                              " bytes, more than the bound of " + std::to_string(max_bytes) +
+                                              " bytes, more than the bound of " + std::to_string(max_map_bytes_) +
                                               " (admission max_map_bytes)");
   } else if (upload.payload_case() == v1::Upload::kMap) {
     auto map = fromProto(upload.map());

@@ -12,6 +12,7 @@
 // sensor's id, which the core maps to that child); every later upload must speak for that child.
 // A sender that resolves to no child ends the stream with INVALID_ARGUMENT.
 #include <atomic>
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -55,6 +56,7 @@ class IngestService final : public v1::MapIngest::Service {
   Metrics* metrics_;
   Relay relay_;
   NowNs now_ns_;
+  std::size_t max_map_bytes_;  // admission bound, checked before an upload is converted
   std::function<void()> on_arrival_;
   std::map<std::uint32_t, std::string> peer_names_;
   std::atomic<bool> stopping_{false};
