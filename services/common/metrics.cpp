@@ -62,6 +62,10 @@ Metrics::Metrics(const std::string& bind_address, const std::string& service, co
   malformed_ = &counterFamily(r, "fogmap_malformed_inputs_total", "Inputs rejected as malformed, by kind.", c);
   late_maps_ = &counter(r, "fogmap_late_maps_total", "Maps that arrived after their epoch was emitted.", c);
   reconnects_ = &counter(r, "fogmap_reconnects_total", "Upload streams re-opened after a failure.", c);
+  link_stalls_ = &counter(r, "fogmap_link_stalls_total",
+                          "Upload streams given up because the parent owed an answer for too long.", c);
+  duplicate_uploads_ = &counter(r, "fogmap_duplicate_uploads_total",
+                                "Re-sent copies of uploads already applied: recognised, answered, not applied again.", c);
   dropped_uploads_ = &counter(r, "fogmap_dropped_uploads_total",
                               "Unacknowledged uploads dropped because the send queue was full.", c);
   frames_ = &counter(r, "fogmap_frames_total", "Sensor frames processed.", c);
@@ -122,6 +126,8 @@ void Metrics::childrenStale(double n) { children_stale_->Set(n); }
 void Metrics::malformed(const std::string& what) { malformed_->Add({{"what", what}}).Increment(); }
 void Metrics::lateMaps(std::uint64_t n) { late_maps_->Increment(static_cast<double>(n)); }
 void Metrics::reconnects() { reconnects_->Increment(); }
+void Metrics::linkStalls() { link_stalls_->Increment(); }
+void Metrics::duplicateUploads(std::uint64_t n) { duplicate_uploads_->Increment(static_cast<double>(n)); }
 void Metrics::droppedUploads() { dropped_uploads_->Increment(); }
 void Metrics::framesProcessed() { frames_->Increment(); }
 void Metrics::refused(const std::string& reason, std::uint64_t n) {

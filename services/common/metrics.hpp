@@ -61,6 +61,10 @@ class Metrics {
   // Scan files with zero padding after their declared points (accepted).
   void paddedScans();
   void reconnects();
+  // Upload streams given up because the parent stopped answering (ParentLink's answer timeout).
+  void linkStalls();
+  // Re-sent copies of uploads already applied, recognised and not applied again.
+  void duplicateUploads(std::uint64_t n = 1);
   void droppedUploads();
   void framesProcessed();
 
@@ -85,6 +89,8 @@ class Metrics {
   prometheus::Family<prometheus::Counter>* malformed_;
   prometheus::Counter* late_maps_;
   prometheus::Counter* reconnects_;
+  prometheus::Counter* link_stalls_;
+  prometheus::Counter* duplicate_uploads_;
   prometheus::Counter* dropped_uploads_;
   prometheus::Counter* frames_;
   prometheus::Family<prometheus::Counter>* refused_;

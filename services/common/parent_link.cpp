@@ -69,6 +69,11 @@ struct ParentLink::State {
   std::uint64_t dropped = 0;
   std::uint64_t refused = 0;
   std::uint64_t late = 0;
+  std::uint64_t stalls = 0;
+  // Since when the current stream has owed an answer without giving any: set by the first write
+  // after the last answer, moved on by each answer while written uploads remain unanswered.
+  std::optional<Clock::time_point> awaiting_since;
+  bool writing = false;  // a Write is in progress (it may block under flow control)
   bool drop_burst = false;  // a drop happened since the last answer or empty queue
   bool stopping = false;
   bool connected = false;
@@ -147,6 +152,8 @@ struct ParentLink::State {
       ++settling;
       unacked_bytes -= it->bytes;
       unacked.erase(it);
+      const bool still_owed = writing || (!unacked.empty() && unacked.front().sequence < write_from);
+      awaiting_since = still_owed ? std::optional(Clock::now()) : std::nullopt;
     }
     cv.notify_all();
     if (ack.status() == v1::ACK_STATUS_REFUSED && hooks.on_refused) hooks.on_refused(ack.sequence(), ack.reason());
@@ -187,14 +194,34 @@ struct ParentLink::State {
         next = it->upload;
         sequence = it->sequence;
         bytes = it->bytes;
+        writing = true;
+        if (!awaiting_since) awaiting_since = Clock::now();
       }
-      // Blocks under flow control; TryCancel from the destructor or a failed read unblocks it.
-      if (!stream.Write(*next)) return;
+      // Blocks under flow control; TryCancel (destructor, failed read, stall) unblocks it.
+      const bool written = stream.Write(*next);
       {
         std::lock_guard lock(mu);
-        write_from = std::max(write_from, sequence + 1);
+        writing = false;
+        if (written) write_from = std::max(write_from, sequence + 1);
       }
+      if (!written) return;
       if (hooks.on_sent) hooks.on_sent(kindOf(*next), bytes);
+    }
+  }
+
+  // Watches the current stream until it breaks, a stop is requested, or it stalls: an answer owed
+  // for answer_timeout. Returns how long the answer was owed when it stalled.
+  std::optional<std::chrono::milliseconds> watch() {
+    const auto timeout = config.answer_timeout;
+    std::unique_lock lock(mu);
+    for (;;) {
+      if (stopping || stream_broken) return std::nullopt;
+      if (timeout.count() > 0 && awaiting_since && Clock::now() - *awaiting_since >= timeout) {
+        stream_broken = true;
+        ++stalls;
+        return std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - *awaiting_since);
+      }
+      cv.wait_for(lock, kPollSlice);
     }
   }
 
@@ -209,6 +236,7 @@ struct ParentLink::State {
         this->context = context;
         stream_broken = false;
         write_from = 0;  // a new stream re-sends everything unanswered
+        awaiting_since.reset();
       }
       // No deadline: the stream lives as long as the link; keepalive detects a dead parent.
       std::unique_ptr<Stream> stream = stub->Push(context.get());
@@ -222,9 +250,20 @@ struct ParentLink::State {
 
       bool got_answer = false;
       std::thread reader([&] { readAnswers(*stream, got_answer); });
-      writeUploads(*stream);
-      context->TryCancel();  // ends a Read still waiting when the write side failed or we stop
+      std::thread writer([&] {
+        writeUploads(*stream);
+        {
+          std::lock_guard lock(mu);
+          stream_broken = true;
+        }
+        cv.notify_all();
+      });
+      const auto stalled = watch();
+      cv.notify_all();
+      context->TryCancel();  // ends a Read or a Write still blocked
+      writer.join();
       reader.join();
+      if (stalled && hooks.on_stalled) hooks.on_stalled(*stalled);
       (void)stream->Finish();  // the cause does not change what we do next: reconnect
       {
         std::lock_guard lock(mu);
@@ -325,6 +364,11 @@ std::uint64_t ParentLink::refused() const {
 std::uint64_t ParentLink::late() const {
   std::lock_guard lock(state_->mu);
   return state_->late;
+}
+
+std::uint64_t ParentLink::stalls() const {
+  std::lock_guard lock(state_->mu);
+  return state_->stalls;
 }
 
 bool ParentLink::connected() const {

@@ -37,6 +37,11 @@ struct ParentLinkConfig {
   std::chrono::milliseconds backoff_initial{50};  // wait before re-opening a failed stream, doubled
   std::chrono::milliseconds backoff_max{2000};    // per failure up to this
   std::chrono::milliseconds keepalive{10000};     // transport ping interval (>= 5 s, see grpc_options)
+  // The application heartbeat: a stream on which an upload has waited this long for an answer,
+  // with no answer at all meanwhile, is taken for stalled (a parent stopped or cut off without a
+  // FIN, which keepalive notices only after keepalive + 5 s): it is cancelled and re-opened, and
+  // the unanswered uploads are re-sent. Parents answer every upload; 0 disables the check.
+  std::chrono::milliseconds answer_timeout{2000};
 };
 
 // Observers for metrics and logs (each may be empty); called from the link's threads or from
@@ -46,6 +51,9 @@ struct ParentLinkHooks {
   // ("empty" for an upload without payload), `bytes` its serialised size.
   std::function<void(const std::string& kind, std::size_t bytes)> on_sent;
   std::function<void()> on_reconnect;  // a stream was re-opened after a previous one failed
+  // A stream was given up as stalled (no answer within answer_timeout); `waited` is how long the
+  // oldest unanswered upload had waited.
+  std::function<void(std::chrono::milliseconds waited)> on_stalled;
   // One call per upload dropped by the byte bound, `dropped_total` counting it. `first_of_burst`
   // is true for the first drop since the start, since the parent's last answer, or since the queue
   // was last left empty: log only then.
@@ -83,13 +91,14 @@ class ParentLink {
   std::uint64_t dropped() const;   // uploads dropped by the byte bound since construction
   std::uint64_t refused() const;   // queued uploads the parent refused since construction
   std::uint64_t late() const;      // queued uploads the parent answered late since construction
+  std::uint64_t stalls() const;    // streams given up as stalled since construction
   // True while a stream to the parent is open.
   bool connected() const;
 
  private:
   struct State;
   std::unique_ptr<State> state_;
-  std::thread thread_;
+  std::thread thread_;  // opens streams and watches them for stalls
 };
 
 }  // namespace fogmap

@@ -27,16 +27,20 @@ void setDroppedUploads(EdgeOutput& output, std::uint64_t dropped) {
 
 }  // namespace
 
+std::uint64_t scanNumberAt(const EpochSchedule& schedule, double sensor_rate_hz, std::uint64_t epoch) {
+  return static_cast<std::uint64_t>(schedule.startNs(epoch) / sensorPeriodNs(sensor_rate_hz));
+}
+
 EdgeRunner::EdgeRunner(EdgeNode edge, ScanProvider& scans, EpochSchedule schedule, double sensor_rate_hz,
                        EdgeRunnerHooks hooks)
     : edge_(std::move(edge)),
       scans_(scans),
       schedule_(schedule),
-      sensor_period_ns_(sensorPeriodNs(sensor_rate_hz)),
+      sensor_rate_hz_(sensor_rate_hz),
       hooks_(std::move(hooks)) {}
 
 std::uint64_t EdgeRunner::scanNumberAt(std::uint64_t epoch) const {
-  return static_cast<std::uint64_t>(schedule_.startNs(epoch) / sensor_period_ns_);
+  return fogmap::scanNumberAt(schedule_, sensor_rate_hz_, epoch);
 }
 
 EdgeStep EdgeRunner::step() {

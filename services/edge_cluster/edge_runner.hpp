@@ -38,6 +38,10 @@ class EdgeObserver {
   virtual void paddedScan() {}
 };
 
+// The scan number a sensor of `sensor_rate_hz` shows in `epoch`: floor(startNs(epoch) / sensor
+// period). The runner and anything that recomputes an edge's output (fault tests) use this one.
+std::uint64_t scanNumberAt(const EpochSchedule& schedule, double sensor_rate_hz, std::uint64_t epoch);
+
 // Blocks until the clock reaches `until_ns` (at once when it has); false when a stop was
 // requested, in which case the runner ships nothing more.
 using WaitUntil = std::function<bool(std::int64_t until_ns)>;
@@ -104,7 +108,7 @@ class EdgeRunner {
   EdgeNode edge_;
   ScanProvider& scans_;
   EpochSchedule schedule_;
-  std::int64_t sensor_period_ns_;
+  double sensor_rate_hz_;
   EdgeRunnerHooks hooks_;
 
   std::optional<std::uint64_t> next_epoch_;

@@ -10,6 +10,7 @@
 #include <exception>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <string>
 #include <thread>
 #include <utility>
@@ -17,6 +18,7 @@
 #include "common/clock.hpp"
 #include "common/epochs.hpp"
 #include "common/topology.hpp"
+#include "services/common/delivery_journal.hpp"
 #include "services/common/metrics.hpp"
 #include "services/common/parent_link.hpp"
 #include "services/common/proto_convert.hpp"
@@ -51,11 +53,15 @@ bool waitUntil(std::int64_t until_ns) {
   return false;
 }
 
-void usage() { std::cerr << "usage: edge-cluster --topology FILE --node NAME\n"; }
+void usage() {
+  std::cerr << "usage: edge-cluster --topology FILE --node NAME [--journal FILE]\n"
+               "  --journal FILE  record how each upload ended (fault tests compare it with the root's maps)\n";
+}
 
 struct Flags {
   std::filesystem::path topology;
   std::string node;
+  std::filesystem::path journal;  // empty: none
 };
 
 // "--name value" pairs only; anything else is a usage error.
@@ -68,6 +74,8 @@ bool parseFlags(int argc, char** argv, Flags& flags) {
       flags.topology = value;
     } else if (flag == "--node") {
       flags.node = value;
+    } else if (flag == "--journal") {
+      flags.journal = value;
     } else {
       return false;
     }
@@ -80,17 +88,23 @@ int badConfig(const std::string& message) {
   return kExitBadConfig;
 }
 
-// Queues everything an epoch produced on the link.
-void ship(const fogmap::EdgeOutput& output, fogmap::ParentLink& link) {
+// Queues everything an epoch produced on the link; with a journal, records how each upload ends.
+void ship(const fogmap::EdgeOutput& output, fogmap::ParentLink& link, fogmap::DeliveryJournal* journal) {
+  const auto settled = [journal](std::uint64_t epoch, const char* kind) -> fogmap::ParentLink::Settled {
+    if (journal == nullptr) return {};
+    return [journal, epoch, kind](std::optional<fogmap::v1::AckStatus> status, const std::string& /*reason*/) {
+      journal->record({epoch, kind, fogmap::outcomeOf(status)});
+    };
+  };
   if (output.map) {
     fogmap::v1::Upload upload;
     *upload.mutable_map() = fogmap::toProto(*output.map);
-    link.send(std::move(upload));
+    link.send(std::move(upload), settled(output.map->header.epoch, "map"));
   }
   for (const fogmap::PointChunk& chunk : output.chunks) {
     fogmap::v1::Upload upload;
     *upload.mutable_points() = fogmap::toProto(chunk);
-    link.send(std::move(upload));
+    link.send(std::move(upload), settled(chunk.header.epoch, "points"));
   }
 }
 
@@ -135,6 +149,13 @@ int run(const Flags& flags) {
       fogmap::ScanSource::open(sensor, fogmap::ReadLimits{topology->max_scan_bytes});
   if (!source) return badConfig(source.error().message);
 
+  std::optional<fogmap::DeliveryJournal> journal;
+  if (!flags.journal.empty()) {
+    auto opened = fogmap::DeliveryJournal::open(flags.journal);
+    if (!opened) return badConfig(opened.error().message);
+    journal.emplace(std::move(*opened));
+  }
+
   const std::string host = node->host.empty() ? "127.0.0.1" : node->host;
   fogmap::Metrics metrics(host + ":" + std::to_string(node->metrics_port), "edge-cluster", node->name);
   const std::string prefix = "edge-cluster " + node->name + ": ";
@@ -146,6 +167,10 @@ int run(const Flags& flags) {
   const std::string peer = parent->name;
   hooks.on_sent = [&metrics, peer](const std::string& kind, std::size_t bytes) { metrics.bytesSent(peer, kind, bytes); };
   hooks.on_reconnect = [&metrics] { metrics.reconnects(); };
+  hooks.on_stalled = [&metrics, prefix](std::chrono::milliseconds waited) {
+    metrics.linkStalls();
+    std::cerr << prefix << "the parent has owed an answer for " << waited.count() << " ms; re-opening the stream\n";
+  };
   hooks.on_dropped = [&metrics, prefix](std::uint64_t total, bool first_of_burst) {
     metrics.droppedUploads();
     if (first_of_burst) {
@@ -164,7 +189,9 @@ int run(const Flags& flags) {
   fogmap::EdgeRunnerHooks runner_hooks;
   runner_hooks.now = fogmap::systemNowNs;
   runner_hooks.wait_until = waitUntil;
-  runner_hooks.ship = [&link](const fogmap::EdgeOutput& output) { ship(output, link); };
+  runner_hooks.ship = [&link, &journal](const fogmap::EdgeOutput& output) {
+    ship(output, link, journal ? &*journal : nullptr);
+  };
   runner_hooks.dropped_uploads = [&link] { return link.dropped(); };
   runner_hooks.log = [&prefix](const std::string& line) { std::cerr << prefix << line << "\n"; };
   runner_hooks.link_status = [&link] {

@@ -51,6 +51,7 @@ void Emitter::exportCounters(const AggregatorCounters& now) {
     metrics_->lateMaps(now.late - exported_.late);
     metrics_->droppedEpochs(now.dropped_epochs - exported_.dropped_epochs);
     metrics_->lateEmits(now.late_emits - exported_.late_emits);
+    metrics_->duplicateUploads(now.duplicates - exported_.duplicates);
     for (const auto& [reason, count] : now.refused) {
       const auto before = exported_.refused.find(reason);
       const std::uint64_t delta = count - (before == exported_.refused.end() ? 0 : before->second);

@@ -98,6 +98,11 @@ int run(const Args& args, const sigset_t& stop_signals) {
     };
     hooks.on_reconnect = [&metrics] { metrics.reconnects(); };
     const std::string self_name = self->name;
+    hooks.on_stalled = [&metrics, self_name](std::chrono::milliseconds waited) {
+      metrics.linkStalls();
+      std::cerr << "merge-aggregator " << self_name << ": the parent has owed an answer for " << waited.count()
+                << " ms; re-opening the stream\n";
+    };
     hooks.on_dropped = [&metrics, self_name](std::uint64_t total, bool first_of_burst) {
       metrics.droppedUploads();
       if (first_of_burst) {

@@ -409,6 +409,59 @@ TEST(ParentLink, ResendsUnacknowledgedUploadsAfterParentRestart) {
   EXPECT_EQ(second_service.sequences().back(), kUploads + 1);
 }
 
+TEST(ParentLink, AStreamWithoutAnswersIsGivenUpAsStalledAndTheUploadResent) {
+  // The first stream reads and never answers (a parent stopped without a FIN looks like this);
+  // later streams answer.
+  RecordingIngest service([](const v1::Upload& u, int stream_number) {
+    return stream_number == 1 ? std::vector<v1::Ack>{} : std::vector<v1::Ack>{answerWith(u.sequence(), v1::ACK_STATUS_APPLIED)};
+  });
+  TestParent parent(service);
+  ASSERT_TRUE(parent.started());
+  ParentLinkConfig config = configFor(parent.target());
+  config.answer_timeout = 300ms;
+  std::mutex mu;
+  std::vector<std::chrono::milliseconds> stalls;
+  HookCounts counts;
+  ParentLinkHooks hooks = counts.hooks();
+  hooks.on_stalled = [&](std::chrono::milliseconds waited) {
+    std::lock_guard lock(mu);
+    stalls.push_back(waited);
+  };
+  SettledLog settled;
+  ParentLink link(config, std::move(hooks));
+  const auto sent = Clock::now();
+  link.send(mapUpload(1), settled.callbackFor(1));
+  ASSERT_TRUE(settled.waitFor(1));
+  const auto took = Clock::now() - sent;
+  EXPECT_EQ(settled.of(1), std::vector<Outcome>{kApplied});
+  EXPECT_EQ(link.stalls(), 1U);
+  EXPECT_GE(counts.reconnects.load(), 1);
+  EXPECT_EQ(service.sequencesOnStream(1), std::vector<std::uint64_t>{1});
+  EXPECT_EQ(service.sequencesOnStream(2), std::vector<std::uint64_t>{1});
+  std::lock_guard lock(mu);
+  ASSERT_EQ(stalls.size(), 1U);
+  EXPECT_GE(stalls[0], 300ms);
+  EXPECT_GE(took, 300ms);
+}
+
+TEST(ParentLink, ASlowParentThatKeepsAnsweringIsNotStalled) {
+  // Each answer comes 100 ms after its upload; 20 uploads queued at once take 2 s in all, far
+  // beyond the 300 ms answer timeout, but an answer is never owed for 300 ms.
+  RecordingIngest service([](const v1::Upload& u, int /*stream_number*/) {
+    std::this_thread::sleep_for(100ms);
+    return std::vector<v1::Ack>{answerWith(u.sequence(), v1::ACK_STATUS_APPLIED)};
+  });
+  TestParent parent(service);
+  ASSERT_TRUE(parent.started());
+  ParentLinkConfig config = configFor(parent.target());
+  config.answer_timeout = 300ms;
+  ParentLink link(config, {});
+  for (std::uint64_t i = 1; i <= 20; ++i) link.send(mapUpload(i));
+  ASSERT_TRUE(link.flush(20s));
+  EXPECT_EQ(link.stalls(), 0U);
+  EXPECT_EQ(service.sequencesOnStream(2), std::vector<std::uint64_t>{});
+}
+
 TEST(ParentLink, UploadsQueuedBeforeParentStartsAreDelivered) {
   const int port = closedPort();
   ASSERT_GT(port, 0);

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <iostream>
 
 namespace fogmap::cli {
 
@@ -52,6 +53,11 @@ Expected<long> Args::getInt(const std::string& name, long fallback) const {
     return invalidArgument("--" + name + " expects an integer, got '" + it->second + "'");
   }
   return v;
+}
+
+int fail(const Error& error, const std::string& who) {
+  std::cerr << who << ": " << error.message << "\n";
+  return error.code == ErrorCode::kInvalidArgument ? 2 : 1;
 }
 
 }  // namespace fogmap::cli

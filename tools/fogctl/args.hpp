@@ -27,4 +27,7 @@ class Args {
   std::vector<std::string> positional_;
 };
 
+// Prints "WHO: message" on stderr and returns the exit code: 2 for invalid arguments, else 1.
+int fail(const Error& error, const std::string& who = "fogctl");
+
 }  // namespace fogmap::cli

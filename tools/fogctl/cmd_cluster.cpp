@@ -24,11 +24,6 @@ double millisSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
-int fail(const Error& e) {
-  std::cerr << "fogctl: " << e.message << "\n";
-  return e.code == ErrorCode::kInvalidArgument ? 2 : 1;
-}
-
 Expected<ClusteringParams> clusteringParams(const Args& args) {
   ClusteringParams p;
   const auto eps = args.getDouble("eps", p.eps_m);

@@ -34,10 +34,6 @@
 namespace fogmap::cli {
 namespace {
 
-int fail(const Error& e) {
-  std::cerr << "fogctl demo: " << e.message << "\n";
-  return e.code == ErrorCode::kInvalidArgument ? 2 : 1;
-}
 
 // Bird's-eye view: points grey, each global object's ellipsoids in the object's colour.
 Status drawPng(const std::filesystem::path& file, const GlobalMapMessage& global, const EdgeView& view, double half_extent_m) {
@@ -85,19 +81,19 @@ std::filesystem::path defaultInput() {
 
 int runDemo(int argc, char** argv) {
   const auto args = Args::parse(argc, argv, 2, {"input", "nodes", "topology", "frames", "report", "png", "base-port", "state", "alpha"}, {});
-  if (!args) return fail(args.error());
+  if (!args) return fail(args.error(), "fogctl demo");
   const std::filesystem::path input = args->has("input") ? std::filesystem::absolute(args->get("input")) : defaultInput();
-  if (input.empty() || !std::filesystem::exists(input)) return fail(invalidArgument("--input DIR of scans is required (bundled data not found)"));
+  if (input.empty() || !std::filesystem::exists(input)) return fail(invalidArgument("--input DIR of scans is required (bundled data not found)"), "fogctl demo");
   const auto nodes = args->getInt("nodes", 4);
   const auto frames = args->getInt("frames", 20);
   const auto base = args->getInt("base-port", 46000);
   const auto alpha = args->getDouble("alpha", 1.5);
-  if (!nodes || *nodes < 1 || *nodes > 32) return fail(invalidArgument("--nodes must be in [1, 32]"));
-  if (!frames || *frames < 1 || *frames > 10000) return fail(invalidArgument("--frames must be in [1, 10000]"));
-  if (!base || *base < 1024 || *base > 60000) return fail(invalidArgument("--base-port must be in [1024, 60000]"));
-  if (!alpha || !(*alpha > 0.0)) return fail(invalidArgument("--alpha must be positive"));
+  if (!nodes || *nodes < 1 || *nodes > 32) return fail(invalidArgument("--nodes must be in [1, 32]"), "fogctl demo");
+  if (!frames || *frames < 1 || *frames > 10000) return fail(invalidArgument("--frames must be in [1, 10000]"), "fogctl demo");
+  if (!base || *base < 1024 || *base > 60000) return fail(invalidArgument("--base-port must be in [1024, 60000]"), "fogctl demo");
+  if (!alpha || !(*alpha > 0.0)) return fail(invalidArgument("--alpha must be positive"), "fogctl demo");
   const std::string shape = args->get("topology", "star");
-  if (shape != "star" && shape != "tree") return fail(invalidArgument("--topology must be star or tree"));
+  if (shape != "star" && shape != "tree") return fail(invalidArgument("--topology must be star or tree"), "fogctl demo");
   const std::filesystem::path dir = args->get("state", ".fogmap/demo");
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
@@ -126,15 +122,15 @@ int runDemo(int argc, char** argv) {
   options.frames = n_frames;
   options.timeout = std::chrono::seconds(30) + std::chrono::milliseconds(static_cast<long>(3000.0 * static_cast<double>(n_frames) / rate_hz));
   auto madc = runCluster(dir, madc_topology, options);
-  if (!madc) return fail(madc.error());
+  if (!madc) return fail(madc.error(), "fogctl demo");
   if (stopRequested()) return 1;
   std::printf("running the baseline cluster (ship all points, cluster at the sink)...\n");
   options.point_labels = true;
   auto baseline = runCluster(dir, baseline_topology, options);
-  if (!baseline) return fail(baseline.error());
+  if (!baseline) return fail(baseline.error(), "fogctl demo");
   // Pair every complete MAD-C epoch with a complete baseline epoch that replayed the same scan.
   const auto scans = ScanSource::open(*madc_topology.nodes.back().sensor);
-  if (!scans) return fail(scans.error());
+  if (!scans) return fail(scans.error(), "fogctl demo");
   const std::size_t n_scans = scans->files().size();
   std::map<std::size_t, const GlobalMapMessage*> baseline_by_scan;
   for (const auto& [e, g] : baseline->epochs) {
@@ -150,7 +146,7 @@ int runDemo(int argc, char** argv) {
     }
   }
   auto views = recomputeEdges(madc_topology, compared);
-  if (!views) return fail(views.error());
+  if (!views) return fail(views.error(), "fogctl demo");
 
   std::printf("\n%12s %5s %8s %8s %12s %14s %8s %9s %9s %8s %8s\n", "epoch", "scan", "objects", "baseline", "bytes MAD-C",
               "bytes baseline", "ratio", "merge ms", "e2e ms", "RI", "ARI");
@@ -194,7 +190,7 @@ int runDemo(int argc, char** argv) {
     last = &m;
     last_epoch = e;
   }
-  if (compared.empty()) return fail(Error{ErrorCode::kInternal, "no complete epoch from both clusters; see the logs in " + dir.string()});
+  if (compared.empty()) return fail(Error{ErrorCode::kInternal, "no complete epoch from both clusters; see the logs in " + dir.string()}, "fogctl demo");
   auto mean = [](const std::vector<double>& v) { return v.empty() ? 0.0 : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size()); };
   const double madc_per_frame = madc->bytes_moved / static_cast<double>(std::max<std::size_t>(madc->epochs.size(), 1));
   const double baseline_per_frame = baseline->bytes_moved / static_cast<double>(std::max<std::size_t>(baseline->epochs.size(), 1));
@@ -212,7 +208,7 @@ int runDemo(int argc, char** argv) {
 
   const std::filesystem::path png = args->get("png", (dir / "global_map.png").string());
   if (last != nullptr) {
-    if (const Status s = drawPng(png, *last, views->at(last_epoch), 40.0); !s) return fail(s.error());
+    if (const Status s = drawPng(png, *last, views->at(last_epoch), 40.0); !s) return fail(s.error(), "fogctl demo");
     std::printf("  bird's-eye view of frame %lu: %s\n", static_cast<unsigned long>(last_epoch), png.c_str());
   }
   const std::filesystem::path report = args->get("report", (dir / "report.json").string());
@@ -237,7 +233,7 @@ int runDemo(int argc, char** argv) {
       << "  \"merge_p50_ms\": " << percentile(merge_ms, 0.5) << ",\n"
       << "  \"merge_p99_ms\": " << percentile(merge_ms, 0.99) << "\n"
       << "}\n";
-  if (!out) return fail(ioError("cannot write " + report.string()));
+  if (!out) return fail(ioError("cannot write " + report.string()), "fogctl demo");
   std::printf("  report: %s\n", report.c_str());
   return 0;
 }

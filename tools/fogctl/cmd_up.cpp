@@ -31,11 +31,6 @@
 namespace fogmap::cli {
 namespace {
 
-int fail(const Error& e) {
-  std::cerr << "fogctl: " << e.message << "\n";
-  return e.code == ErrorCode::kInvalidArgument ? 2 : 1;
-}
-
 // State directories are absolute, so that up and down find the same one from any working
 // directory: --state is taken relative to where fogctl runs, the default (.fogmap/NAME) relative
 // to the topology file.

@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <fstream>
 #include <iterator>
@@ -42,9 +43,9 @@ std::filesystem::path binaryDir() {
 namespace {
 
 Expected<pid_t> spawn(const std::filesystem::path& binary, const std::vector<std::string>& args,
-                      const std::filesystem::path& log) {
+                      const std::filesystem::path& log, bool append = false) {
   if (!std::filesystem::exists(binary)) return notFound("service binary not found: " + binary.string());
-  const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | (append ? O_APPEND : O_TRUNC) | O_CLOEXEC, 0644);
   if (fd < 0) return ioError("cannot open log file " + log.string());
   std::vector<std::string> argv_storage{binary.string()};
   argv_storage.insert(argv_storage.end(), args.begin(), args.end());
@@ -178,15 +179,88 @@ Expected<std::string> httpGet(const std::string& host, std::uint16_t port, const
   return response.substr(body + 4);
 }
 
+namespace {
+
+// Forks the service for `node` (its log under state_dir/logs, truncated unless `append`).
+Expected<RunningNode> spawnNode(const Cluster& cluster, const NodeConfig& node, const StartOptions& options, bool append) {
+  const auto binary = binaryDir() / (node.role == Role::kEdge ? "edge-cluster" : "merge-aggregator");
+  const auto log = cluster.state_dir / "logs" / (node.name + ".log");
+  std::vector<std::string> args{"--topology", cluster.topology_file.string(), "--node", node.name};
+  if (node.role == Role::kEdge && !options.journal_dir.empty()) {
+    args.push_back("--journal");
+    args.push_back((options.journal_dir / (node.name + ".journal")).string());
+  }
+  auto pid = spawn(binary, args, log, append);
+  if (!pid) return pid.error();
+  // The child's start time is fixed at fork, so reading it now is reading the service's.
+  return RunningNode{node.name, *pid, log, startTicks(*pid).value_or(0)};
+}
+
+// Waits until the node serves /metrics; an error when it exits first or the deadline passes.
+Expected<bool> waitReady(const NodeConfig& node, const RunningNode& running_node,
+                         std::chrono::steady_clock::time_point deadline) {
+  while (true) {
+    if (httpGet(node.host, node.metrics_port, "/metrics", std::chrono::milliseconds(500)).ok()) return true;
+    if (!running(running_node.pid)) {
+      return Error{ErrorCode::kInternal, "node " + node.name + " exited during start; see " + running_node.log.string()};
+    }
+    if (std::chrono::steady_clock::now() > deadline) {
+      return Error{ErrorCode::kInternal, "node " + node.name + " not ready within the timeout; see " + running_node.log.string()};
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+}
+
+}  // namespace
+
+Expected<RunningNode> restartNode(Cluster& cluster, const TopologyConfig& topology, const std::string& name,
+                                  std::chrono::milliseconds timeout, const StartOptions& options) {
+  const NodeConfig* node = topology.find(name);
+  const auto entry = std::find_if(cluster.nodes.begin(), cluster.nodes.end(), [&](const RunningNode& r) { return r.name == name; });
+  if (node == nullptr || entry == cluster.nodes.end()) return notFound("no node '" + name + "' in the cluster");
+  if (entry->pid > 0 && running(entry->pid)) return invalidArgument("node '" + name + "' is still running");
+  if (options.journal_dir.empty() == false && node->role == Role::kEdge) {
+    // The restarted edge appends to the journal of its previous life: keep it aside first.
+    std::error_code ec;
+    const auto journal = options.journal_dir / (name + ".journal");
+    for (int life = 1; life < 1000; ++life) {
+      const auto kept = options.journal_dir / (name + ".journal." + std::to_string(life));
+      if (!std::filesystem::exists(kept)) {
+        std::filesystem::rename(journal, kept, ec);
+        break;
+      }
+    }
+  }
+  auto started = spawnNode(cluster, *node, options, /*append=*/true);
+  if (!started) return started.error();
+  *entry = *started;
+  auto ready = waitReady(*node, *entry, std::chrono::steady_clock::now() + timeout);
+  if (!ready) return ready.error();
+  return *entry;
+}
+
+bool stopNode(const RunningNode& node, std::chrono::milliseconds grace) {
+  if (node.pid <= 0 || !sameProcess(node)) return false;
+  ::kill(node.pid, SIGTERM);
+  const auto deadline = std::chrono::steady_clock::now() + grace;
+  while (running(node.pid) && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  if (!running(node.pid)) return true;
+  ::kill(node.pid, SIGKILL);
+  ::waitpid(node.pid, nullptr, 0);
+  return false;
+}
+
 Expected<Cluster> startCluster(const std::filesystem::path& topology_file, const TopologyConfig& topology,
-                               const std::filesystem::path& state_dir, std::chrono::milliseconds timeout) {
+                               const std::filesystem::path& state_dir, std::chrono::milliseconds timeout,
+                               const StartOptions& options) {
   Cluster cluster;
   cluster.topology_file = std::filesystem::absolute(topology_file);
   cluster.state_dir = state_dir;
   std::error_code ec;
   std::filesystem::create_directories(state_dir / "logs", ec);
   if (ec) return ioError("cannot create " + (state_dir / "logs").string() + ": " + ec.message());
-  const auto bin = binaryDir();
   std::vector<const NodeConfig*> order;
   for (const auto& n : topology.nodes) {
     if (n.role == Role::kAggregator) order.push_back(&n);
@@ -194,35 +268,29 @@ Expected<Cluster> startCluster(const std::filesystem::path& topology_file, const
   for (const auto& n : topology.nodes) {
     if (n.role == Role::kEdge) order.push_back(&n);
   }
+  if (!options.journal_dir.empty()) {
+    std::filesystem::create_directories(options.journal_dir, ec);
+    if (ec) return ioError("cannot create " + options.journal_dir.string() + ": " + ec.message());
+  }
   std::ofstream pids(state_dir / "pids");
   for (const auto* n : order) {
-    const auto binary = bin / (n->role == Role::kEdge ? "edge-cluster" : "merge-aggregator");
-    const auto log = state_dir / "logs" / (n->name + ".log");
-    auto pid = spawn(binary, {"--topology", cluster.topology_file.string(), "--node", n->name}, log);
-    if (!pid) {
+    auto started = spawnNode(cluster, *n, options, /*append=*/false);
+    if (!started) {
       stopCluster(cluster, std::chrono::milliseconds(2000));
-      return pid.error();
+      return started.error();
     }
-    // The child's start time is fixed at fork, so reading it now is reading the service's.
-    cluster.nodes.push_back({n->name, *pid, log, startTicks(*pid).value_or(0)});
-    pids << *pid << ' ' << n->name << ' ' << cluster.nodes.back().start_ticks << '\n';
+    cluster.nodes.push_back(*started);
+    pids << started->pid << ' ' << n->name << ' ' << started->start_ticks << '\n';
   }
   pids.close();
   // Ready = every service answers on /metrics (servers listen before metrics start).
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   for (const auto* n : order) {
-    while (true) {
-      if (httpGet(n->host, n->metrics_port, "/metrics", std::chrono::milliseconds(500)).ok()) break;
-      const auto it = std::find_if(cluster.nodes.begin(), cluster.nodes.end(), [&](const RunningNode& r) { return r.name == n->name; });
-      if (!running(it->pid)) {
-        stopCluster(cluster, std::chrono::milliseconds(2000));
-        return Error{ErrorCode::kInternal, "node " + n->name + " exited during start; see " + it->log.string()};
-      }
-      if (std::chrono::steady_clock::now() > deadline) {
-        stopCluster(cluster, std::chrono::milliseconds(2000));
-        return Error{ErrorCode::kInternal, "node " + n->name + " not ready within the timeout; see " + it->log.string()};
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    const auto it = std::find_if(cluster.nodes.begin(), cluster.nodes.end(), [&](const RunningNode& r) { return r.name == n->name; });
+    auto ready = waitReady(*n, *it, deadline);
+    if (!ready) {
+      stopCluster(cluster, std::chrono::milliseconds(2000));
+      return ready.error();
     }
   }
   return cluster;

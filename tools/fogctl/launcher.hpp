@@ -36,11 +36,25 @@ void requestStop();
 // The directory holding fogctl, where the service binaries live too.
 std::filesystem::path binaryDir();
 
+struct StartOptions {
+  // Edges record how each upload ended in journal_dir/NAME.journal (services/common/delivery_journal.hpp).
+  std::filesystem::path journal_dir;  // empty: no journals
+};
+
 // Starts every node of the topology (aggregators first), logs under state_dir/logs, records the
 // pids (with their start times) in state_dir/pids, and waits until every /metrics endpoint answers (bounded by timeout).
 // On failure everything started is stopped again.
 Expected<Cluster> startCluster(const std::filesystem::path& topology_file, const TopologyConfig& topology,
-                               const std::filesystem::path& state_dir, std::chrono::milliseconds timeout);
+                               const std::filesystem::path& state_dir, std::chrono::milliseconds timeout,
+                               const StartOptions& options = {});
+// Starts one node of a running cluster again (after it was killed): a new process, its log
+// appended to, its journal (if any) continued; waits until its /metrics answers. Replaces the
+// node's entry in `cluster`.
+Expected<RunningNode> restartNode(Cluster& cluster, const TopologyConfig& topology, const std::string& name,
+                                  std::chrono::milliseconds timeout, const StartOptions& options = {});
+// SIGTERM to one node, SIGKILL after the grace period; reaps it. True when it exited by itself
+// within the grace period.
+bool stopNode(const RunningNode& node, std::chrono::milliseconds grace);
 // SIGTERM, then SIGKILL after the grace period; reaps the children.
 void stopCluster(const Cluster& cluster, std::chrono::milliseconds grace);
 struct StopReport {

@@ -77,6 +77,26 @@ const std::vector<Command>& commands() {
        "set: defines (or replaces) a box geofence on the root aggregator.\n"
        "query: the objects of the latest global map inside or crossing the geofences (or the one named).\n",
        fogmap::cli::runGeofence},
+      {"faults",
+       "TOPOLOGY.yaml --scenario soak|edge-crash|aggregator-crash|stall [--duration-s 60] [--seed 1] [--report FILE]",
+       "usage: fogctl faults TOPOLOGY.yaml [--scenario soak|edge-crash|aggregator-crash|stall] [--duration-s 60]\n"
+       "                     [--warmup-s 20] [--seed 1] [--kills 2] [--downtime-s S] [--report FILE] [--state DIR]\n"
+       "                     [--no-oracle]\n"
+       "Runs the topology as local processes under load, injects a fault at seeded times, and checks the\n"
+       "root's global maps: every map an edge's parent acknowledged reaches the root, none is applied twice,\n"
+       "every epoch is published, every global map equals the specification over its contributing nodes\n"
+       "(mode madc), and the fault's own bounds. Exits 0 when every check passes, 1 otherwise.\n"
+       "  --scenario S     soak (no fault), edge-crash (kill -9 of --kills edges, restarted after --downtime-s),\n"
+       "                   aggregator-crash (kill -9 of one non-root aggregator, restarted after --downtime-s),\n"
+       "                   stall (SIGSTOP of one non-root aggregator for --downtime-s, default 5)\n"
+       "  --duration-s S   how long the load runs (default 60); --warmup-s: RSS growth is measured after it\n"
+       "  --seed N         chooses the victims and the times (default 1)\n"
+       "  --report FILE    the JSON report (default STATE/NAME/faults.json)\n"
+       "  --state DIR      logs, journals and the report (default .fogmap/faults next to the topology)\n"
+       "  --no-oracle      skip the comparison with the specification (it recomputes every edge's maps)\n"
+       "The long soak: fogctl topology tree --edges 8 --source data/kitti_raw_seq_a --out tree-8.yaml &&\n"
+       "               fogctl faults tree-8.yaml --scenario soak --duration-s 600 --warmup-s 60\n",
+       fogmap::cli::runFaults},
       {"topology",
        "star|tree --edges K --source DIR [--base-port P] [--mode madc|baseline|ext] [--frames N] [--out FILE]",
        "usage: fogctl topology star|tree --edges K --source DIR [--base-port 50000] [--mode madc|baseline|ext]\n"

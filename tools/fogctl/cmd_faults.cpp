@@ -1,0 +1,65 @@
+// fogctl faults: the fault harness (tools/fogctl/faults.hpp) from the command line.
+#include <chrono>
+#include <fstream>
+#include <iostream>
+
+#include "common/topology.hpp"
+#include "tools/fogctl/args.hpp"
+#include "tools/fogctl/commands.hpp"
+#include "tools/fogctl/faults.hpp"
+#include "tools/fogctl/launcher.hpp"
+
+namespace fogmap::cli {
+
+int runFaults(int argc, char** argv) {
+  const auto args = Args::parse(argc, argv, 2,
+                                {"scenario", "duration-s", "warmup-s", "seed", "kills", "downtime-s", "report", "state"},
+                                {"no-oracle"});
+  if (!args) return fail(args.error(), "fogctl faults");
+  if (args->positional().size() != 1) return fail(invalidArgument("expected one topology file (see fogctl faults --help)"), "fogctl faults");
+  const std::filesystem::path file = args->positional()[0];
+  const auto topology = loadTopology(file);
+  if (!topology) return fail(topology.error(), "fogctl faults");
+
+  FaultPlan plan;
+  const auto scenario = parseScenario(args->get("scenario", "soak"));
+  if (!scenario) {
+    return fail(invalidArgument("--scenario must be soak, edge-crash, aggregator-crash or stall, not '" +
+                                args->get("scenario") + "'"), "fogctl faults");
+  }
+  plan.scenario = *scenario;
+  const auto duration = args->getDouble("duration-s", 60.0);
+  const auto warmup = args->getDouble("warmup-s", 20.0);
+  const auto seed = args->getInt("seed", 1);
+  const auto kills = args->getInt("kills", 2);
+  const auto downtime = args->getDouble("downtime-s", plan.scenario == FaultScenario::kStall ? 5.0 : 3.0);
+  for (const auto* value : {&duration, &warmup, &downtime}) {
+    if (!*value) return fail(value->error(), "fogctl faults");
+  }
+  if (!seed || !kills) return fail(!seed ? seed.error() : kills.error(), "fogctl faults");
+  if (!(*duration >= 5.0 && *duration <= 24 * 3600.0)) return fail(invalidArgument("--duration-s must be in [5, 86400]"), "fogctl faults");
+  if (!(*warmup >= 0.0 && *warmup < *duration)) return fail(invalidArgument("--warmup-s must be in [0, duration)"), "fogctl faults");
+  if (!(*downtime > 0.0 && *downtime < *duration)) return fail(invalidArgument("--downtime-s must be in (0, duration)"), "fogctl faults");
+  if (*seed < 0 || *kills < 0) return fail(invalidArgument("--seed and --kills must not be negative"), "fogctl faults");
+  const auto millis = [](double s) { return std::chrono::milliseconds(static_cast<long>(s * 1000.0)); };
+  plan.duration = millis(*duration);
+  plan.warmup = millis(*warmup);
+  plan.downtime = millis(*downtime);
+  plan.seed = static_cast<std::uint64_t>(*seed);
+  plan.edge_kills = static_cast<int>(*kills);
+  plan.check_oracle = !args->has("no-oracle");
+
+  installStopHandlers();
+  const std::filesystem::path state = args->get("state", (file.parent_path() / ".fogmap" / "faults").string());
+  const auto report = runFaults(state, *topology, plan);
+  if (!report) return fail(report.error(), "fogctl faults");
+  std::cout << summary(*report);
+  const std::filesystem::path json = args->get("report", (state / topology->name / "faults.json").string());
+  std::ofstream out(json);
+  out << toJson(*report);
+  if (!out) return fail(ioError("cannot write " + json.string()), "fogctl faults");
+  std::cout << "report: " << json.string() << "\n";
+  return report->passed() ? 0 : 1;
+}
+
+}  // namespace fogmap::cli

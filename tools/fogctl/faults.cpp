@@ -1,0 +1,785 @@
+#include "tools/fogctl/faults.hpp"
+
+#include <signal.h>
+
+#include <algorithm>
+#include <cmath>
+#include <condition_variable>
+#include <deque>
+#include <fstream>
+#include <iomanip>
+#include <map>
+#include <mutex>
+#include <random>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include <grpcpp/grpcpp.h>
+
+#include "common/clock.hpp"
+#include "common/epochs.hpp"
+#include "fogmap/v1/fogmap.grpc.pb.h"
+#include "services/common/delivery_journal.hpp"
+#include "services/common/grpc_options.hpp"
+#include "services/common/proto_convert.hpp"
+#include "services/edge_cluster/edge_node.hpp"
+#include "services/edge_cluster/edge_runner.hpp"
+#include "services/edge_cluster/scan_source.hpp"
+#include "tools/fogctl/cluster_run.hpp"
+#include "tools/fogctl/launcher.hpp"
+
+namespace fogmap::cli {
+namespace {
+
+using namespace std::chrono_literals;
+using SteadyClock = std::chrono::steady_clock;
+
+constexpr std::chrono::milliseconds kTick{20};
+// Scheduling slack allowed on top of the protocol's bound when a figure is checked against it.
+constexpr double kSlackMs = 100.0;
+constexpr double kChildNoticeBoundMs = 3000.0;
+constexpr double kRejoinBoundMs = 2000.0;
+constexpr double kRecoveryBoundMs = 5000.0;
+constexpr std::int64_t kMaxRssGrowthKib = 64 * 1024;
+
+double ms(std::int64_t ns) { return static_cast<double>(ns) / 1e6; }
+
+// One global map as the harness keeps it (the maps themselves go to the oracle and are dropped).
+struct Publication {
+  std::uint64_t epoch = 0;
+  std::uint32_t revision = 0;
+  bool late = false;
+  std::int64_t published_ns = 0;
+  std::int64_t sensor_ns = 0;
+  std::int64_t received_ns = 0;  // the harness's clock when it arrived
+  std::set<std::uint32_t> contributing;
+  std::set<std::uint32_t> missing;
+};
+
+// The latest revision of an epoch, as judged.
+struct EpochVerdict {
+  std::uint32_t revision = 0;
+  bool complete = false;  // every sensor contributed
+  bool equal = false;     // equal to the oracle (or no oracle)
+};
+
+// mergeSpecification over the local maps every edge computes for an epoch, recomputed from the
+// same scans with the edges' code. Maps are compared with every ellipsoid's frame set to 0: the
+// edges stamp the epoch there, and the scan shown (hence the geometry) repeats.
+class Oracle {
+ public:
+  static Expected<Oracle> create(const TopologyConfig& topology, const EpochSchedule& schedule) {
+    Oracle oracle(topology, schedule);
+    for (const NodeConfig& n : topology.nodes) {
+      if (n.role != Role::kEdge) continue;
+      SensorConfig sensor = *n.sensor;
+      sensor.frames.reset();
+      sensor.loop = true;
+      auto source = ScanSource::open(sensor, ReadLimits{topology.max_scan_bytes});
+      if (!source) return source.error();
+      oracle.sources_.emplace(n.id, std::move(*source));
+    }
+    return oracle;
+  }
+
+  // Whether `global` equals the specification's map over its contributing nodes.
+  Expected<bool> matches(const GlobalMapMessage& global) {
+    std::vector<std::pair<std::uint32_t, std::uint64_t>> key;  // (node, scan file)
+    for (std::uint32_t node : global.header.contributing_nodes) {
+      const NodeConfig* n = topology_.find(node);
+      if (n == nullptr || n->role != Role::kEdge) return invalidArgument("unknown contributing node " + std::to_string(node));
+      const auto files = sources_.at(node).files().size();
+      key.emplace_back(node, scanNumberAt(schedule_, n->sensor->rate_hz, global.header.epoch) % files);
+    }
+    auto cached = expected_.find(key);
+    if (cached == expected_.end()) {
+      std::vector<Ellipsoid> all;
+      for (const auto& [node, file] : key) {
+        auto local = localMap(node, file);
+        if (!local) return local.error();
+        for (const MapObject& o : (*local)->objects) all.insert(all.end(), o.ellipsoids.begin(), o.ellipsoids.end());
+      }
+      cached = expected_.emplace(key, mergeSpecification(all)).first;
+    }
+    return withoutFrames(global.map) == cached->second;
+  }
+
+  // Fills the cache for complete epochs of every scan file, before the clock starts.
+  Expected<bool> warm(std::uint64_t first_epoch, std::uint64_t epochs) {
+    GlobalMapMessage probe;
+    for (const auto& [node, source] : sources_) probe.header.contributing_nodes.push_back(node);
+    for (std::uint64_t e = first_epoch; e < first_epoch + epochs; ++e) {
+      probe.header.epoch = e;
+      auto ok = matches(probe);
+      if (!ok) return ok.error();
+    }
+    return true;
+  }
+
+ private:
+  Oracle(const TopologyConfig& topology, const EpochSchedule& schedule) : topology_(topology), schedule_(schedule) {}
+
+  static Map withoutFrames(Map map) {
+    for (MapObject& o : map.objects) {
+      for (Ellipsoid& e : o.ellipsoids) e.id.frame = 0;
+    }
+    return map;
+  }
+
+  Expected<const Map*> localMap(std::uint32_t node, std::uint64_t file) {
+    const auto key = std::make_pair(node, file);
+    if (const auto it = local_.find(key); it != local_.end()) return &it->second;
+    auto frame = sources_.at(node).at(file);
+    if (!frame) return frame.error();
+    const EdgeNode edge(edgeConfigFor(topology_, *topology_.find(node)));
+    auto output = edge.processFrame(frame->points, 0, 0);
+    if (!output) return output.error();
+    if (!output->map) return invalidArgument("the oracle needs mode madc");
+    // What the parent receives: the map after its trip through the wire format.
+    auto received = fromProto(toProto(*output->map));
+    if (!received) return received.error();
+    return &local_.emplace(key, withoutFrames(received->map)).first->second;
+  }
+
+  const TopologyConfig& topology_;
+  EpochSchedule schedule_;
+  std::map<std::uint32_t, ScanSource> sources_;
+  std::map<std::pair<std::uint32_t, std::uint64_t>, Map> local_;
+  std::map<std::vector<std::pair<std::uint32_t, std::uint64_t>>, Map> expected_;
+};
+
+// Everything the root published, judged as it arrives: the subscriber reads, a checker thread
+// runs the oracle so that a slow check never makes the root drop maps for this subscriber.
+class Observer {
+ public:
+  Observer(const TopologyConfig& topology, Oracle* oracle, std::vector<std::uint32_t> sensors)
+      : topology_(topology), oracle_(oracle), sensors_(std::move(sensors)) {}
+
+  void start(const std::string& target) {
+    subscriber_ = std::thread([this, target] { subscribe(target); });
+    checker_ = std::thread([this] { check(); });
+  }
+
+  // Waits (bounded) until the root ends the stream, then stops the checker.
+  void finish(std::chrono::milliseconds timeout) {
+    {
+      std::unique_lock lock(mu_);
+      cv_.wait_for(lock, timeout, [&] { return stream_ended_; });
+    }
+    context_.TryCancel();
+    subscriber_.join();
+    {
+      std::lock_guard lock(mu_);
+      stopping_ = true;
+    }
+    cv_.notify_all();
+    checker_.join();
+  }
+
+  bool subscribed() const {
+    std::lock_guard lock(mu_);
+    return subscribed_;
+  }
+
+  // Copies, for the harness thread while the run goes on (notice times) and at the end.
+  std::vector<Publication> publications() const {
+    std::lock_guard lock(mu_);
+    return publications_;
+  }
+  std::map<std::uint64_t, EpochVerdict> verdicts() const {
+    std::lock_guard lock(mu_);
+    return verdicts_;
+  }
+  std::uint64_t checked() const {
+    std::lock_guard lock(mu_);
+    return checked_;
+  }
+  std::uint64_t mismatched() const {
+    std::lock_guard lock(mu_);
+    return mismatched_;
+  }
+  std::uint64_t appliedTwice() const {
+    std::lock_guard lock(mu_);
+    return applied_twice_;
+  }
+  std::vector<std::string> problems() const {
+    std::lock_guard lock(mu_);
+    return problems_;
+  }
+
+ private:
+  void subscribe(const std::string& target) {
+    auto channel = makeChannel(target, topology_.max_message_bytes);
+    auto stub = v1::GlobalMapService::NewStub(channel);
+    context_.set_wait_for_ready(true);
+    auto reader = stub->Subscribe(&context_, v1::SubscribeRequest{});
+    {
+      std::lock_guard lock(mu_);
+      subscribed_ = true;
+    }
+    v1::GlobalMap message;
+    while (reader->Read(&message)) {
+      const std::int64_t now = systemNowNs();
+      auto global = fromProto(message);
+      std::lock_guard lock(mu_);
+      if (!global) {
+        problems_.push_back("the root published an unreadable map: " + global.error().message);
+        continue;
+      }
+      Publication p;
+      p.epoch = global->header.epoch;
+      p.revision = global->revision;
+      p.late = global->late;
+      p.published_ns = global->published_time_ns;
+      p.sensor_ns = global->header.sensor_time_ns;
+      p.received_ns = now;
+      p.contributing.insert(global->header.contributing_nodes.begin(), global->header.contributing_nodes.end());
+      p.missing.insert(global->header.missing_nodes.begin(), global->header.missing_nodes.end());
+      if (p.contributing.size() != global->header.contributing_nodes.size()) ++applied_twice_;
+      std::set<EllipsoidId> ids;
+      for (const MapObject& o : global->map.objects) {
+        for (const Ellipsoid& e : o.ellipsoids) {
+          if (!ids.insert(e.id).second) ++applied_twice_;
+        }
+      }
+      publications_.push_back(std::move(p));
+      queue_.push_back(std::move(*global));
+      cv_.notify_all();
+    }
+    (void)reader->Finish();
+    {
+      std::lock_guard lock(mu_);
+      stream_ended_ = true;
+    }
+    cv_.notify_all();
+  }
+
+  void check() {
+    for (;;) {
+      GlobalMapMessage global;
+      {
+        std::unique_lock lock(mu_);
+        cv_.wait(lock, [&] { return stopping_ || !queue_.empty(); });
+        if (queue_.empty()) return;
+        global = std::move(queue_.front());
+        queue_.pop_front();
+      }
+      bool equal = true;
+      std::string problem;
+      if (oracle_ != nullptr) {
+        auto ok = oracle_->matches(global);
+        equal = ok && *ok;
+        if (!ok) problem = "oracle: " + ok.error().message;
+      }
+      bool complete = true;
+      for (std::uint32_t s : sensors_) {
+        complete = complete && std::binary_search(global.header.contributing_nodes.begin(),
+                                                  global.header.contributing_nodes.end(), s);
+      }
+      std::lock_guard lock(mu_);
+      ++checked_;
+      if (!equal) {
+        ++mismatched_;
+        if (problems_.size() < 20) {
+          problems_.push_back(problem.empty() ? "epoch " + std::to_string(global.header.epoch) + " revision " +
+                                                    std::to_string(global.revision) + " differs from the specification"
+                                              : problem);
+        }
+      }
+      EpochVerdict& v = verdicts_[global.header.epoch];
+      if (global.revision >= v.revision) v = {global.revision, complete, equal};
+    }
+  }
+
+  const TopologyConfig& topology_;
+  Oracle* oracle_;
+  std::vector<std::uint32_t> sensors_;
+  grpc::ClientContext context_;
+  std::thread subscriber_;
+  std::thread checker_;
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  bool subscribed_ = false;
+  bool stream_ended_ = false;
+  bool stopping_ = false;
+  std::deque<GlobalMapMessage> queue_;
+  std::vector<Publication> publications_;
+  std::map<std::uint64_t, EpochVerdict> verdicts_;
+  std::uint64_t checked_ = 0;
+  std::uint64_t mismatched_ = 0;
+  std::uint64_t applied_twice_ = 0;
+  std::vector<std::string> problems_;
+};
+
+std::int64_t rssKib(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("VmRSS:", 0) == 0) return std::strtoll(line.c_str() + 6, nullptr, 10);
+  }
+  return 0;
+}
+
+double metricOf(const NodeConfig& node, const std::string& name) {
+  const auto text = httpGet(node.host, node.metrics_port, "/metrics", 1000ms);
+  return text ? sumMetric(*text, name) : 0.0;
+}
+
+// A fault to inject: at `at` after the start, signal `node`; restarts are separate actions.
+struct Action {
+  std::chrono::milliseconds at{0};
+  std::string what;  // kill, restart, stop, continue
+  std::string node;
+  bool done = false;
+};
+
+std::vector<Action> planActions(const TopologyConfig& topology, const FaultPlan& plan) {
+  std::mt19937_64 rng(plan.seed);
+  const auto when = [&](double from, double to) {
+    std::uniform_real_distribution<double> u(from, to);
+    return std::chrono::milliseconds(static_cast<long>(u(rng) * static_cast<double>(plan.duration.count())));
+  };
+  std::vector<const NodeConfig*> edges;
+  std::vector<const NodeConfig*> middle;  // aggregators other than the root
+  for (const NodeConfig& n : topology.nodes) {
+    if (n.role == Role::kEdge) edges.push_back(&n);
+    if (n.role == Role::kAggregator && !n.parent.empty()) middle.push_back(&n);
+  }
+  std::vector<Action> actions;
+  switch (plan.scenario) {
+    case FaultScenario::kSoak: break;
+    case FaultScenario::kEdgeCrash: {
+      std::shuffle(edges.begin(), edges.end(), rng);
+      const int kills = std::min<int>(plan.edge_kills, static_cast<int>(edges.size()));
+      for (int k = 0; k < kills; ++k) {
+        const auto at = when(0.2, 0.5);
+        actions.push_back({at, "kill", edges[static_cast<std::size_t>(k)]->name});
+        actions.push_back({at + plan.downtime, "restart", edges[static_cast<std::size_t>(k)]->name});
+      }
+      break;
+    }
+    case FaultScenario::kAggregatorCrash:
+    case FaultScenario::kStall: {
+      if (middle.empty()) break;
+      const NodeConfig* victim = middle[std::uniform_int_distribution<std::size_t>(0, middle.size() - 1)(rng)];
+      const auto at = when(0.25, 0.4);
+      const bool crash = plan.scenario == FaultScenario::kAggregatorCrash;
+      actions.push_back({at, crash ? "kill" : "stop", victim->name});
+      actions.push_back({at + plan.downtime, crash ? "restart" : "continue", victim->name});
+      break;
+    }
+  }
+  std::sort(actions.begin(), actions.end(), [](const Action& a, const Action& b) { return a.at < b.at; });
+  return actions;
+}
+
+std::string jsonString(const std::string& s) {
+  std::string out = "\"";
+  for (char c : s) {
+    if (c == '"' || c == '\\') out += '\\';
+    if (static_cast<unsigned char>(c) < 0x20) {
+      out += ' ';
+      continue;
+    }
+    out += c;
+  }
+  return out + "\"";
+}
+
+}  // namespace
+
+const char* scenarioName(FaultScenario scenario) {
+  switch (scenario) {
+    case FaultScenario::kSoak: return "soak";
+    case FaultScenario::kEdgeCrash: return "edge-crash";
+    case FaultScenario::kAggregatorCrash: return "aggregator-crash";
+    case FaultScenario::kStall: return "stall";
+  }
+  return "soak";
+}
+
+std::optional<FaultScenario> parseScenario(const std::string& name) {
+  for (FaultScenario s : {FaultScenario::kSoak, FaultScenario::kEdgeCrash, FaultScenario::kAggregatorCrash,
+                          FaultScenario::kStall}) {
+    if (name == scenarioName(s)) return s;
+  }
+  return std::nullopt;
+}
+
+bool FaultReport::passed() const {
+  return std::all_of(checks.begin(), checks.end(), [](const Check& c) { return c.passed; });
+}
+
+Expected<FaultReport> runFaults(const std::filesystem::path& dir, const TopologyConfig& topology, const FaultPlan& plan) {
+  const NodeConfig* root = topology.root();
+  if (root == nullptr) return invalidArgument("the topology has no root");
+  auto schedule = EpochSchedule::create(topology.period_ms, topology.deadline_ms);
+  if (!schedule) return schedule.error();
+  const bool with_oracle = plan.check_oracle && topology.mode == Mode::kMadc;
+  const std::vector<std::uint32_t> sensors = topology.sensorsBelow(root->name);
+
+  FaultReport report;
+  report.topology = topology.name;
+  report.scenario = scenarioName(plan.scenario);
+  report.seed = plan.seed;
+  report.duration_s = static_cast<double>(plan.duration.count()) / 1000.0;
+  report.edges = static_cast<int>(sensors.size());
+  report.period_ms = topology.period_ms;
+  report.root_deadline_ms = topology.deadline_ms * topology.aggregatorLevels(root->name);
+
+  std::optional<Oracle> oracle;
+  if (with_oracle) {
+    auto created = Oracle::create(topology, *schedule);
+    if (!created) return created.error();
+    oracle.emplace(std::move(*created));
+    auto warmed = oracle->warm(schedule->epochAt(systemNowNs()), 64);
+    if (!warmed) return warmed.error();
+  }
+
+  const auto state = dir / topology.name;
+  std::error_code ec;
+  std::filesystem::create_directories(state, ec);
+  const auto file = state / (topology.name + ".yaml");
+  {
+    std::ofstream out(file);
+    out << toYaml(topology);
+    if (!out) return ioError("cannot write " + file.string());
+  }
+  StartOptions options;
+  options.journal_dir = state / "journals";
+  std::filesystem::remove_all(options.journal_dir, ec);
+
+  Observer observer(topology, oracle ? &*oracle : nullptr, sensors);
+  auto cluster = startCluster(file, topology, state, 30s, options);
+  if (!cluster) return cluster.error();
+  observer.start(root->host + ":" + std::to_string(root->port));
+
+  std::vector<Action> actions = planActions(topology, plan);
+  std::set<std::string> down;  // killed or stopped, not yet back
+  std::map<std::string, std::int64_t> stopped_at;
+  std::map<std::string, double> stalls_before;  // children's link stalls when their parent was stopped
+  std::set<std::string> restarted;
+  std::optional<std::int64_t> heal_ns;
+  struct FaultWindow {
+    std::set<std::uint32_t> sensors;
+    std::uint64_t first_epoch = 0;
+    std::uint64_t last_epoch = 0;
+  };
+  std::vector<FaultWindow> windows;
+  std::map<std::string, std::int64_t> rss_warm;
+  std::vector<std::pair<std::string, std::int64_t>> kills;    // node, time: for missing notices
+  std::vector<std::pair<std::string, std::int64_t>> restarts; // edge restarts, for rejoin times
+
+  const auto start = SteadyClock::now();
+  const std::int64_t start_ns = systemNowNs();
+  bool warm_sampled = false;
+  std::optional<std::string> failure;
+  while (SteadyClock::now() - start < plan.duration && !stopRequested()) {
+    const auto elapsed = std::chrono::duration_cast<std::chrono::milliseconds>(SteadyClock::now() - start);
+    for (Action& a : actions) {
+      if (a.done || a.at > elapsed) continue;
+      a.done = true;
+      auto node = std::find_if(cluster->nodes.begin(), cluster->nodes.end(), [&](const RunningNode& r) { return r.name == a.node; });
+      const NodeConfig* config = topology.find(a.node);
+      const std::int64_t now = systemNowNs();
+      report.events.push_back({a.what, a.node, now});
+      if (a.what == "kill" || a.what == "stop") {
+        ::kill(node->pid, a.what == "kill" ? SIGKILL : SIGSTOP);
+        down.insert(a.node);
+        kills.emplace_back(a.node, now);
+        if (a.what == "kill" && config->role == Role::kAggregator) {
+          // Maps it acknowledged for epochs it had not emitted yet die with it.
+          const auto emit_ns = static_cast<std::int64_t>(
+              (topology.deadline_ms * topology.aggregatorLevels(a.node) + topology.period_ms) * 1e6);
+          const auto below = topology.sensorsBelow(a.node);
+          windows.push_back({{below.begin(), below.end()}, schedule->epochAt(now - emit_ns), schedule->epochAt(now) + 1});
+        }
+        if (a.what == "stop") {
+          stopped_at[a.node] = now;
+          for (const NodeConfig* child : topology.children(a.node)) {
+            stalls_before[child->name] = metricOf(*child, "fogmap_link_stalls_total");
+          }
+        }
+      } else if (a.what == "continue") {
+        ::kill(node->pid, SIGCONT);
+        down.erase(a.node);
+        heal_ns = now;
+      } else if (a.what == "restart") {
+        auto again = restartNode(*cluster, topology, a.node, 10s, options);
+        if (!again) {
+          failure = "restarting " + a.node + ": " + again.error().message;
+          break;
+        }
+        down.erase(a.node);
+        restarted.insert(a.node);
+        if (config->role == Role::kEdge) restarts.emplace_back(a.node, now);
+        if (config->role == Role::kAggregator) heal_ns = now;
+      }
+    }
+    if (failure) break;
+    // Children of a stopped parent: when does the first of them give its stream up?
+    if (!stopped_at.empty() && !report.child_notice_ms) {
+      for (const auto& [child, before] : stalls_before) {
+        if (metricOf(*topology.find(child), "fogmap_link_stalls_total") > before) {
+          report.child_notice_ms = ms(systemNowNs() - stopped_at.begin()->second);
+          break;
+        }
+      }
+    }
+    if (!warm_sampled && SteadyClock::now() - start >= plan.warmup) {
+      warm_sampled = true;
+      for (const RunningNode& n : cluster->nodes) rss_warm[n.name] = rssKib(n.pid);
+    }
+    for (const RunningNode& n : cluster->nodes) {
+      if (down.contains(n.name) || isRunning(n.pid)) continue;
+      if (std::find(report.crashed.begin(), report.crashed.end(), n.name) == report.crashed.end()) {
+        report.crashed.push_back(n.name);
+      }
+    }
+    std::this_thread::sleep_for(kTick);
+  }
+  const std::int64_t end_ns = systemNowNs();
+  for (const std::string& name : down) {  // a stopped process must not stay stopped
+    const auto node = std::find_if(cluster->nodes.begin(), cluster->nodes.end(), [&](const RunningNode& r) { return r.name == name; });
+    if (node != cluster->nodes.end() && isRunning(node->pid)) ::kill(node->pid, SIGCONT);
+  }
+  for (const RunningNode& n : cluster->nodes) {
+    if (!isRunning(n.pid)) continue;
+    const auto warm = rss_warm.find(n.name);
+    if (warm == rss_warm.end() || restarted.contains(n.name)) continue;
+    report.memory.push_back({n.name, warm->second, rssKib(n.pid)});
+    report.max_rss_growth_kib =
+        std::max(report.max_rss_growth_kib, static_cast<double>(report.memory.back().rss_end_kib - warm->second));
+  }
+  for (const NodeConfig& n : topology.nodes) {
+    if (n.role == Role::kAggregator) report.duplicates_recognised += static_cast<std::uint64_t>(metricOf(n, "fogmap_duplicate_uploads_total"));
+  }
+
+  // Stop in order, so that everything acknowledged reaches the root: edges first, then the
+  // aggregators from the leaves up, each given time to emit and flush.
+  std::vector<const RunningNode*> order;
+  for (const RunningNode& n : cluster->nodes) order.push_back(&n);
+  std::stable_sort(order.begin(), order.end(), [&](const RunningNode* a, const RunningNode* b) {
+    return topology.aggregatorLevels(a->name) < topology.aggregatorLevels(b->name);
+  });
+  int level = -1;
+  for (const RunningNode* n : order) {
+    const int l = topology.aggregatorLevels(n->name);
+    if (l != level) {
+      // Let the level just stopped drain into this one: one emission of this level and a margin.
+      if (level >= 0) std::this_thread::sleep_for(std::chrono::milliseconds(static_cast<long>(topology.deadline_ms + topology.period_ms)));
+      level = l;
+    }
+    if (isRunning(n->pid)) stopNode(*n, 10s);
+  }
+  observer.finish(10s);
+  ::unlink((state / "pids").c_str());
+  if (failure) return Error{ErrorCode::kInternal, *failure};
+
+  // Sent vs applied.
+  const std::vector<Publication> pubs = observer.publications();
+  std::map<std::uint64_t, std::set<std::uint32_t>> applied;
+  for (const Publication& p : pubs) applied[p.epoch].insert(p.contributing.begin(), p.contributing.end());
+  for (const NodeConfig& n : topology.nodes) {
+    if (n.role != Role::kEdge) continue;
+    for (const auto& entry : std::filesystem::directory_iterator(options.journal_dir, ec)) {
+      const std::string name = entry.path().filename().string();
+      if (name != n.name + ".journal" && name.rfind(n.name + ".journal.", 0) != 0) continue;
+      auto journal = readJournal(entry.path());
+      if (!journal) return journal.error();
+      for (const JournalEntry& j : *journal) {
+        if (j.kind != "map") continue;
+        ++report.maps_sent;
+        if (j.outcome == Outcome::kRefused) ++report.maps_refused;
+        if (j.outcome == Outcome::kUnsettled) ++report.maps_unsettled;
+        if (j.outcome != Outcome::kApplied && j.outcome != Outcome::kLate) continue;
+        ++report.maps_acknowledged;
+        if (applied[j.epoch].contains(n.id)) continue;
+        const bool in_fault = std::any_of(windows.begin(), windows.end(), [&](const FaultWindow& w) {
+          return w.sensors.contains(n.id) && j.epoch >= w.first_epoch && j.epoch <= w.last_epoch;
+        });
+        ++(in_fault ? report.maps_lost_in_fault : report.maps_lost);
+      }
+    }
+  }
+  report.applied_twice = observer.appliedTwice();
+  report.publications_checked = observer.checked();
+  report.publications_mismatched = observer.mismatched();
+
+  // Liveness and latency over the loaded window.
+  const std::uint64_t last_loaded = schedule->epochAt(end_ns) - 1;
+  std::optional<std::uint64_t> first_published;
+  std::vector<std::int64_t> first_times;
+  std::vector<double> e2e;
+  for (const Publication& p : pubs) {
+    report.publications += 1;
+    report.late_publications += p.late ? 1 : 0;
+    if (p.revision != 0 || p.epoch > last_loaded || p.published_ns < start_ns) continue;
+    first_published = std::min(first_published.value_or(p.epoch), p.epoch);
+    first_times.push_back(p.published_ns);
+    if (p.contributing.size() == sensors.size()) e2e.push_back(ms(p.published_ns - p.sensor_ns));
+  }
+  if (first_published) {
+    report.epochs_in_window = last_loaded - *first_published + 1;
+    for (std::uint64_t e = *first_published; e <= last_loaded; ++e) report.epochs_unpublished += applied.contains(e) ? 0 : 1;
+  }
+  std::sort(first_times.begin(), first_times.end());
+  for (std::size_t i = 1; i < first_times.size(); ++i) {
+    report.max_silence_ms = std::max(report.max_silence_ms, ms(first_times[i] - first_times[i - 1]));
+  }
+  report.e2e_p50_ms = percentile(e2e, 0.5);
+  report.e2e_p99_ms = percentile(e2e, 0.99);
+
+  // Fault figures.
+  for (const auto& [name, at] : kills) {
+    const auto below = topology.sensorsBelow(name);
+    std::optional<double> notice;
+    for (const Publication& p : pubs) {
+      if (p.revision != 0 || p.published_ns < at) continue;
+      if (std::any_of(below.begin(), below.end(), [&](std::uint32_t s) { return p.missing.contains(s); })) {
+        notice = std::min(notice.value_or(1e18), ms(p.published_ns - at));
+      }
+    }
+    report.missing_notice_ms.push_back(notice.value_or(-1.0));
+  }
+  for (const auto& [name, at] : restarts) {
+    const std::uint32_t id = topology.find(name)->id;
+    std::optional<double> rejoin;
+    for (const Publication& p : pubs) {
+      if (p.published_ns >= at && p.contributing.contains(id)) rejoin = std::min(rejoin.value_or(1e18), ms(p.published_ns - at));
+    }
+    report.rejoin_ms.push_back(rejoin.value_or(-1.0));
+  }
+  if (heal_ns) {
+    const auto verdicts = observer.verdicts();
+    std::optional<std::uint64_t> recovered;  // first epoch from which every loaded epoch is complete and equal
+    for (std::uint64_t e = last_loaded; e >= schedule->epochAt(*heal_ns) && e > 0; --e) {
+      const auto v = verdicts.find(e);
+      if (v == verdicts.end() || !v->second.complete || !v->second.equal) break;
+      recovered = e;
+    }
+    if (recovered) {
+      report.recovery_ms = ms(schedule->startNs(*recovered) - *heal_ns) + report.root_deadline_ms;
+      report.epochs_after_recovery = last_loaded - *recovered + 1;
+    }
+  }
+
+  // The checks.
+  auto check = [&](const std::string& name, bool ok, const std::string& detail) { report.checks.push_back({name, ok, detail}); };
+  const std::vector<std::string> problems = observer.problems();
+  check("no process died unless killed", report.crashed.empty(),
+        report.crashed.empty() ? "" : "died: " + report.crashed.front());
+  check("the root published every epoch", report.epochs_in_window > 0 && report.epochs_unpublished == 0,
+        std::to_string(report.epochs_unpublished) + " of " + std::to_string(report.epochs_in_window) + " unpublished");
+  check("no acknowledged map lost", report.maps_lost == 0, std::to_string(report.maps_lost) + " lost");
+  check("no map applied twice", report.applied_twice == 0, std::to_string(report.applied_twice) + " duplicates");
+  if (with_oracle) {
+    check("every global map equals the specification", report.publications_checked > 0 && report.publications_mismatched == 0,
+          std::to_string(report.publications_mismatched) + " of " + std::to_string(report.publications_checked) +
+              (problems.empty() ? std::string() : "; " + problems.front()));
+  }
+  std::ostringstream bound;
+  const double missing_bound = topology.period_ms + report.root_deadline_ms + kSlackMs;
+  bound << "bound " << missing_bound << " ms";
+  switch (plan.scenario) {
+    case FaultScenario::kSoak:
+      check("memory bounded after the warm-up", warm_sampled && report.max_rss_growth_kib <= static_cast<double>(kMaxRssGrowthKib),
+            std::to_string(static_cast<long>(report.max_rss_growth_kib)) + " KiB largest growth");
+      break;
+    case FaultScenario::kEdgeCrash:
+      for (double n : report.missing_notice_ms) check("a killed edge is marked missing in time", n >= 0 && n <= missing_bound, std::to_string(n) + " ms, " + bound.str());
+      for (double r : report.rejoin_ms) check("a restarted edge is merged again within 2 s", r >= 0 && r <= kRejoinBoundMs, std::to_string(r) + " ms");
+      break;
+    case FaultScenario::kAggregatorCrash:
+    case FaultScenario::kStall:
+      for (double n : report.missing_notice_ms) check("the root marks the subtree missing within 3 s", n >= 0 && n <= kChildNoticeBoundMs, std::to_string(n) + " ms");
+      if (plan.scenario == FaultScenario::kStall) {
+        check("the children notice the stall within 3 s", report.child_notice_ms && *report.child_notice_ms <= kChildNoticeBoundMs,
+              report.child_notice_ms ? std::to_string(*report.child_notice_ms) + " ms" : "never");
+      }
+      check("the root converges to the fault-free maps after recovery",
+            report.recovery_ms && *report.recovery_ms <= kRecoveryBoundMs && report.epochs_after_recovery >= 10,
+            report.recovery_ms ? std::to_string(*report.recovery_ms) + " ms, then " + std::to_string(report.epochs_after_recovery) + " epochs equal"
+                               : "never");
+      break;
+  }
+  return report;
+}
+
+std::string toJson(const FaultReport& r) {
+  std::ostringstream o;
+  o << std::setprecision(10);
+  const auto list = [&](const std::vector<double>& v) {
+    std::string s = "[";
+    for (std::size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + std::to_string(v[i]);
+    return s + "]";
+  };
+  o << "{\n  \"topology\": " << jsonString(r.topology) << ",\n  \"scenario\": " << jsonString(r.scenario)
+    << ",\n  \"seed\": " << r.seed << ",\n  \"duration_s\": " << r.duration_s << ",\n  \"edges\": " << r.edges
+    << ",\n  \"period_ms\": " << r.period_ms << ",\n  \"root_deadline_ms\": " << r.root_deadline_ms
+    << ",\n  \"epochs_in_window\": " << r.epochs_in_window << ",\n  \"epochs_unpublished\": " << r.epochs_unpublished
+    << ",\n  \"max_silence_ms\": " << r.max_silence_ms << ",\n  \"publications\": " << r.publications
+    << ",\n  \"late_publications\": " << r.late_publications << ",\n  \"maps_sent\": " << r.maps_sent
+    << ",\n  \"maps_acknowledged\": " << r.maps_acknowledged << ",\n  \"maps_refused\": " << r.maps_refused
+    << ",\n  \"maps_unsettled\": " << r.maps_unsettled << ",\n  \"maps_lost\": " << r.maps_lost
+    << ",\n  \"maps_lost_in_fault\": " << r.maps_lost_in_fault << ",\n  \"applied_twice\": " << r.applied_twice
+    << ",\n  \"duplicates_recognised\": " << r.duplicates_recognised
+    << ",\n  \"publications_checked\": " << r.publications_checked
+    << ",\n  \"publications_mismatched\": " << r.publications_mismatched << ",\n  \"e2e_p50_ms\": " << r.e2e_p50_ms
+    << ",\n  \"e2e_p99_ms\": " << r.e2e_p99_ms << ",\n  \"max_rss_growth_kib\": " << r.max_rss_growth_kib
+    << ",\n  \"missing_notice_ms\": " << list(r.missing_notice_ms) << ",\n  \"rejoin_ms\": " << list(r.rejoin_ms)
+    << ",\n  \"recovery_ms\": " << (r.recovery_ms ? std::to_string(*r.recovery_ms) : "null")
+    << ",\n  \"child_notice_ms\": " << (r.child_notice_ms ? std::to_string(*r.child_notice_ms) : "null")
+    << ",\n  \"epochs_after_recovery\": " << r.epochs_after_recovery
+    << ",\n  \"memory\": [";
+  for (std::size_t i = 0; i < r.memory.size(); ++i) {
+    o << (i ? ", " : "") << "{\"node\": " << jsonString(r.memory[i].node) << ", \"rss_after_warmup_kib\": "
+      << r.memory[i].rss_after_warmup_kib << ", \"rss_end_kib\": " << r.memory[i].rss_end_kib << "}";
+  }
+  o << "],\n  \"events\": [";
+  for (std::size_t i = 0; i < r.events.size(); ++i) {
+    o << (i ? ", " : "") << "{\"what\": " << jsonString(r.events[i].what) << ", \"node\": " << jsonString(r.events[i].node)
+      << ", \"at_ns\": " << r.events[i].at_ns << "}";
+  }
+  o << "],\n  \"crashed\": [";
+  for (std::size_t i = 0; i < r.crashed.size(); ++i) o << (i ? ", " : "") << jsonString(r.crashed[i]);
+  o << "],\n  \"checks\": [";
+  for (std::size_t i = 0; i < r.checks.size(); ++i) {
+    o << (i ? ",\n    " : "\n    ") << "{\"name\": " << jsonString(r.checks[i].name)
+      << ", \"passed\": " << (r.checks[i].passed ? "true" : "false") << ", \"detail\": " << jsonString(r.checks[i].detail) << "}";
+  }
+  o << "],\n  \"passed\": " << (r.passed() ? "true" : "false") << "\n}\n";
+  return o.str();
+}
+
+std::string summary(const FaultReport& r) {
+  std::ostringstream o;
+  o << std::fixed << std::setprecision(1);
+  o << "faults " << r.scenario << " on " << r.topology << " (" << r.edges << " edges, period " << r.period_ms
+    << " ms, seed " << r.seed << ", " << r.duration_s << " s)\n";
+  for (const FaultEvent& e : r.events) o << "  event: " << e.what << " " << e.node << "\n";
+  o << "  root: " << r.epochs_in_window - r.epochs_unpublished << " of " << r.epochs_in_window
+    << " epochs published, longest silence " << r.max_silence_ms << " ms, " << r.late_publications << " late of "
+    << r.publications << " publications\n";
+  o << "  maps: " << r.maps_sent << " sent, " << r.maps_acknowledged << " acknowledged, " << r.maps_refused
+    << " refused, " << r.maps_unsettled << " unsettled; " << r.maps_lost << " lost, " << r.maps_lost_in_fault
+    << " lost with a killed aggregator; " << r.applied_twice << " applied twice (" << r.duplicates_recognised
+    << " re-sent copies recognised)\n";
+  o << "  oracle: " << r.publications_mismatched << " of " << r.publications_checked
+    << " global maps differ from the specification\n";
+  o << "  end-to-end: p50 " << r.e2e_p50_ms << " ms, p99 " << r.e2e_p99_ms << " ms; largest RSS growth after warm-up "
+    << r.max_rss_growth_kib / 1024.0 << " MiB\n";
+  for (double n : r.missing_notice_ms) o << "  marked missing after " << n << " ms\n";
+  for (double n : r.rejoin_ms) o << "  restarted edge merged again after " << n << " ms\n";
+  if (r.child_notice_ms) o << "  children noticed the stall after " << *r.child_notice_ms << " ms\n";
+  if (r.recovery_ms) {
+    o << "  recovered " << *r.recovery_ms << " ms after the heal; " << r.epochs_after_recovery
+      << " epochs after it, all complete and equal to the fault-free maps\n";
+  }
+  for (const Check& c : r.checks) o << "  [" << (c.passed ? "ok" : "FAIL") << "] " << c.name << (c.detail.empty() ? "" : ": " + c.detail) << "\n";
+  o << (r.passed() ? "PASSED\n" : "FAILED\n");
+  return o.str();
+}
+
+}  // namespace fogmap::cli
