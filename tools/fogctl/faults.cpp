@@ -428,6 +428,12 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
   report.period_ms = topology.period_ms;
   report.root_deadline_ms = topology.deadline_ms * topology.aggregatorLevels(root->name);
 
+  auto phase_start = SteadyClock::now();
+  const auto phase = [&](const std::string& name) {
+    const auto now = SteadyClock::now();
+    report.phases.emplace_back(name, std::chrono::duration<double>(now - phase_start).count());
+    phase_start = now;
+  };
   std::optional<Oracle> oracle;
   if (with_oracle) {
     auto created = Oracle::create(topology, *schedule);
@@ -450,9 +456,11 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
   options.journal_dir = state / "journals";
   std::filesystem::remove_all(options.journal_dir, ec);
 
+  phase("oracle");
   Observer observer(topology, oracle ? &*oracle : nullptr, sensors);
   auto cluster = startCluster(file, topology, state, 30s, options);
   if (!cluster) return cluster.error();
+  phase("start");
   observer.start(root->host + ":" + std::to_string(root->port));
 
   std::vector<Action> actions = planActions(topology, plan);
@@ -540,6 +548,7 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
     std::this_thread::sleep_for(kTick);
   }
   const std::int64_t end_ns = systemNowNs();
+  phase("load");
   for (const std::string& name : down) {  // a stopped process must not stay stopped
     const auto node = std::find_if(cluster->nodes.begin(), cluster->nodes.end(), [&](const RunningNode& r) { return r.name == name; });
     if (node != cluster->nodes.end() && isRunning(node->pid)) ::kill(node->pid, SIGCONT);
@@ -556,25 +565,17 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
     if (n.role == Role::kAggregator) report.duplicates_recognised += static_cast<std::uint64_t>(metricOf(n, "fogmap_duplicate_uploads_total"));
   }
 
-  // Stop in order, so that everything acknowledged reaches the root: edges first, then the
-  // aggregators from the leaves up, each given time to emit and flush.
-  std::vector<const RunningNode*> order;
-  for (const RunningNode& n : cluster->nodes) order.push_back(&n);
-  std::stable_sort(order.begin(), order.end(), [&](const RunningNode* a, const RunningNode* b) {
-    return topology.aggregatorLevels(a->name) < topology.aggregatorLevels(b->name);
-  });
-  int level = -1;
-  for (const RunningNode* n : order) {
-    const int l = topology.aggregatorLevels(n->name);
-    if (l != level) {
-      // Let the level just stopped drain into this one: one emission of this level and a margin.
-      if (level >= 0) std::this_thread::sleep_for(std::chrono::milliseconds(static_cast<long>(topology.deadline_ms + topology.period_ms)));
-      level = l;
-    }
-    if (isRunning(n->pid)) stopNode(*n, 10s);
+  // Stop in order, so that everything acknowledged reaches the root: the edges first, then the
+  // aggregators level by level from the leaves up, each level given time to emit and flush.
+  std::map<int, std::vector<RunningNode>> levels;
+  for (const RunningNode& n : cluster->nodes) levels[topology.aggregatorLevels(n.name)].push_back(n);
+  for (const auto& [level, nodes] : levels) {
+    if (level > 0) std::this_thread::sleep_for(std::chrono::milliseconds(static_cast<long>(topology.deadline_ms + topology.period_ms)));
+    stopNodes(nodes, 10s);
   }
   observer.finish(10s);
   ::unlink((state / "pids").c_str());
+  phase("stop");
   if (failure) return Error{ErrorCode::kInternal, *failure};
 
   // Sent vs applied.
@@ -654,6 +655,13 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
   if (heal_ns) {
     const auto verdicts = observer.verdicts();
     std::optional<std::uint64_t> recovered;  // first epoch from which every loaded epoch is complete and equal
+    if (std::getenv("FOGMAP_FAULTS_DEBUG") != nullptr) {
+      for (std::uint64_t e = schedule->epochAt(*heal_ns); e <= last_loaded; ++e) {
+        const auto v = verdicts.find(e);
+        std::fprintf(stderr, "epoch %lu: %s\n", static_cast<unsigned long>(e - schedule->epochAt(*heal_ns)),
+                     v == verdicts.end() ? "none" : (std::to_string(v->second.revision) + (v->second.complete ? " complete" : " incomplete") + (v->second.equal ? " equal" : " differs")).c_str());
+      }
+    }
     for (std::uint64_t e = last_loaded; e >= schedule->epochAt(*heal_ns) && e > 0; --e) {
       const auto v = verdicts.find(e);
       if (v == verdicts.end() || !v->second.complete || !v->second.equal) break;
@@ -777,6 +785,9 @@ std::string summary(const FaultReport& r) {
     o << "  recovered " << *r.recovery_ms << " ms after the heal; " << r.epochs_after_recovery
       << " epochs after it, all complete and equal to the fault-free maps\n";
   }
+  o << "  phases:";
+  for (const auto& [name, seconds] : r.phases) o << " " << name << " " << seconds << " s";
+  o << "\n";
   for (const Check& c : r.checks) o << "  [" << (c.passed ? "ok" : "FAIL") << "] " << c.name << (c.detail.empty() ? "" : ": " + c.detail) << "\n";
   o << (r.passed() ? "PASSED\n" : "FAILED\n");
   return o.str();

@@ -23,6 +23,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/status.hpp"
@@ -113,6 +114,9 @@ struct FaultReport {
   // Epochs from the recovery to the end of the load: every one complete and equal to the
   // fault-free result (the recovery is the first epoch from which that holds).
   std::uint64_t epochs_after_recovery = 0;
+
+  // How long each phase of the harness took (oracle, start, load, stop), in seconds.
+  std::vector<std::pair<std::string, double>> phases;
 
   std::vector<Check> checks;
   bool passed() const;

@@ -239,17 +239,29 @@ Expected<RunningNode> restartNode(Cluster& cluster, const TopologyConfig& topolo
   return *entry;
 }
 
-bool stopNode(const RunningNode& node, std::chrono::milliseconds grace) {
-  if (node.pid <= 0 || !sameProcess(node)) return false;
-  ::kill(node.pid, SIGTERM);
+bool stopNodes(const std::vector<RunningNode>& nodes, std::chrono::milliseconds grace) {
+  std::vector<const RunningNode*> signalled;
+  for (const RunningNode& n : nodes) {
+    if (n.pid > 0 && running(n.pid) && sameProcess(n)) {
+      ::kill(n.pid, SIGTERM);
+      signalled.push_back(&n);
+    }
+  }
   const auto deadline = std::chrono::steady_clock::now() + grace;
-  while (running(node.pid) && std::chrono::steady_clock::now() < deadline) {
+  const auto any_running = [&] {
+    return std::any_of(signalled.begin(), signalled.end(), [](const RunningNode* n) { return running(n->pid); });
+  };
+  while (any_running() && std::chrono::steady_clock::now() < deadline) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
-  if (!running(node.pid)) return true;
-  ::kill(node.pid, SIGKILL);
-  ::waitpid(node.pid, nullptr, 0);
-  return false;
+  bool all_exited = true;
+  for (const RunningNode* n : signalled) {
+    if (!running(n->pid)) continue;
+    all_exited = false;
+    ::kill(n->pid, SIGKILL);
+    ::waitpid(n->pid, nullptr, 0);
+  }
+  return all_exited;
 }
 
 Expected<Cluster> startCluster(const std::filesystem::path& topology_file, const TopologyConfig& topology,

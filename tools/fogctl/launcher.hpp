@@ -52,9 +52,9 @@ Expected<Cluster> startCluster(const std::filesystem::path& topology_file, const
 // node's entry in `cluster`.
 Expected<RunningNode> restartNode(Cluster& cluster, const TopologyConfig& topology, const std::string& name,
                                   std::chrono::milliseconds timeout, const StartOptions& options = {});
-// SIGTERM to one node, SIGKILL after the grace period; reaps it. True when it exited by itself
-// within the grace period.
-bool stopNode(const RunningNode& node, std::chrono::milliseconds grace);
+// SIGTERM to every node given at once, SIGKILL to those still running after the grace period;
+// reaps them. True when all exited by themselves within the grace period.
+bool stopNodes(const std::vector<RunningNode>& nodes, std::chrono::milliseconds grace);
 // SIGTERM, then SIGKILL after the grace period; reaps the children.
 void stopCluster(const Cluster& cluster, std::chrono::milliseconds grace);
 struct StopReport {
