@@ -12,6 +12,7 @@
 
 #include "tests/support/free_ports.hpp"
 #include "tools/fogctl/faults.hpp"
+#include "tools/fogctl/netns.hpp"
 
 namespace fogmap {
 namespace {
@@ -92,6 +93,27 @@ TEST(Faults, AStoppedAggregatorIsNoticedOnBothSidesAndTheRootConverges) {
   plan.downtime = 5s;
   const FaultReport report = run("stall", plan);
   expectAllChecksPass(report);
+  EXPECT_TRUE(report.child_notice_ms.has_value());
+}
+
+TEST(Faults, ALinkWhosePacketsAreDroppedIsNoticedOnBothSidesAndTheRootConverges) {
+  // The same stall made by the network: the aggregator runs in a namespace of its own and every
+  // packet in or out of it is dropped for 5 s (no FIN, no RST). Where namespaces cannot be made
+  // (no root, no ip or iptables) the test says so and is skipped; the SIGSTOP form above runs.
+  {
+    auto probe = cli::NetnsLink::create(static_cast<unsigned>(::getpid()) + 1U);
+    if (!probe) GTEST_SKIP() << "no network namespace here: " << probe.error().message;
+  }
+  FaultPlan plan;
+  plan.scenario = FaultScenario::kStall;
+  plan.stall_method = cli::StallMethod::kNetns;
+  plan.duration = 25s;
+  plan.warmup = 5s;
+  plan.seed = 5;
+  plan.downtime = 5s;
+  const FaultReport report = run("stall-netns", plan);
+  expectAllChecksPass(report);
+  EXPECT_NE(report.fault.find("iptables DROP"), std::string::npos) << report.fault;
   EXPECT_TRUE(report.child_notice_ms.has_value());
 }
 

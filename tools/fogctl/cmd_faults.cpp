@@ -13,7 +13,7 @@ namespace fogmap::cli {
 
 int runFaults(int argc, char** argv) {
   const auto args = Args::parse(argc, argv, 2,
-                                {"scenario", "duration-s", "warmup-s", "seed", "kills", "downtime-s", "report", "state"},
+                                {"scenario", "stall-by", "duration-s", "warmup-s", "seed", "kills", "downtime-s", "report", "state"},
                                 {"no-oracle"});
   if (!args) return fail(args.error(), "fogctl faults");
   if (args->positional().size() != 1) return fail(invalidArgument("expected one topology file (see fogctl faults --help)"), "fogctl faults");
@@ -48,6 +48,11 @@ int runFaults(int argc, char** argv) {
   plan.seed = static_cast<std::uint64_t>(*seed);
   plan.edge_kills = static_cast<int>(*kills);
   plan.check_oracle = !args->has("no-oracle");
+  const std::string stall_by = args->get("stall-by", "sigstop");
+  if (stall_by != "sigstop" && stall_by != "netns") {
+    return fail(invalidArgument("--stall-by must be sigstop or netns, not '" + stall_by + "'"), "fogctl faults");
+  }
+  plan.stall_method = stall_by == "netns" ? StallMethod::kNetns : StallMethod::kSigstop;
 
   installStopHandlers();
   const std::filesystem::path state = args->get("state", (file.parent_path() / ".fogmap" / "faults").string());

@@ -1,6 +1,7 @@
 #include "tools/fogctl/faults.hpp"
 
 #include <signal.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -28,6 +29,7 @@
 #include "services/edge_cluster/scan_source.hpp"
 #include "tools/fogctl/cluster_run.hpp"
 #include "tools/fogctl/launcher.hpp"
+#include "tools/fogctl/netns.hpp"
 
 namespace fogmap::cli {
 namespace {
@@ -411,7 +413,12 @@ bool FaultReport::passed() const {
   return std::all_of(checks.begin(), checks.end(), [](const Check& c) { return c.passed; });
 }
 
-Expected<FaultReport> runFaults(const std::filesystem::path& dir, const TopologyConfig& topology, const FaultPlan& plan) {
+const char* stallMethodName(StallMethod method) {
+  return method == StallMethod::kNetns ? "netns" : "sigstop";
+}
+
+Expected<FaultReport> runFaults(const std::filesystem::path& dir, const TopologyConfig& topology_in, const FaultPlan& plan) {
+  TopologyConfig topology = topology_in;  // a stall by namespace moves two nodes' addresses
   const NodeConfig* root = topology.root();
   if (root == nullptr) return invalidArgument("the topology has no root");
   auto schedule = EpochSchedule::create(topology.period_ms, topology.deadline_ms);
@@ -446,16 +453,48 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
   const auto state = dir / topology.name;
   std::error_code ec;
   std::filesystem::create_directories(state, ec);
+  StartOptions options;
+  options.journal_dir = state / "journals";
+  std::filesystem::remove_all(options.journal_dir, ec);
+
+  std::vector<Action> actions = planActions(topology, plan);
+  std::optional<NetnsLink> netns;
+  const bool by_netns = plan.scenario == FaultScenario::kStall && plan.stall_method == StallMethod::kNetns;
+  if (!actions.empty()) {
+    const std::string& victim = actions.front().node;
+    const double seconds = static_cast<double>(plan.downtime.count()) / 1000.0;
+    std::ostringstream fault;
+    if (plan.scenario == FaultScenario::kStall) {
+      fault << (by_netns ? "iptables DROP of every packet of " + victim + "'s network namespace for "
+                         : "SIGSTOP of " + victim + " for ") << seconds << " s";
+    } else if (plan.scenario == FaultScenario::kAggregatorCrash) {
+      fault << "kill -9 of " << victim << ", restarted after " << seconds << " s";
+    } else {
+      fault << "kill -9 of " << plan.edge_kills << " edge(s), each restarted after " << seconds << " s";
+    }
+    report.fault = fault.str();
+  }
+  if (by_netns && !actions.empty()) {
+    auto link = NetnsLink::create(static_cast<unsigned>(::getpid()));
+    if (!link) return Error{link.error().code, "a stall by network namespace cannot be made here: " + link.error().message};
+    netns.emplace(std::move(*link));
+    // The victim lives in the namespace; its parent listens on the host's end of the pair, which
+    // every other node reaches as well.
+    for (NodeConfig& n : topology.nodes) {
+      if (n.name == actions.front().node) n.host = netns->namespaceAddress();
+    }
+    for (NodeConfig& n : topology.nodes) {
+      if (n.name == topology.find(actions.front().node)->parent) n.host = netns->hostAddress();
+    }
+    options.prefixes[actions.front().node] = netns->prefix();
+  }
+
   const auto file = state / (topology.name + ".yaml");
   {
     std::ofstream out(file);
     out << toYaml(topology);
     if (!out) return ioError("cannot write " + file.string());
   }
-  StartOptions options;
-  options.journal_dir = state / "journals";
-  std::filesystem::remove_all(options.journal_dir, ec);
-
   phase("oracle");
   Observer observer(topology, oracle ? &*oracle : nullptr, sensors);
   auto cluster = startCluster(file, topology, state, 30s, options);
@@ -463,7 +502,6 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
   phase("start");
   observer.start(root->host + ":" + std::to_string(root->port));
 
-  std::vector<Action> actions = planActions(topology, plan);
   std::set<std::string> down;  // killed or stopped, not yet back
   std::map<std::string, std::int64_t> stopped_at;
   std::map<std::string, double> stalls_before;  // children's link stalls when their parent was stopped
@@ -492,8 +530,17 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
       const NodeConfig* config = topology.find(a.node);
       const std::int64_t now = systemNowNs();
       report.events.push_back({a.what, a.node, now});
+      if (a.what == "stop" && netns) report.events.back().what = "drop";
+      if (a.what == "continue" && netns) report.events.back().what = "restore";
       if (a.what == "kill" || a.what == "stop") {
-        ::kill(node->pid, a.what == "kill" ? SIGKILL : SIGSTOP);
+        if (a.what == "stop" && netns) {
+          if (auto s = netns->setDropping(true); !s) {
+            failure = s.error().message;
+            break;
+          }
+        } else {
+          ::kill(node->pid, a.what == "kill" ? SIGKILL : SIGSTOP);
+        }
         down.insert(a.node);
         kills.emplace_back(a.node, now);
         if (a.what == "kill" && config->role == Role::kAggregator) {
@@ -510,7 +557,14 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
           }
         }
       } else if (a.what == "continue") {
-        ::kill(node->pid, SIGCONT);
+        if (netns) {
+          if (auto s = netns->setDropping(false); !s) {
+            failure = s.error().message;
+            break;
+          }
+        } else {
+          ::kill(node->pid, SIGCONT);
+        }
         down.erase(a.node);
         heal_ns = now;
       } else if (a.what == "restart") {
@@ -549,6 +603,7 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
   }
   const std::int64_t end_ns = systemNowNs();
   phase("load");
+  if (netns) (void)netns->setDropping(false);
   for (const std::string& name : down) {  // a stopped process must not stay stopped
     const auto node = std::find_if(cluster->nodes.begin(), cluster->nodes.end(), [&](const RunningNode& r) { return r.name == name; });
     if (node != cluster->nodes.end() && isRunning(node->pid)) ::kill(node->pid, SIGCONT);
@@ -655,12 +710,9 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
   if (heal_ns) {
     const auto verdicts = observer.verdicts();
     std::optional<std::uint64_t> recovered;  // first epoch from which every loaded epoch is complete and equal
-    if (std::getenv("FOGMAP_FAULTS_DEBUG") != nullptr) {
-      for (std::uint64_t e = schedule->epochAt(*heal_ns); e <= last_loaded; ++e) {
-        const auto v = verdicts.find(e);
-        std::fprintf(stderr, "epoch %lu: %s\n", static_cast<unsigned long>(e - schedule->epochAt(*heal_ns)),
-                     v == verdicts.end() ? "none" : (std::to_string(v->second.revision) + (v->second.complete ? " complete" : " incomplete") + (v->second.equal ? " equal" : " differs")).c_str());
-      }
+    for (std::uint64_t e = schedule->epochAt(*heal_ns); e <= last_loaded && report.after_heal.size() < 40; ++e) {
+      const auto v = verdicts.find(e);
+      report.after_heal.push_back(v == verdicts.end() ? "-" : std::string(v->second.complete ? "c" : "i") + (v->second.equal ? "" : "!"));
     }
     for (std::uint64_t e = last_loaded; e >= schedule->epochAt(*heal_ns) && e > 0; --e) {
       const auto v = verdicts.find(e);
@@ -724,7 +776,7 @@ std::string toJson(const FaultReport& r) {
     return s + "]";
   };
   o << "{\n  \"topology\": " << jsonString(r.topology) << ",\n  \"scenario\": " << jsonString(r.scenario)
-    << ",\n  \"seed\": " << r.seed << ",\n  \"duration_s\": " << r.duration_s << ",\n  \"edges\": " << r.edges
+    << ",\n  \"fault\": " << jsonString(r.fault) << ",\n  \"seed\": " << r.seed << ",\n  \"duration_s\": " << r.duration_s << ",\n  \"edges\": " << r.edges
     << ",\n  \"period_ms\": " << r.period_ms << ",\n  \"root_deadline_ms\": " << r.root_deadline_ms
     << ",\n  \"epochs_in_window\": " << r.epochs_in_window << ",\n  \"epochs_unpublished\": " << r.epochs_unpublished
     << ",\n  \"max_silence_ms\": " << r.max_silence_ms << ",\n  \"publications\": " << r.publications
@@ -766,6 +818,7 @@ std::string summary(const FaultReport& r) {
   o << std::fixed << std::setprecision(1);
   o << "faults " << r.scenario << " on " << r.topology << " (" << r.edges << " edges, period " << r.period_ms
     << " ms, seed " << r.seed << ", " << r.duration_s << " s)\n";
+  if (!r.fault.empty()) o << "  fault: " << r.fault << "\n";
   for (const FaultEvent& e : r.events) o << "  event: " << e.what << " " << e.node << "\n";
   o << "  root: " << r.epochs_in_window - r.epochs_unpublished << " of " << r.epochs_in_window
     << " epochs published, longest silence " << r.max_silence_ms << " ms, " << r.late_publications << " late of "
@@ -781,6 +834,11 @@ std::string summary(const FaultReport& r) {
   for (double n : r.missing_notice_ms) o << "  marked missing after " << n << " ms\n";
   for (double n : r.rejoin_ms) o << "  restarted edge merged again after " << n << " ms\n";
   if (r.child_notice_ms) o << "  children noticed the stall after " << *r.child_notice_ms << " ms\n";
+  if (!r.after_heal.empty()) {
+    o << "  epochs after the heal (c complete, i incomplete, - unpublished, ! differs):";
+    for (const std::string& e : r.after_heal) o << " " << e;
+    o << "\n";
+  }
   if (r.recovery_ms) {
     o << "  recovered " << *r.recovery_ms << " ms after the heal; " << r.epochs_after_recovery
       << " epochs after it, all complete and equal to the fault-free maps\n";

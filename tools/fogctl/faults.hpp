@@ -40,6 +40,11 @@ enum class FaultScenario {
 const char* scenarioName(FaultScenario scenario);
 std::optional<FaultScenario> parseScenario(const std::string& name);
 
+// How a stall is made: SIGSTOP of the process, or an iptables DROP of every packet of a network
+// namespace the process runs in (tools/fogctl/netns.hpp; needs root, ip and iptables).
+enum class StallMethod { kSigstop, kNetns };
+const char* stallMethodName(StallMethod method);
+
 struct FaultPlan {
   FaultScenario scenario = FaultScenario::kSoak;
   std::chrono::milliseconds duration{60000};  // the load, from the moment every node is ready
@@ -48,10 +53,11 @@ struct FaultPlan {
   int edge_kills = 2;
   std::chrono::milliseconds downtime{3000};   // crash: until the restart; stall: SIGSTOP to SIGCONT
   bool check_oracle = true;                   // needs mode madc
+  StallMethod stall_method = StallMethod::kSigstop;
 };
 
 struct FaultEvent {
-  std::string what;  // "kill", "restart", "stop", "continue"
+  std::string what;  // "kill", "restart", "stop", "continue", "drop", "restore"
   std::string node;
   std::int64_t at_ns = 0;  // unix time
 };
@@ -71,6 +77,7 @@ struct Check {
 struct FaultReport {
   std::string topology;
   std::string scenario;
+  std::string fault;  // how the fault was made, e.g. "SIGSTOP of agg-4 for 5 s"
   std::uint64_t seed = 0;
   double duration_s = 0.0;
   int edges = 0;
@@ -114,6 +121,9 @@ struct FaultReport {
   // Epochs from the recovery to the end of the load: every one complete and equal to the
   // fault-free result (the recovery is the first epoch from which that holds).
   std::uint64_t epochs_after_recovery = 0;
+  // The first epochs after the heal, as the root left them: "c" complete, "i" incomplete, "-"
+  // never published, with "!" when the map differs from the specification.
+  std::vector<std::string> after_heal;
 
   // How long each phase of the harness took (oracle, start, load, stop), in seconds.
   std::vector<std::pair<std::string, double>> phases;

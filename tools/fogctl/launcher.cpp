@@ -190,6 +190,14 @@ Expected<RunningNode> spawnNode(const Cluster& cluster, const NodeConfig& node, 
     args.push_back("--journal");
     args.push_back((options.journal_dir / (node.name + ".journal")).string());
   }
+  if (const auto prefix = options.prefixes.find(node.name); prefix != options.prefixes.end() && !prefix->second.empty()) {
+    std::vector<std::string> wrapped(prefix->second.begin() + 1, prefix->second.end());
+    wrapped.push_back(binary.string());
+    wrapped.insert(wrapped.end(), args.begin(), args.end());
+    auto pid = spawn(prefix->second.front(), wrapped, log, append);
+    if (!pid) return pid.error();
+    return RunningNode{node.name, *pid, log, startTicks(*pid).value_or(0)};
+  }
   auto pid = spawn(binary, args, log, append);
   if (!pid) return pid.error();
   // The child's start time is fixed at fork, so reading it now is reading the service's.

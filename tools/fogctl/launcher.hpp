@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -39,6 +40,8 @@ std::filesystem::path binaryDir();
 struct StartOptions {
   // Edges record how each upload ended in journal_dir/NAME.journal (services/common/delivery_journal.hpp).
   std::filesystem::path journal_dir;  // empty: no journals
+  // Per node, a command that runs the service (e.g. inside a network namespace: ip netns exec NS).
+  std::map<std::string, std::vector<std::string>> prefixes;
 };
 
 // Starts every node of the topology (aggregators first), logs under state_dir/logs, records the

@@ -81,7 +81,7 @@ const std::vector<Command>& commands() {
        "TOPOLOGY.yaml --scenario soak|edge-crash|aggregator-crash|stall [--duration-s 60] [--seed 1] [--report FILE]",
        "usage: fogctl faults TOPOLOGY.yaml [--scenario soak|edge-crash|aggregator-crash|stall] [--duration-s 60]\n"
        "                     [--warmup-s 20] [--seed 1] [--kills 2] [--downtime-s S] [--report FILE] [--state DIR]\n"
-       "                     [--no-oracle]\n"
+       "                     [--stall-by sigstop|netns] [--no-oracle]\n"
        "Runs the topology as local processes under load, injects a fault at seeded times, and checks the\n"
        "root's global maps: every map an edge's parent acknowledged reaches the root, none is applied twice,\n"
        "every epoch is published, every global map equals the specification over its contributing nodes\n"
@@ -89,6 +89,8 @@ const std::vector<Command>& commands() {
        "  --scenario S     soak (no fault), edge-crash (kill -9 of --kills edges, restarted after --downtime-s),\n"
        "                   aggregator-crash (kill -9 of one non-root aggregator, restarted after --downtime-s),\n"
        "                   stall (SIGSTOP of one non-root aggregator for --downtime-s, default 5)\n"
+       "  --stall-by M     sigstop (default), or netns: the aggregator runs in a network namespace of its\n"
+       "                   own and every packet of it is dropped with iptables (root, ip and iptables)\n"
        "  --duration-s S   how long the load runs (default 60); --warmup-s: RSS growth is measured after it\n"
        "  --seed N         chooses the victims and the times (default 1)\n"
        "  --report FILE    the JSON report (default STATE/NAME/faults.json)\n"
