@@ -10,6 +10,7 @@ packages=(
   prometheus-cpp-dev libyaml-cpp-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   prometheus
+  iproute2 iptables
 )
 
 missing=()
