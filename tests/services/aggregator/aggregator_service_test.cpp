@@ -81,6 +81,13 @@ MergeAggregator makeCore(AggregatorConfig config) {
   return std::move(core).value();
 }
 
+ParentLinkConfig linkTo(const std::string& target) {
+  ParentLinkConfig config;
+  config.target = target;
+  config.max_message_bytes = kMaxMessageBytes;
+  return config;
+}
+
 // An aggregator served in-process on 127.0.0.1, port chosen by the OS, on the given clock; with a
 // parent target it is an intermediate that uploads (and relays) through a real ParentLink.
 class AggregatorServer {
@@ -90,9 +97,7 @@ class AggregatorServer {
       : aggregator_(makeCore(std::move(config))),
         parent_(parent_target.empty()
                     ? nullptr
-                    : std::make_unique<ParentLink>(
-                          ParentLinkConfig{.target = parent_target, .max_message_bytes = kMaxMessageBytes},
-                          ParentLinkHooks{})),
+                    : std::make_unique<ParentLink>(linkTo(parent_target), ParentLinkHooks{})),
         ingest_(aggregator_, metrics, parent_ ? relay() : Relay{}, clock.fn()),
         global_maps_(aggregator_, metrics, 16, 20ms),
         emitter_(aggregator_,
