@@ -76,6 +76,10 @@ Metrics::Metrics(const std::string& bind_address, const std::string& service, co
                               "Uploads the parent answered as refused (not re-sent).", c);
   failed_frames_ = &counter(r, "fogmap_failed_frames_total",
                             "Frames that could not be read or processed (sent as empty maps flagged failed).", c);
+  dropped_points_ = &counterFamily(r, "fogmap_dropped_points_total",
+                                  "Scan points dropped before processing, by reason (non_finite: a NaN or infinite "
+                                  "coordinate).",
+                                  c);
   padded_scans_ = &counter(r, "fogmap_padded_scans_total",
                            "Scan files accepted with zero padding after their declared points.", c);
 
@@ -133,5 +137,8 @@ void Metrics::lateEmits(std::uint64_t n) { late_emits_->Increment(static_cast<do
 void Metrics::uploadsRefused() { uploads_refused_->Increment(); }
 void Metrics::failedFrames() { failed_frames_->Increment(); }
 void Metrics::paddedScans() { padded_scans_->Increment(); }
+void Metrics::droppedPoints(const std::string& reason, std::uint64_t n) {
+  dropped_points_->Add({{"reason", reason}}).Increment(static_cast<double>(n));
+}
 
 }  // namespace fogmap

@@ -58,6 +58,8 @@ class Metrics {
   void uploadsRefused();
   // Frames the edge could not read or process (sent as empty maps flagged failed).
   void failedFrames();
+  // Scan points dropped before processing; `reason` is "non_finite" (a NaN or infinite coordinate).
+  void droppedPoints(const std::string& reason, std::uint64_t n);
   // Scan files with zero padding after their declared points (accepted).
   void paddedScans();
   void reconnects();
@@ -93,6 +95,7 @@ class Metrics {
   prometheus::Counter* late_emits_;
   prometheus::Counter* uploads_refused_;
   prometheus::Counter* failed_frames_;
+  prometheus::Family<prometheus::Counter>* dropped_points_;
   prometheus::Counter* padded_scans_;
 };
 

@@ -20,6 +20,7 @@
 #include "services/common/metrics.hpp"
 #include "services/common/parent_link.hpp"
 #include "services/common/proto_convert.hpp"
+#include "services/edge_cluster/edge_metrics.hpp"
 #include "services/edge_cluster/edge_node.hpp"
 #include "services/edge_cluster/edge_runner.hpp"
 #include "services/edge_cluster/scan_source.hpp"
@@ -94,27 +95,6 @@ void ship(const fogmap::EdgeOutput& output, fogmap::ParentLink& link) {
   }
 }
 
-// The runner's observations as Prometheus metrics.
-class MetricsObserver final : public fogmap::EdgeObserver {
- public:
-  explicit MetricsObserver(fogmap::Metrics& metrics) : metrics_(metrics) {}
-  void scanProcessed(const fogmap::EdgeOutput& output) override {
-    metrics_.framesProcessed();
-    metrics_.pointsIn(output.points_in);
-    metrics_.pointsOut(output.points_out);
-    if (output.map) metrics_.clusteringSeconds(output.clustering_seconds);
-  }
-  void shipped(const fogmap::EdgeOutput& output) override {
-    if (output.map) metrics_.mapsOut();
-  }
-  void failedFrame() override { metrics_.failedFrames(); }
-  void malformed(const std::string& what) override { metrics_.malformed(what); }
-  void paddedScan() override { metrics_.paddedScans(); }
-
- private:
-  fogmap::Metrics& metrics_;
-};
-
 int run(const Flags& flags) {
   fogmap::Expected<fogmap::TopologyConfig> topology = fogmap::loadTopology(flags.topology);
   if (!topology) return badConfig(topology.error().message);
@@ -160,7 +140,7 @@ int run(const Flags& flags) {
   // Declared after `metrics`, so destroyed (and its thread stopped) before the hooks' target goes.
   fogmap::ParentLink link(link_config, std::move(hooks));
 
-  MetricsObserver observer(metrics);
+  fogmap::MetricsObserver observer(metrics);
   fogmap::EdgeRunnerHooks runner_hooks;
   runner_hooks.now = fogmap::systemNowNs;
   runner_hooks.wait_until = waitUntil;
