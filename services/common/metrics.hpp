@@ -22,6 +22,7 @@ class Metrics {
   // listeningPort); an empty bind_address serves nothing (tests, tools). `service` and `node`
   // become constant labels. Throws std::runtime_error when the address cannot be bound.
   Metrics(const std::string& bind_address, const std::string& service, const std::string& node);
+  // Stops serving within milliseconds (the HTTP server alone would take up to 2 s).
   ~Metrics();
   Metrics(const Metrics&) = delete;
   Metrics& operator=(const Metrics&) = delete;
@@ -71,6 +72,7 @@ class Metrics {
  private:
   std::shared_ptr<prometheus::Registry> registry_;
   std::unique_ptr<prometheus::Exposer> exposer_;
+  std::string host_;  // of bind_address, where the exposer is reached to stop it
   prometheus::Family<prometheus::Counter>* bytes_sent_;
   prometheus::Family<prometheus::Counter>* bytes_received_;
   prometheus::Counter* maps_in_;

@@ -31,7 +31,13 @@ using namespace std::chrono_literals;
 
 constexpr int kExitRuntimeError = 1;
 constexpr int kExitBadConfig = 2;
+// Shutdown on SIGTERM or SIGINT (docs/design.md "Delivery"): the wait for the next epoch sees the
+// request within kStopPollNs, a frame in progress is finished and shipped, and the uploads not yet
+// answered get kStopFlush to be answered before the edge exits 0 (what is still unanswered then
+// goes with the process). At the end of the recording the last uploads get kDoneFlush.
 constexpr std::int64_t kStopPollNs = 50'000'000;
+constexpr auto kStopFlush = 1s;
+constexpr auto kDoneFlush = 5s;
 
 // The one global: a signal handler can reach nothing else. Lock-free, so safe to set there.
 std::atomic<bool> g_stop{false};
@@ -166,7 +172,7 @@ int run(const Flags& flags) {
                              std::to_string(stats.scans_processed) + " scan(s), " +
                              std::to_string(stats.failed_frames) + " failed";
   if (stopRequested()) {
-    const bool flushed = link.flush(1s);
+    const bool flushed = link.flush(kStopFlush);
     std::cerr << prefix << "stopping after " << frames
               << (flushed ? "" : "; " + std::to_string(link.unacknowledged()) + " upload(s) unacknowledged") << "\n";
     return 0;
@@ -175,7 +181,7 @@ int run(const Flags& flags) {
     std::cerr << prefix << "no readable scan in " << sensor.source.string() << "\n";
     return kExitRuntimeError;
   }
-  const bool flushed = link.flush(5s);
+  const bool flushed = link.flush(kDoneFlush);
   std::cerr << prefix << "done after " << frames
             << (flushed ? ", all acknowledged" : "; " + std::to_string(link.unacknowledged()) + " upload(s) unacknowledged")
             << "\n";

@@ -108,20 +108,31 @@ grpc::Status IngestService::Push(grpc::ServerContext* /*context*/,
       peer = name != peer_names_.end() ? name->second : std::to_string(*child);
     }
     if (metrics_ != nullptr) metrics_->bytesReceived(peer, kindOf(upload), upload.ByteSizeLong());
-    handle(upload, *child, writer);
+    if (!handle(upload, *child, writer)) return stoppedStatus();
   }
   return grpc::Status::OK;
 }
 
-void IngestService::handle(const v1::Upload& upload, std::uint32_t child, const std::shared_ptr<AckWriter>& writer) {
+bool IngestService::handle(const v1::Upload& upload, std::uint32_t child, const std::shared_ptr<AckWriter>& writer) {
   const std::size_t bytes = upload.ByteSizeLong();
   const UploadKey key{upload.sequence(), fingerprintOf(upload)};
-  const auto refused = [&](Refusal reason, const std::string& message) {
-    Outcome outcome;
-    outcome.refused = aggregator_.with([&](MergeAggregator& core) { return core.refuse(reason, message); });
-    return outcome;
+  // Every call into the core looks at stopping_ under the core's lock: once Emitter::drain has
+  // taken the lock (after stopAccepting), nothing more is applied, so every upload answered
+  // APPLIED was merged before the drain emitted its epoch.
+  const auto inCore = [&](auto&& f) {
+    return aggregator_.with([&](MergeAggregator& core) -> std::optional<Outcome> {
+      if (stopping_) return std::nullopt;
+      return f(core);
+    });
   };
-  Outcome outcome;
+  const auto refused = [&](Refusal reason, const std::string& message) {
+    return inCore([&](MergeAggregator& core) {
+      Outcome outcome;
+      outcome.refused = core.refuse(reason, message);
+      return outcome;
+    });
+  };
+  std::optional<Outcome> outcome;
   std::size_t points = 0;
   if (bytes > max_map_bytes_) {
     // Refused before it is converted: a huge message must not cost the conversion either.
@@ -131,38 +142,39 @@ void IngestService::handle(const v1::Upload& upload, std::uint32_t child, const 
   } else if (upload.payload_case() == v1::Upload::kMap) {
     auto map = fromProto(upload.map());
     outcome = !map ? refused(Refusal::kMalformed, map.error().message)
-                   : aggregator_.with([&](MergeAggregator& core) { return core.onMap(child, key, *map, bytes, now_ns_()); });
+                   : inCore([&](MergeAggregator& core) { return core.onMap(child, key, *map, bytes, now_ns_()); });
   } else if (upload.payload_case() == v1::Upload::kPoints) {
     auto chunk = fromProto(upload.points());
     if (chunk) points = chunk->points.size();
     outcome = !chunk ? refused(Refusal::kMalformed, chunk.error().message)
-                     : aggregator_.with([&](MergeAggregator& core) {
+                     : inCore([&](MergeAggregator& core) {
                          return core.onPoints(child, key, std::move(*chunk), bytes, now_ns_());
                        });
   } else {
     outcome = refused(Refusal::kMalformed, "an upload without a payload");
   }
+  if (!outcome) return false;
 
-  if (!outcome.ok()) {
-    writer->write(refusedAck(upload.sequence(), *outcome.refused));
-    return;
+  if (!outcome->ok()) {
+    writer->write(refusedAck(upload.sequence(), *outcome->refused));
+    return true;
   }
   if (points > 0 && metrics_ != nullptr) metrics_->pointsIn(points);
   if (on_arrival_) on_arrival_();
-  if (outcome.arrival != Arrival::kRelay) {
-    writer->write(appliedAck(upload.sequence(), outcome.arrival == Arrival::kLate));
-    return;
+  if (outcome->arrival != Arrival::kRelay) {
+    writer->write(appliedAck(upload.sequence(), outcome->arrival == Arrival::kLate));
+    return true;
   }
   if (!relay_) {
     const Error no_parent{ErrorCode::kInternal, "this aggregator has no parent to relay to"};
     writer->write(refusedAck(upload.sequence(), no_parent));
-    return;
+    return true;
   }
   // Relayed outside the core's lock; the child is answered when the next hop answers, with its
   // answer (status, reason and code), so an APPLIED answer always means the data reached the root
   // (or was applied on the way).
   v1::Upload relayed;
-  *relayed.mutable_points() = toProto(*outcome.relay);
+  *relayed.mutable_points() = toProto(*outcome->relay);
   if (metrics_ != nullptr) metrics_->pointsOut(points);
   relay_(std::move(relayed), [writer, sequence = upload.sequence()](const std::optional<v1::Ack>& answer) {
     if (answer) {
@@ -173,6 +185,7 @@ void IngestService::handle(const v1::Upload& upload, std::uint32_t child, const 
       writer->write(refusedAck(sequence, resourceExhausted("dropped by the relay's full send queue")));
     }
   });
+  return true;
 }
 
 }  // namespace fogmap

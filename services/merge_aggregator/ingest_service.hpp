@@ -51,8 +51,9 @@ class IngestService final : public v1::MapIngest::Service {
 
  private:
   struct AckWriter;
-  // Hands one upload to the core and answers it (now, or when the next hop answers a relay).
-  void handle(const v1::Upload& upload, std::uint32_t child, const std::shared_ptr<AckWriter>& writer);
+  // Hands one upload to the core and answers it (now, or when the next hop answers a relay);
+  // false when this node stopped taking uploads (nothing was applied or answered).
+  bool handle(const v1::Upload& upload, std::uint32_t child, const std::shared_ptr<AckWriter>& writer);
 
   SharedAggregator& aggregator_;
   Metrics* metrics_;

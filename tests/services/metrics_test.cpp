@@ -8,7 +8,9 @@
 #include <sys/time.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <map>
+#include <memory>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -200,6 +202,21 @@ TEST(Metrics, WithoutBindAddressServesNothingButCounts) {
     found = true;
   }
   EXPECT_TRUE(found);
+}
+
+// A service exits promptly: the HTTP server, just woken by a scrape, would otherwise sleep up to
+// 2 s before it notices the stop.
+TEST(Metrics, StopsServingWithinMilliseconds) {
+  auto metrics = std::make_unique<Metrics>("127.0.0.1:0", "merge-aggregator", "sink");
+  const int port = metrics->listeningPort();
+  ASSERT_GT(port, 0);
+  ASSERT_NE(httpGet(port, "/metrics").find(" 200 "), std::string::npos);
+  const auto start = std::chrono::steady_clock::now();
+  metrics.reset();
+  const auto took = std::chrono::steady_clock::now() - start;
+  EXPECT_LT(took, std::chrono::milliseconds(500))
+      << std::chrono::duration_cast<std::chrono::milliseconds>(took).count() << " ms";
+  EXPECT_EQ(httpGet(port, "/metrics"), "") << "still served after the destructor";
 }
 
 TEST(Metrics, RefusesAnAddressInUse) {
