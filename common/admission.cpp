@@ -58,6 +58,10 @@ const char* refusalName(Refusal refusal) {
   return "unknown";
 }
 
+ErrorCode refusalCode(Refusal refusal) {
+  return refusal == Refusal::kTooLarge ? ErrorCode::kResourceExhausted : ErrorCode::kInvalidArgument;
+}
+
 std::optional<Refused> checkMapBounds(const Map& map, const AdmissionLimits& limits, const std::string& what) {
   const std::size_t count = map.ellipsoidCount();
   if (count > limits.max_ellipsoids_per_map) {

@@ -45,6 +45,10 @@ enum class Refusal {
   kInconsistentChunks,  // point chunks that disagree with earlier chunks of the same scan
 };
 const char* refusalName(Refusal refusal);
+// The error kind a refusal is answered with, in one place: kResourceExhausted for too_large (the
+// upload may be valid but is above a bound), kInvalidArgument for every other reason (the upload
+// breaks a rule and would be refused again). The services turn it into the Ack's gRPC code.
+ErrorCode refusalCode(Refusal refusal);
 
 struct Refused {
   Refusal reason = Refusal::kMalformed;

@@ -1,5 +1,6 @@
 #pragma once
 // The point cloud in fogmap's own terms: packed float32 points, metres.
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -18,5 +19,8 @@ struct Point {
 };
 
 using Cloud = std::vector<Point>;
+
+// True when x, y and z are all finite: no NaN, no infinity (intensity is not looked at).
+inline bool isFinitePoint(const Point& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
 
 }  // namespace fogmap

@@ -37,8 +37,6 @@ Error badFile(const fs::path& path, const std::string& problem) {
   return invalidArgument(path.string() + ": " + problem);
 }
 
-bool isFinitePoint(const Point& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
-
 // Appends a decoded point, or counts it as non-finite and drops it unless the caller keeps them.
 void addPoint(LoadedCloud& loaded, const Point& p, const ReadLimits& limits) {
   if (isFinitePoint(p)) {

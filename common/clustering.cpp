@@ -351,17 +351,15 @@ void joinCloseCellsParallel(const SortedGrid& g, std::span<const std::int32_t> k
   }
 }
 
-bool isFinite(const Point& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
-
 // Non-finite points are noise and connect to nothing (PCL's KdTree asserts on them): when there
 // are any, `cluster` runs on the finite points alone and their labels are put back in place.
 template <typename ClusterFn>
 std::optional<Clustering> withoutNonFinite(std::span<const Point> points, ClusterFn&& cluster) {
-  if (std::all_of(points.begin(), points.end(), isFinite)) return std::nullopt;
+  if (std::all_of(points.begin(), points.end(), isFinitePoint)) return std::nullopt;
   Cloud finite;
   std::vector<std::size_t> index;
   for (std::size_t i = 0; i < points.size(); ++i) {
-    if (!isFinite(points[i])) continue;
+    if (!isFinitePoint(points[i])) continue;
     finite.push_back(points[i]);
     index.push_back(i);
   }

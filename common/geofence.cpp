@@ -36,8 +36,16 @@ const char* containmentName(Containment c) {
 }
 
 Status validateGeofence(const Geofence& fence) {
+  if (fence.name.size() > kMaxGeofenceNameBytes) {
+    return invalidArgument("a geofence name has " + std::to_string(fence.name.size()) + " bytes, more than " +
+                           std::to_string(kMaxGeofenceNameBytes));
+  }
   if (fence.half_spaces.empty()) {
     return invalidArgument(fenceLabel(fence) + " has no half-spaces");
+  }
+  if (fence.half_spaces.size() > kMaxHalfSpaces) {
+    return invalidArgument(fenceLabel(fence) + " has " + std::to_string(fence.half_spaces.size()) +
+                           " half-spaces, more than " + std::to_string(kMaxHalfSpaces));
   }
   for (std::size_t i = 0; i < fence.half_spaces.size(); ++i) {
     const HalfSpace& h = fence.half_spaces[i];

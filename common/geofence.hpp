@@ -1,6 +1,7 @@
 #pragma once
 // Geofence queries on ellipsoid maps (DESIGN.md 2.3): a geofence is a convex polyhedron, the
 // intersection of half-spaces n.x + d >= 0; ellipsoids are classified against it without points.
+#include <cstddef>
 #include <span>
 #include <string>
 #include <vector>
@@ -26,7 +27,12 @@ struct Geofence {
 enum class Containment { kOutside, kCrossing, kInside };
 const char* containmentName(Containment c);
 
-// Rejects empty geofences and zero or non-finite normals.
+// Bounds on one geofence, so that a query costs a known amount and a stored fence a known size.
+inline constexpr std::size_t kMaxHalfSpaces = 256;
+inline constexpr std::size_t kMaxGeofenceNameBytes = 256;
+
+// Rejects empty geofences, more than kMaxHalfSpaces half-spaces, names longer than
+// kMaxGeofenceNameBytes, and zero or non-finite normals.
 Status validateGeofence(const Geofence& fence);
 // An axis-aligned box as a geofence (six half-spaces).
 Geofence boxGeofence(std::string name, const Eigen::Vector3d& min, const Eigen::Vector3d& max);

@@ -31,8 +31,6 @@ std::string str(double value) {
   return out.str();
 }
 
-bool isFinitePoint(const Point& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
-
 // PCL reports problems on stderr; every problem we care about is returned as an Error instead.
 void silencePcl() { pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS); }
 

@@ -12,6 +12,7 @@ enum class ErrorCode {
   kNotFound,         // a named resource does not exist
   kIo,               // the operating system refused a read or write
   kInternal,         // a bug or a broken invariant
+  kResourceExhausted,  // a bound on size or count was reached (the input may be valid, but not here)
 };
 
 struct Error {
@@ -22,6 +23,7 @@ struct Error {
 inline Error invalidArgument(std::string message) { return {ErrorCode::kInvalidArgument, std::move(message)}; }
 inline Error ioError(std::string message) { return {ErrorCode::kIo, std::move(message)}; }
 inline Error notFound(std::string message) { return {ErrorCode::kNotFound, std::move(message)}; }
+inline Error resourceExhausted(std::string message) { return {ErrorCode::kResourceExhausted, std::move(message)}; }
 
 const char* errorCodeName(ErrorCode code);
 

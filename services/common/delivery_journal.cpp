@@ -21,9 +21,9 @@ const char* outcomeName(Outcome outcome) {
   return "unsettled";
 }
 
-Outcome outcomeOf(const std::optional<v1::AckStatus>& status) {
-  if (!status) return Outcome::kUnsettled;
-  switch (*status) {
+Outcome outcomeOf(const std::optional<v1::Ack>& answer) {
+  if (!answer) return Outcome::kUnsettled;
+  switch (answer->status()) {
     case v1::ACK_STATUS_APPLIED: return Outcome::kApplied;
     case v1::ACK_STATUS_LATE: return Outcome::kLate;
     case v1::ACK_STATUS_REFUSED: return Outcome::kRefused;

@@ -18,8 +18,8 @@ namespace fogmap {
 
 enum class Outcome { kApplied, kLate, kRefused, kUnsettled };
 const char* outcomeName(Outcome outcome);
-// The outcome ParentLink reports for an upload: the parent's status, or none (dropped, abandoned).
-Outcome outcomeOf(const std::optional<v1::AckStatus>& status);
+// The outcome ParentLink reports for an upload: the parent's answer, or none (dropped, abandoned).
+Outcome outcomeOf(const std::optional<v1::Ack>& answer);
 
 struct JournalEntry {
   std::uint64_t epoch = 0;

@@ -48,15 +48,18 @@ void configureServer(grpc::ServerBuilder& builder, std::size_t max_message_bytes
   builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, kMinPingIntervalMs);
 }
 
-grpc::Status toGrpcStatus(const Error& error) {
-  switch (error.code) {
-    case ErrorCode::kInvalidArgument: return {grpc::StatusCode::INVALID_ARGUMENT, error.message};
-    case ErrorCode::kNotFound: return {grpc::StatusCode::NOT_FOUND, error.message};
-    case ErrorCode::kIo: return {grpc::StatusCode::UNAVAILABLE, error.message};
-    case ErrorCode::kInternal: return {grpc::StatusCode::INTERNAL, error.message};
+grpc::StatusCode toGrpcCode(ErrorCode code) {
+  switch (code) {
+    case ErrorCode::kInvalidArgument: return grpc::StatusCode::INVALID_ARGUMENT;
+    case ErrorCode::kNotFound: return grpc::StatusCode::NOT_FOUND;
+    case ErrorCode::kIo: return grpc::StatusCode::UNAVAILABLE;
+    case ErrorCode::kInternal: return grpc::StatusCode::INTERNAL;
+    case ErrorCode::kResourceExhausted: return grpc::StatusCode::RESOURCE_EXHAUSTED;
   }
-  return {grpc::StatusCode::INTERNAL, error.message};
+  return grpc::StatusCode::INTERNAL;
 }
+
+grpc::Status toGrpcStatus(const Error& error) { return {toGrpcCode(error.code), error.message}; }
 
 Error fromGrpcStatus(const grpc::Status& status, const std::string& call) {
   const std::string message = call + ": " + status.error_message();
@@ -65,6 +68,7 @@ Error fromGrpcStatus(const grpc::Status& status, const std::string& call) {
     case grpc::StatusCode::NOT_FOUND: return notFound(message);
     case grpc::StatusCode::UNAVAILABLE:
     case grpc::StatusCode::DEADLINE_EXCEEDED: return ioError(message);
+    case grpc::StatusCode::RESOURCE_EXHAUSTED: return resourceExhausted(message);
     default: return Error{ErrorCode::kInternal, message};
   }
 }

@@ -24,10 +24,13 @@ std::shared_ptr<grpc::Channel> makeChannel(const std::string& target, std::size_
 // also on connections without calls.
 void configureServer(grpc::ServerBuilder& builder, std::size_t max_message_bytes);
 // The error -> status mapping, in one place: kInvalidArgument -> INVALID_ARGUMENT, kNotFound ->
-// NOT_FOUND, kIo -> UNAVAILABLE, kInternal -> INTERNAL; the message is kept.
+// NOT_FOUND, kIo -> UNAVAILABLE, kInternal -> INTERNAL, kResourceExhausted -> RESOURCE_EXHAUSTED.
+grpc::StatusCode toGrpcCode(ErrorCode code);
+// toGrpcCode with the message kept.
 grpc::Status toGrpcStatus(const Error& error);
 // The way back, for clients: INVALID_ARGUMENT -> kInvalidArgument, NOT_FOUND -> kNotFound,
-// UNAVAILABLE and DEADLINE_EXCEEDED -> kIo, anything else -> kInternal; "<call>: <message>".
+// UNAVAILABLE and DEADLINE_EXCEEDED -> kIo, RESOURCE_EXHAUSTED -> kResourceExhausted, anything
+// else -> kInternal; "<call>: <message>".
 Error fromGrpcStatus(const grpc::Status& status, const std::string& call);
 
 }  // namespace fogmap

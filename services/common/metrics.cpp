@@ -1,6 +1,16 @@
 #include "services/common/metrics.hpp"
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <sys/time.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <mutex>
 #include <stdexcept>
+#include <thread>
 #include <utility>
 
 namespace fogmap {
@@ -29,6 +39,35 @@ Histogram& histogram(Registry& registry, const std::string& name, const std::str
                      Histogram::BucketBoundaries buckets) {
   return prometheus::BuildHistogram().Name(name).Help(help).Labels(constant).Register(registry).Add(
       {}, std::move(buckets));
+}
+
+// The exposer's HTTP server (civetweb) sees a stop request only when its listening socket wakes
+// it: every 2 s, or at once on a connection. A complete request (answered 404) wakes it without
+// holding a worker; a few tries cover the moment before the stop request is made.
+constexpr int kStopWakeTries = 100;
+constexpr std::chrono::milliseconds kStopWakeInterval{20};
+
+void wake(const std::string& host, int port) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return;
+  const timeval timeout{0, 200'000};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
+  ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &timeout, sizeof timeout);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<std::uint16_t>(port));
+  if (::inet_pton(AF_INET, host.c_str(), &addr.sin_addr) != 1 || addr.sin_addr.s_addr == htonl(INADDR_ANY)) {
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  }
+  if (::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) == 0) {
+    static constexpr char kRequest[] = "GET / HTTP/1.0\r\n\r\n";
+    if (::send(fd, kRequest, sizeof kRequest - 1, MSG_NOSIGNAL) > 0) {
+      char answer[256];
+      while (::recv(fd, answer, sizeof answer, 0) > 0) {
+      }
+    }
+  }
+  ::close(fd);
 }
 
 }  // namespace
@@ -80,10 +119,15 @@ Metrics::Metrics(const std::string& bind_address, const std::string& service, co
                               "Uploads the parent answered as refused (not re-sent).", c);
   failed_frames_ = &counter(r, "fogmap_failed_frames_total",
                             "Frames that could not be read or processed (sent as empty maps flagged failed).", c);
+  dropped_points_ = &counterFamily(r, "fogmap_dropped_points_total",
+                                  "Scan points dropped before processing, by reason (non_finite: a NaN or infinite "
+                                  "coordinate).",
+                                  c);
   padded_scans_ = &counter(r, "fogmap_padded_scans_total",
                            "Scan files accepted with zero padding after their declared points.", c);
 
   if (!bind_address.empty()) {
+    host_ = bind_address.substr(0, bind_address.rfind(':'));
     try {
       exposer_ = std::make_unique<prometheus::Exposer>(bind_address);
     } catch (const std::exception&) {
@@ -96,7 +140,30 @@ Metrics::Metrics(const std::string& bind_address, const std::string& service, co
   }
 }
 
-Metrics::~Metrics() = default;
+Metrics::~Metrics() {
+  if (!exposer_) return;
+  const int port = listeningPort();
+  std::mutex mutex;
+  std::condition_variable stopped_cv;
+  bool stopped = false;
+  std::thread stop([&] {
+    exposer_.reset();
+    {
+      std::lock_guard lock(mutex);
+      stopped = true;
+    }
+    stopped_cv.notify_all();
+  });
+  std::unique_lock lock(mutex);
+  for (int i = 0; i < kStopWakeTries && !stopped; ++i) {
+    lock.unlock();
+    wake(host_, port);
+    lock.lock();
+    stopped_cv.wait_for(lock, kStopWakeInterval, [&] { return stopped; });
+  }
+  lock.unlock();
+  stop.join();
+}
 
 int Metrics::listeningPort() const {
   if (!exposer_) return 0;
@@ -139,5 +206,8 @@ void Metrics::lateEmits(std::uint64_t n) { late_emits_->Increment(static_cast<do
 void Metrics::uploadsRefused() { uploads_refused_->Increment(); }
 void Metrics::failedFrames() { failed_frames_->Increment(); }
 void Metrics::paddedScans() { padded_scans_->Increment(); }
+void Metrics::droppedPoints(const std::string& reason, std::uint64_t n) {
+  dropped_points_->Add({{"reason", reason}}).Increment(static_cast<double>(n));
+}
 
 }  // namespace fogmap

@@ -22,6 +22,7 @@ class Metrics {
   // listeningPort); an empty bind_address serves nothing (tests, tools). `service` and `node`
   // become constant labels. Throws std::runtime_error when the address cannot be bound.
   Metrics(const std::string& bind_address, const std::string& service, const std::string& node);
+  // Stops serving within milliseconds (the HTTP server alone would take up to 2 s).
   ~Metrics();
   Metrics(const Metrics&) = delete;
   Metrics& operator=(const Metrics&) = delete;
@@ -58,6 +59,8 @@ class Metrics {
   void uploadsRefused();
   // Frames the edge could not read or process (sent as empty maps flagged failed).
   void failedFrames();
+  // Scan points dropped before processing; `reason` is "non_finite" (a NaN or infinite coordinate).
+  void droppedPoints(const std::string& reason, std::uint64_t n);
   // Scan files with zero padding after their declared points (accepted).
   void paddedScans();
   void reconnects();
@@ -73,6 +76,7 @@ class Metrics {
  private:
   std::shared_ptr<prometheus::Registry> registry_;
   std::unique_ptr<prometheus::Exposer> exposer_;
+  std::string host_;  // of bind_address, where the exposer is reached to stop it
   prometheus::Family<prometheus::Counter>* bytes_sent_;
   prometheus::Family<prometheus::Counter>* bytes_received_;
   prometheus::Counter* maps_in_;
@@ -99,6 +103,7 @@ class Metrics {
   prometheus::Counter* late_emits_;
   prometheus::Counter* uploads_refused_;
   prometheus::Counter* failed_frames_;
+  prometheus::Family<prometheus::Counter>* dropped_points_;
   prometheus::Counter* padded_scans_;
 };
 

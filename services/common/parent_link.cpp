@@ -46,8 +46,7 @@ struct ParentLink::State {
   // A Settled call taken out of the queue under the lock, to be made after releasing it.
   struct Settlement {
     Settled on_settled;
-    std::optional<v1::AckStatus> status;
-    std::string reason;
+    std::optional<v1::Ack> answer;
   };
   struct Drop {
     std::uint64_t total = 0;
@@ -96,7 +95,7 @@ struct ParentLink::State {
 
   // Counts a drop; under the lock.
   Drop noteDrop(Settled on_settled, std::vector<Settlement>& settlements) {
-    settlements.push_back({std::move(on_settled), std::nullopt, {}});
+    settlements.push_back({std::move(on_settled), std::nullopt});
     ++settling;
     const Drop drop{++dropped, !drop_burst};
     drop_burst = true;
@@ -107,7 +106,7 @@ struct ParentLink::State {
   void settle(std::vector<Settlement>& settlements) {
     if (settlements.empty()) return;
     for (Settlement& s : settlements) {
-      if (s.on_settled) s.on_settled(s.status, s.reason);
+      if (s.on_settled) s.on_settled(s.answer);
     }
     {
       std::lock_guard lock(mu);
@@ -148,7 +147,7 @@ struct ParentLink::State {
       if (it == unacked.end() || it->sequence != ack.sequence()) return;
       if (ack.status() == v1::ACK_STATUS_REFUSED) ++refused;
       if (ack.status() == v1::ACK_STATUS_LATE) ++late;
-      settlements.push_back({std::move(it->on_settled), ack.status(), ack.reason()});
+      settlements.push_back({std::move(it->on_settled), ack});
       ++settling;
       unacked_bytes -= it->bytes;
       unacked.erase(it);
@@ -300,7 +299,7 @@ ParentLink::~ParentLink() {
     state_->unacked_bytes = 0;
   }
   for (State::Pending& p : abandoned) {
-    if (p.on_settled) p.on_settled(std::nullopt, {});
+    if (p.on_settled) p.on_settled(std::nullopt);
   }
 }
 

@@ -14,8 +14,8 @@
 // - Unanswered uploads stay queued, and are re-sent on every new stream, up to
 //   `max_unacked_bytes` (the sum of their serialised sizes). Beyond it the oldest are dropped;
 //   the upload just queued is dropped only when it alone exceeds the bound. Every drop is counted.
-// - Each upload is settled exactly once: answered (its status and reason), dropped by the bound,
-//   or abandoned when the link is destroyed (both std::nullopt).
+// - Each upload is settled exactly once: answered (the parent's Ack: status, reason and code),
+//   dropped by the bound, or abandoned when the link is destroyed (both std::nullopt).
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
@@ -66,9 +66,9 @@ struct ParentLinkHooks {
 
 class ParentLink {
  public:
-  // How one upload ended: the parent's status and reason, or std::nullopt when it was dropped by
-  // the byte bound or abandoned by the destructor.
-  using Settled = std::function<void(std::optional<fogmap::v1::AckStatus> status, const std::string& reason)>;
+  // How one upload ended: the parent's answer (its sequence is the link's), or std::nullopt when
+  // it was dropped by the byte bound or abandoned by the destructor.
+  using Settled = std::function<void(const std::optional<fogmap::v1::Ack>& answer)>;
 
   // Starts the stream thread at once; the parent need not be up yet.
   ParentLink(ParentLinkConfig config, ParentLinkHooks hooks);

@@ -13,6 +13,8 @@
 
 #include <Eigen/Cholesky>
 
+#include "services/common/grpc_options.hpp"
+
 namespace fogmap {
 namespace {
 
@@ -359,6 +361,27 @@ v1::Containment toProto(Containment containment) {
     case Containment::kInside: return v1::CONTAINMENT_INSIDE;
   }
   return v1::CONTAINMENT_UNSPECIFIED;
+}
+
+v1::Ack appliedAck(std::uint64_t sequence, bool late) {
+  v1::Ack ack;
+  ack.set_sequence(sequence);
+  ack.set_status(late ? v1::ACK_STATUS_LATE : v1::ACK_STATUS_APPLIED);
+  ack.set_code(static_cast<std::int32_t>(grpc::StatusCode::OK));
+  return ack;
+}
+
+v1::Ack refusedAck(std::uint64_t sequence, const Refused& refused) {
+  return refusedAck(sequence, Error{refusalCode(refused.reason), refused.message});
+}
+
+v1::Ack refusedAck(std::uint64_t sequence, const Error& error) {
+  v1::Ack ack;
+  ack.set_sequence(sequence);
+  ack.set_status(v1::ACK_STATUS_REFUSED);
+  ack.set_reason(error.message);
+  ack.set_code(static_cast<std::int32_t>(toGrpcCode(error.code)));
+  return ack;
 }
 
 Expected<Containment> fromProto(v1::Containment containment) {

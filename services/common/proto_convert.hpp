@@ -1,6 +1,7 @@
 #pragma once
 // The only place that translates between fogmap's domain types and the generated protobuf types.
 // FromProto validates once at the boundary: a malformed message becomes an Error naming the field.
+#include "common/admission.hpp"
 #include "common/geofence.hpp"
 #include "common/messages.hpp"
 #include "common/status.hpp"
@@ -17,6 +18,14 @@ v1::PointChunk toProto(const PointChunk& chunk);
 v1::GlobalMap toProto(const GlobalMapMessage& message);
 v1::Geofence toProto(const Geofence& fence);
 v1::Containment toProto(Containment containment);
+
+// The answer to upload `sequence` (docs/design.md "Delivery"). Applied and late answers carry
+// code 0 (OK); a refusal carries its message as the reason and the gRPC code of its error kind
+// (refusalCode, then toGrpcCode): INVALID_ARGUMENT, or RESOURCE_EXHAUSTED for too_large.
+v1::Ack appliedAck(std::uint64_t sequence, bool late);
+v1::Ack refusedAck(std::uint64_t sequence, const Refused& refused);
+// A refusal decided outside the admission rules (a relay that cannot forward), by error kind.
+v1::Ack refusedAck(std::uint64_t sequence, const Error& error);
 
 // Every fromProto returns kInvalidArgument with the offending field (and object / ellipsoid /
 // point index) in the message. Rejects: missing ellipsoid ids or centres, shapes that are not 6

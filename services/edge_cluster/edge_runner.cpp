@@ -107,8 +107,17 @@ Expected<EdgeOutput> EdgeRunner::readAndProcess(std::uint64_t scan_number, std::
     logFailure(epoch, scan_number, frame.error().message);
     return frame.error();
   }
-  // Counted once per scan that had any: the reader already dropped them.
-  if (frame->dropped_non_finite > 0 && hooks_.observer != nullptr) hooks_.observer->malformed("non_finite_points");
+  // The reader dropped the non-finite points of a file; a provider that passes some on (a live
+  // sensor) has them dropped here. Either way each is counted, and the scan goes on without them.
+  const std::size_t non_finite =
+      frame->dropped_non_finite + std::erase_if(frame->points, [](const Point& p) { return !isFinitePoint(p); });
+  if (non_finite > 0) {
+    stats_.dropped_non_finite_points += non_finite;
+    if (hooks_.observer != nullptr) {
+      hooks_.observer->malformed("non_finite_points");
+      hooks_.observer->droppedPoints("non_finite", non_finite);
+    }
+  }
   if (frame->trailing_zero_bytes > 0) {
     ++stats_.padded_scans;
     if (hooks_.observer != nullptr) hooks_.observer->paddedScan();

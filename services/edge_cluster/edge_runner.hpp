@@ -3,7 +3,9 @@
 // (common/epochs.hpp), whatever the sensor's rate. Epoch k is captured at its start, k P; it shows
 // the sensor's most recent scan at that instant, scan number floor(k P / sensor period); a scan
 // that cannot be read or processed is shipped as a failed frame (EdgeNode::failedFrame) instead
-// of leaving the parent to wait out its deadline. Time comes in through a clock and a wait
+// of leaving the parent to wait out its deadline. Points with a NaN or infinite coordinate never
+// reach processing: the reader drops those of a file, the runner any other, and every one is
+// counted. Time comes in through a clock and a wait
 // function, so tests drive it by hand; the output goes to a sink in domain types (the service
 // converts and sends); messages go to a log sink. No gRPC, no printing.
 #include <cstddef>
@@ -32,8 +34,11 @@ class EdgeObserver {
   // An epoch was shipped as a failed frame.
   virtual void failedFrame() {}
   // A rejected input: "scan" (unreadable, too large), "frame" (processing failed),
-  // "non_finite_points" (a scan whose reader dropped some).
+  // "non_finite_points" (a scan that had some; once per scan).
   virtual void malformed(const std::string& /*what*/) {}
+  // `points` points of a scan were dropped before processing, for `reason` ("non_finite": a NaN
+  // or infinite coordinate); once per scan that had any.
+  virtual void droppedPoints(const std::string& /*reason*/, std::size_t /*points*/) {}
   // A scan was read with zero padding after its declared points (accepted).
   virtual void paddedScan() {}
 };
@@ -62,6 +67,7 @@ struct EdgeRunnerStats {
   std::uint64_t failed_frames = 0;    // epochs shipped as failed frames
   std::uint64_t skipped_epochs = 0;   // epochs passed over after stalls
   std::uint64_t padded_scans = 0;     // scans read with zero padding
+  std::uint64_t dropped_non_finite_points = 0;  // points with a NaN or infinite coordinate
 };
 
 enum class EdgeStep {

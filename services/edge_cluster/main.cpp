@@ -22,6 +22,7 @@
 #include "services/common/metrics.hpp"
 #include "services/common/parent_link.hpp"
 #include "services/common/proto_convert.hpp"
+#include "services/edge_cluster/edge_metrics.hpp"
 #include "services/edge_cluster/edge_node.hpp"
 #include "services/edge_cluster/edge_runner.hpp"
 #include "services/edge_cluster/scan_source.hpp"
@@ -32,7 +33,13 @@ using namespace std::chrono_literals;
 
 constexpr int kExitRuntimeError = 1;
 constexpr int kExitBadConfig = 2;
+// Shutdown on SIGTERM or SIGINT (docs/design.md "Delivery"): the wait for the next epoch sees the
+// request within kStopPollNs, a frame in progress is finished and shipped, and the uploads not yet
+// answered get kStopFlush to be answered before the edge exits 0 (what is still unanswered then
+// goes with the process). At the end of the recording the last uploads get kDoneFlush.
 constexpr std::int64_t kStopPollNs = 50'000'000;
+constexpr auto kStopFlush = 1s;
+constexpr auto kDoneFlush = 5s;
 
 // The one global: a signal handler can reach nothing else. Lock-free, so safe to set there.
 std::atomic<bool> g_stop{false};
@@ -92,8 +99,8 @@ int badConfig(const std::string& message) {
 void ship(const fogmap::EdgeOutput& output, fogmap::ParentLink& link, fogmap::DeliveryJournal* journal) {
   const auto settled = [journal](std::uint64_t epoch, const char* kind) -> fogmap::ParentLink::Settled {
     if (journal == nullptr) return {};
-    return [journal, epoch, kind](std::optional<fogmap::v1::AckStatus> status, const std::string& /*reason*/) {
-      journal->record({epoch, kind, fogmap::outcomeOf(status)});
+    return [journal, epoch, kind](const std::optional<fogmap::v1::Ack>& answer) {
+      journal->record({epoch, kind, fogmap::outcomeOf(answer)});
     };
   };
   if (output.map) {
@@ -107,27 +114,6 @@ void ship(const fogmap::EdgeOutput& output, fogmap::ParentLink& link, fogmap::De
     link.send(std::move(upload), settled(chunk.header.epoch, "points"));
   }
 }
-
-// The runner's observations as Prometheus metrics.
-class MetricsObserver final : public fogmap::EdgeObserver {
- public:
-  explicit MetricsObserver(fogmap::Metrics& metrics) : metrics_(metrics) {}
-  void scanProcessed(const fogmap::EdgeOutput& output) override {
-    metrics_.framesProcessed();
-    metrics_.pointsIn(output.points_in);
-    metrics_.pointsOut(output.points_out);
-    if (output.map) metrics_.clusteringSeconds(output.clustering_seconds);
-  }
-  void shipped(const fogmap::EdgeOutput& output) override {
-    if (output.map) metrics_.mapsOut();
-  }
-  void failedFrame() override { metrics_.failedFrames(); }
-  void malformed(const std::string& what) override { metrics_.malformed(what); }
-  void paddedScan() override { metrics_.paddedScans(); }
-
- private:
-  fogmap::Metrics& metrics_;
-};
 
 int run(const Flags& flags) {
   fogmap::Expected<fogmap::TopologyConfig> topology = fogmap::loadTopology(flags.topology);
@@ -185,7 +171,7 @@ int run(const Flags& flags) {
   // Declared after `metrics`, so destroyed (and its thread stopped) before the hooks' target goes.
   fogmap::ParentLink link(link_config, std::move(hooks));
 
-  MetricsObserver observer(metrics);
+  fogmap::MetricsObserver observer(metrics);
   fogmap::EdgeRunnerHooks runner_hooks;
   runner_hooks.now = fogmap::systemNowNs;
   runner_hooks.wait_until = waitUntil;
@@ -213,7 +199,7 @@ int run(const Flags& flags) {
                              std::to_string(stats.scans_processed) + " scan(s), " +
                              std::to_string(stats.failed_frames) + " failed";
   if (stopRequested()) {
-    const bool flushed = link.flush(1s);
+    const bool flushed = link.flush(kStopFlush);
     std::cerr << prefix << "stopping after " << frames
               << (flushed ? "" : "; " + std::to_string(link.unacknowledged()) + " upload(s) unacknowledged") << "\n";
     return 0;
@@ -222,7 +208,7 @@ int run(const Flags& flags) {
     std::cerr << prefix << "no readable scan in " << sensor.source.string() << "\n";
     return kExitRuntimeError;
   }
-  const bool flushed = link.flush(5s);
+  const bool flushed = link.flush(kDoneFlush);
   std::cerr << prefix << "done after " << frames
             << (flushed ? ", all acknowledged" : "; " + std::to_string(link.unacknowledged()) + " upload(s) unacknowledged")
             << "\n";

@@ -11,9 +11,6 @@
 namespace fogmap {
 namespace {
 
-// Sequence fingerprints remembered per child: far more than the uploads of any admission window.
-constexpr std::size_t kUploadHistory = 4096;
-
 double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
@@ -187,6 +184,17 @@ std::int64_t MergeAggregator::windowNs() const {
                                                 static_cast<double>(schedule_.periodNs())));
 }
 
+std::size_t MergeAggregator::windowEpochs() const {
+  const std::int64_t span = 2 * windowNs() + config_.levels * schedule_.deadlineNs();
+  return static_cast<std::size_t>(span / schedule_.periodNs()) + 1;
+}
+
+std::size_t MergeAggregator::rememberedUploads() const {
+  std::size_t total = 0;
+  for (const auto& [id, child] : children_) total += child.uploads.size();
+  return total;
+}
+
 Outcome MergeAggregator::refusedOutcome(Refused refused) {
   ++counters_.refused[refused.reason];
   Outcome outcome;
@@ -207,6 +215,9 @@ std::optional<Refused> MergeAggregator::admit(std::uint32_t child_id, const Uplo
                                               std::size_t wire_bytes, std::int64_t now_ns, const std::string& what,
                                               bool& duplicate) {
   duplicate = false;
+  // Emitted epochs that left the window are dropped here too, not only in poll: what the core
+  // holds stays bounded by the window even between polls.
+  forgetOldEpochs(now_ns);
   const auto child = children_.find(child_id);
   if (child == children_.end()) {
     return Refused{Refusal::kUnknownNode, what + ": " + nodeText(child_id) + " is not a child of aggregator " +
@@ -264,6 +275,7 @@ MergeAggregator::Epoch& MergeAggregator::openEpoch(std::uint64_t epoch) {
 std::optional<Refused> MergeAggregator::checkEllipsoids(std::uint32_t child_id, const MapMessage& message,
                                                         const Epoch* epoch, const std::string& what) const {
   const Child& child = children_.at(child_id);
+  std::map<std::uint32_t, std::size_t> added;  // ellipsoids new to the epoch, per sensor
   for (const auto& object : message.map.objects) {
     for (const auto& e : object.ellipsoids) {
       if (!speaksFor(child, e.id.node)) {
@@ -271,12 +283,33 @@ std::optional<Refused> MergeAggregator::checkEllipsoids(std::uint32_t child_id, 
                                                  nodeText(e.id.node) + ", which is not a sensor below " +
                                                  nodeText(child_id)};
       }
-      if (epoch == nullptr) continue;
-      const auto known = epoch->ellipsoids.find(e.id);
-      if (known != epoch->ellipsoids.end() && !sameGeometry(known->second, e)) {
+      const Ellipsoid* known = nullptr;
+      if (epoch != nullptr) {
+        const auto it = epoch->ellipsoids.find(e.id);
+        if (it != epoch->ellipsoids.end()) known = &it->second;
+      }
+      if (known == nullptr) {
+        ++added[e.id.node];
+      } else if (!sameGeometry(*known, e)) {
         return Refused{Refusal::kEllipsoidConflict,
                        what + ": ellipsoid " + toString(e.id) + " was already merged with other geometry"};
       }
+    }
+  }
+  // One sensor's map of an epoch is bounded like one upload: more distinct ids for it, sent as
+  // many maps under other sequences, would grow the epoch (and every MERGE into it) without end.
+  for (const auto& [sensor, count] : added) {
+    std::size_t held = 0;
+    if (epoch != nullptr) {
+      const auto it = epoch->ellipsoids_of.find(sensor);
+      if (it != epoch->ellipsoids_of.end()) held = it->second;
+    }
+    if (held + count > config_.admission.max_ellipsoids_per_map) {
+      return Refused{Refusal::kTooLarge, what + " would bring the ellipsoids of " + nodeText(sensor) +
+                                             " in the epoch to " + std::to_string(held + count) +
+                                             ", more than the bound of " +
+                                             std::to_string(config_.admission.max_ellipsoids_per_map) +
+                                             " (admission max_ellipsoids_per_map)"};
     }
   }
   return std::nullopt;
@@ -290,7 +323,9 @@ void MergeAggregator::mergeInto(Epoch& epoch, const MapMessage& message) {
   epoch.working = std::move(merged.map);
   addStats(epoch.stats, merged.stats);
   for (const auto& object : message.map.objects) {
-    for (const auto& e : object.ellipsoids) epoch.ellipsoids.emplace(e.id, e);
+    for (const auto& e : object.ellipsoids) {
+      if (epoch.ellipsoids.emplace(e.id, e).second) ++epoch.ellipsoids_of[e.id.node];
+    }
   }
   epoch.reported_children.insert(header.node);
   epoch.contributing.insert(header.contributing_nodes.begin(), header.contributing_nodes.end());
@@ -377,6 +412,14 @@ Outcome MergeAggregator::onPoints(std::uint32_t child_id, const UploadKey& key, 
     return refusedOutcome({Refusal::kMalformed, what + ": chunk index must be below chunk_count " +
                                                     std::to_string(chunk.chunk_count)});
   }
+  // The edge cuts a scan into chunks of at least one point each (one empty chunk for an empty
+  // scan): more chunks, or empty ones, would only cost memory.
+  if (chunk.chunk_count > std::max<std::uint32_t>(1, chunk.total_points) ||
+      (chunk.total_points > 0 && chunk.points.empty())) {
+    return refusedOutcome({Refusal::kMalformed, what + ": " + std::to_string(chunk.chunk_count) + " chunks of " +
+                                                    std::to_string(chunk.total_points) +
+                                                    " points; a chunk of a non-empty scan carries at least one point"});
+  }
   if (std::uint64_t{chunk.first_point} + chunk.points.size() > chunk.total_points) {
     return refusedOutcome({Refusal::kMalformed, what + ": points " + std::to_string(chunk.first_point) + " + " +
                                                     std::to_string(chunk.points.size()) + " exceed total_points " +
@@ -423,6 +466,13 @@ Outcome MergeAggregator::onPoints(std::uint32_t child_id, const UploadKey& key, 
       if (same != sensor->second.chunks.end() && !(same->second == chunk)) {
         return refusedOutcome({Refusal::kInconsistentChunks, what + " was already stored with other content"});
       }
+      // Chunks that tile the scan hold total_points points together; more can never tile it.
+      if (same == sensor->second.chunks.end() &&
+          sensor->second.stored_points + chunk.points.size() > sensor->second.total_points) {
+        return refusedOutcome({Refusal::kInconsistentChunks,
+                               what + ": its points and those stored before exceed the scan's " +
+                                   std::to_string(sensor->second.total_points) + " points"});
+      }
     }
   }
 
@@ -436,7 +486,8 @@ Outcome MergeAggregator::onPoints(std::uint32_t child_id, const UploadKey& key, 
         std::min(epoch.sensor_time_ns.value_or(chunk.header.sensor_time_ns), chunk.header.sensor_time_ns);
   }
   epoch.failed.insert(chunk.header.failed_nodes.begin(), chunk.header.failed_nodes.end());
-  sensor.chunks.emplace(chunk.chunk, std::move(chunk));
+  const std::size_t chunk_points = chunk.points.size();
+  if (sensor.chunks.emplace(chunk.chunk, std::move(chunk)).second) sensor.stored_points += chunk_points;
 
   if (sensor.complete()) {
     // The chunks must tile the scan exactly, in index order, or per-point labels would be shifted.
@@ -490,11 +541,13 @@ void MergeAggregator::forgetOldEpochs(std::int64_t now_ns) {
     const std::int64_t deadline = schedule_.deadlineNs(epoch, config_.levels);
     return deadline < now_ns && now_ns - deadline > window;
   };
-  while (!emitted_.empty() && expired(emitted_.begin()->first)) emitted_.erase(emitted_.begin());
+  // One with late data not yet emitted stays until poll has emitted its revision.
+  for (auto it = emitted_.begin(); it != emitted_.end() && expired(it->first);) {
+    it = it->second.dirty ? std::next(it) : emitted_.erase(it);
+  }
 }
 
 std::vector<EpochOutput> MergeAggregator::poll(std::int64_t now_ns) {
-  forgetOldEpochs(now_ns);
   std::vector<EpochOutput> outputs;
   for (auto it = pending_.begin(); it != pending_.end();) {
     // Never before the epoch has begun: an early upload cannot make an epoch look complete.
@@ -511,6 +564,7 @@ std::vector<EpochOutput> MergeAggregator::poll(std::int64_t now_ns) {
   for (auto& [epoch_id, epoch] : emitted_) {
     if (epoch.dirty) outputs.push_back(emit(epoch_id, epoch, isComplete(epoch, now_ns), now_ns));
   }
+  forgetOldEpochs(now_ns);
   std::stable_sort(outputs.begin(), outputs.end(),
                    [](const EpochOutput& a, const EpochOutput& b) { return a.epoch < b.epoch; });
   return outputs;
@@ -624,6 +678,9 @@ Expected<std::size_t> MergeAggregator::setGeofence(Geofence fence) {
                                [&](const Geofence& g) { return g.name == fence.name; });
   if (it != geofences_.end()) {
     *it = std::move(fence);
+  } else if (geofences_.size() >= kMaxGeofences) {
+    return resourceExhausted("the root keeps at most " + std::to_string(kMaxGeofences) +
+                             " geofences; replace one (same name) instead of adding '" + fence.name + "'");
   } else {
     geofences_.push_back(std::move(fence));
   }

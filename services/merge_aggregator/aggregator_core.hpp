@@ -122,6 +122,12 @@ struct AggregatorCounters {
 
 class MergeAggregator {
  public:
+  // Sequence fingerprints remembered per child, for recognising re-sent copies: far more than the
+  // uploads of any admission window; the oldest (lowest sequence) are forgotten first.
+  static constexpr std::size_t kUploadHistory = 4096;
+  // Geofences the root keeps; setting one more (a new name) is refused as resource exhausted.
+  static constexpr std::size_t kMaxGeofences = 256;
+
   // Validates the config (unique children, positive period and deadline, admission limits, at
   // least one pending epoch).
   static Expected<MergeAggregator> create(AggregatorConfig config);
@@ -173,13 +179,21 @@ class MergeAggregator {
   const std::optional<GlobalMapMessage>& latestGlobalMap() const { return latest_; }
 
   const AggregatorCounters& counters() const { return counters_; }
+  // What the core holds, for checking its bounds: open epochs, emitted epochs retained for late
+  // maps, and sequence fingerprints remembered over all children (at most kUploadHistory each).
   std::size_t pendingEpochs() const { return pending_.size(); }
   std::size_t retainedEpochs() const { return emitted_.size(); }
+  std::size_t rememberedUploads() const;
+  // The most distinct epochs the admission window admits at one instant, floor((2 W + L D) / P)
+  // + 1 for window W, levels L, deadline D and period P. Right after poll(now),
+  // pendingEpochs() + retainedEpochs() never exceed it, however many epochs were offered.
+  std::size_t windowEpochs() const;
 
  private:
   struct SensorPoints {
     std::uint32_t chunk_count = 0;
     std::uint32_t total_points = 0;
+    std::uint64_t stored_points = 0;             // over the chunks: at most total_points
     std::map<std::uint32_t, PointChunk> chunks;  // by chunk index
     bool complete() const { return chunks.size() == chunk_count; }
   };
@@ -188,6 +202,7 @@ class MergeAggregator {
     std::optional<std::int64_t> sensor_time_ns;  // earliest known sensor timestamp
     Map working;
     std::map<EllipsoidId, Ellipsoid> ellipsoids;  // every ellipsoid merged in, by id
+    std::map<std::uint32_t, std::size_t> ellipsoids_of;  // their count per sensor (id.node)
     MergeStats stats;
     double merge_seconds = 0.0;
     std::set<std::uint32_t> contributing;          // sensors whose data is merged in

@@ -33,8 +33,8 @@ std::uint64_t fingerprintOf(const v1::Upload& upload) {
   return std::hash<std::string>{}(bytes);
 }
 
-v1::AckStatus statusOf(Arrival arrival) {
-  return arrival == Arrival::kLate ? v1::ACK_STATUS_LATE : v1::ACK_STATUS_APPLIED;
+grpc::Status stoppedStatus() {
+  return {grpc::StatusCode::UNAVAILABLE, "the aggregator is shutting down; re-send later"};
 }
 
 }  // namespace
@@ -45,11 +45,7 @@ struct IngestService::AckWriter {
   std::mutex mutex;
   grpc::ServerReaderWriter<v1::Ack, v1::Upload>* stream = nullptr;
 
-  bool write(std::uint64_t sequence, v1::AckStatus status, const std::string& reason) {
-    v1::Ack ack;
-    ack.set_sequence(sequence);
-    ack.set_status(status);
-    if (!reason.empty()) ack.set_reason(reason);
+  bool write(const v1::Ack& ack) {
     std::lock_guard lock(mutex);
     return stream != nullptr && stream->Write(ack);
   }
@@ -89,7 +85,7 @@ grpc::Status IngestService::Push(grpc::ServerContext* /*context*/,
 
   v1::Upload upload;
   while (stream->Read(&upload)) {
-    if (stopping_) return {grpc::StatusCode::UNAVAILABLE, "the aggregator is shutting down; re-send later"};
+    if (stopping_) return stoppedStatus();
     if (!child) {
       const auto sender = senderOf(upload);
       if (!sender) {
@@ -97,30 +93,46 @@ grpc::Status IngestService::Push(grpc::ServerContext* /*context*/,
         const Refused refused = aggregator_.with([&](MergeAggregator& core) {
           return core.refuse(Refusal::kMalformed, "an upload without a header cannot name its sender");
         });
-        if (!writer->write(upload.sequence(), v1::ACK_STATUS_REFUSED, refused.message)) break;
+        if (!writer->write(refusedAck(upload.sequence(), refused))) break;
         continue;
       }
       auto connected = aggregator_.with([&](MergeAggregator& core) { return core.childConnected(*sender); });
-      if (!connected) return toGrpcStatus(connected.error());
+      if (!connected) {
+        // Answered like every upload (the sender settles it and does not re-send it), then the
+        // stream ends: it can speak for no child.
+        writer->write(refusedAck(upload.sequence(), Refused{Refusal::kUnknownNode, connected.error().message}));
+        return toGrpcStatus(connected.error());
+      }
       child = *connected;
       const auto name = peer_names_.find(*child);
       peer = name != peer_names_.end() ? name->second : std::to_string(*child);
     }
     if (metrics_ != nullptr) metrics_->bytesReceived(peer, kindOf(upload), upload.ByteSizeLong());
-    handle(upload, *child, writer);
+    if (!handle(upload, *child, writer)) return stoppedStatus();
   }
   return grpc::Status::OK;
 }
 
-void IngestService::handle(const v1::Upload& upload, std::uint32_t child, const std::shared_ptr<AckWriter>& writer) {
+bool IngestService::handle(const v1::Upload& upload, std::uint32_t child, const std::shared_ptr<AckWriter>& writer) {
   const std::size_t bytes = upload.ByteSizeLong();
   const UploadKey key{upload.sequence(), fingerprintOf(upload)};
-  const auto refused = [&](Refusal reason, const std::string& message) {
-    Outcome outcome;
-    outcome.refused = aggregator_.with([&](MergeAggregator& core) { return core.refuse(reason, message); });
-    return outcome;
+  // Every call into the core looks at stopping_ under the core's lock: once Emitter::drain has
+  // taken the lock (after stopAccepting), nothing more is applied, so every upload answered
+  // APPLIED was merged before the drain emitted its epoch.
+  const auto inCore = [&](auto&& f) {
+    return aggregator_.with([&](MergeAggregator& core) -> std::optional<Outcome> {
+      if (stopping_) return std::nullopt;
+      return f(core);
+    });
   };
-  Outcome outcome;
+  const auto refused = [&](Refusal reason, const std::string& message) {
+    return inCore([&](MergeAggregator& core) {
+      Outcome outcome;
+      outcome.refused = core.refuse(reason, message);
+      return outcome;
+    });
+  };
+  std::optional<Outcome> outcome;
   std::size_t points = 0;
   if (bytes > max_map_bytes_) {
     // Refused before it is converted: a huge message must not cost the conversion either.
@@ -130,45 +142,50 @@ void IngestService::handle(const v1::Upload& upload, std::uint32_t child, const 
   } else if (upload.payload_case() == v1::Upload::kMap) {
     auto map = fromProto(upload.map());
     outcome = !map ? refused(Refusal::kMalformed, map.error().message)
-                   : aggregator_.with([&](MergeAggregator& core) { return core.onMap(child, key, *map, bytes, now_ns_()); });
+                   : inCore([&](MergeAggregator& core) { return core.onMap(child, key, *map, bytes, now_ns_()); });
   } else if (upload.payload_case() == v1::Upload::kPoints) {
     auto chunk = fromProto(upload.points());
     if (chunk) points = chunk->points.size();
     outcome = !chunk ? refused(Refusal::kMalformed, chunk.error().message)
-                     : aggregator_.with([&](MergeAggregator& core) {
+                     : inCore([&](MergeAggregator& core) {
                          return core.onPoints(child, key, std::move(*chunk), bytes, now_ns_());
                        });
   } else {
     outcome = refused(Refusal::kMalformed, "an upload without a payload");
   }
+  if (!outcome) return false;
 
-  if (!outcome.ok()) {
-    writer->write(upload.sequence(), v1::ACK_STATUS_REFUSED, outcome.refused->message);
-    return;
+  if (!outcome->ok()) {
+    writer->write(refusedAck(upload.sequence(), *outcome->refused));
+    return true;
   }
   if (points > 0 && metrics_ != nullptr) metrics_->pointsIn(points);
   if (on_arrival_) on_arrival_();
-  if (outcome.arrival != Arrival::kRelay) {
-    writer->write(upload.sequence(), statusOf(outcome.arrival), "");
-    return;
+  if (outcome->arrival != Arrival::kRelay) {
+    writer->write(appliedAck(upload.sequence(), outcome->arrival == Arrival::kLate));
+    return true;
   }
   if (!relay_) {
-    writer->write(upload.sequence(), v1::ACK_STATUS_REFUSED, "this aggregator has no parent to relay to");
-    return;
+    const Error no_parent{ErrorCode::kInternal, "this aggregator has no parent to relay to"};
+    writer->write(refusedAck(upload.sequence(), no_parent));
+    return true;
   }
-  // Relayed outside the core's lock; the child is answered when the next hop answers, so an
-  // APPLIED answer always means the data reached the root (or was applied on the way).
+  // Relayed outside the core's lock; the child is answered when the next hop answers, with its
+  // answer (status, reason and code), so an APPLIED answer always means the data reached the root
+  // (or was applied on the way).
   v1::Upload relayed;
-  *relayed.mutable_points() = toProto(*outcome.relay);
+  *relayed.mutable_points() = toProto(*outcome->relay);
   if (metrics_ != nullptr) metrics_->pointsOut(points);
-  relay_(std::move(relayed), [writer, sequence = upload.sequence()](std::optional<v1::AckStatus> status,
-                                                                    const std::string& reason) {
-    if (status) {
-      writer->write(sequence, *status, reason);
+  relay_(std::move(relayed), [writer, sequence = upload.sequence()](const std::optional<v1::Ack>& answer) {
+    if (answer) {
+      v1::Ack ack = *answer;
+      ack.set_sequence(sequence);
+      writer->write(ack);
     } else {
-      writer->write(sequence, v1::ACK_STATUS_REFUSED, "dropped by the relay's full send queue");
+      writer->write(refusedAck(sequence, resourceExhausted("dropped by the relay's full send queue")));
     }
   });
+  return true;
 }
 
 }  // namespace fogmap

@@ -3,14 +3,16 @@
 // (fromProto), hands it to the core, and answers it (docs/design.md "Delivery"):
 //   APPLIED  merged into an open epoch, or (a relayed chunk) answered APPLIED by the next hop;
 //   LATE     merged into an already emitted epoch, which is published again as a late revision;
-//   REFUSED  not applied, with the reason; the child never re-sends it.
+//   REFUSED  not applied, with the reason and a gRPC code (INVALID_ARGUMENT for a broken rule,
+//            RESOURCE_EXHAUSTED for a bound); the child never re-sends it.
 // Every upload is answered exactly once, except when this node stops: then the stream ends
 // UNAVAILABLE and the child re-sends what was not answered to the restarted node.
 //
 // Child identity: a stream belongs to the direct child resolved from the header.node of its first
 // well-formed Upload (the child itself, or for a chunk relayed by an intermediate child, the
 // sensor's id, which the core maps to that child); every later upload must speak for that child.
-// A sender that resolves to no child ends the stream with INVALID_ARGUMENT.
+// A sender that resolves to no child has that upload answered REFUSED (unknown_node) and the
+// stream ended with INVALID_ARGUMENT.
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
@@ -25,8 +27,8 @@
 
 namespace fogmap {
 
-// Called once when the next hop answered a relayed upload (nullopt: dropped or abandoned).
-using RelaySettled = std::function<void(std::optional<v1::AckStatus> status, const std::string& reason)>;
+// Called once with the next hop's answer to a relayed upload (nullopt: dropped or abandoned).
+using RelaySettled = std::function<void(const std::optional<v1::Ack>& answer)>;
 using Relay = std::function<void(v1::Upload upload, RelaySettled settled)>;
 
 class IngestService final : public v1::MapIngest::Service {
@@ -49,8 +51,9 @@ class IngestService final : public v1::MapIngest::Service {
 
  private:
   struct AckWriter;
-  // Hands one upload to the core and answers it (now, or when the next hop answers a relay).
-  void handle(const v1::Upload& upload, std::uint32_t child, const std::shared_ptr<AckWriter>& writer);
+  // Hands one upload to the core and answers it (now, or when the next hop answers a relay);
+  // false when this node stopped taking uploads (nothing was applied or answered).
+  bool handle(const v1::Upload& upload, std::uint32_t child, const std::shared_ptr<AckWriter>& writer);
 
   SharedAggregator& aggregator_;
   Metrics* metrics_;

@@ -1,6 +1,8 @@
 // merge-aggregator: the composition root. Reads the topology, builds the core, metrics, parent
 // link, adapters and server, runs until SIGINT or SIGTERM.
 //   merge-aggregator --topology FILE --node NAME
+#include <algorithm>
+#include <chrono>
 #include <csignal>
 #include <cstdlib>
 #include <exception>
@@ -23,8 +25,22 @@
 
 namespace {
 
+using namespace std::chrono_literals;
+
 constexpr int kBadConfig = 2;
 constexpr int kRuntimeFailure = 1;
+
+// Shutdown on SIGTERM or SIGINT is bounded (docs/design.md "Delivery"): from the signal to exit
+// 0 at most kShutdownDeadline. The drain (emitting every open epoch) comes first; subscribers
+// then get up to kSubscriberDrain to read what was published, open calls up to kCallGrace to end
+// on their own before they are cancelled (children's streams end at their next upload; a call
+// that arrives while the server stops may never reach a handler and ends only then), and an
+// intermediate's parent whatever is left to answer its last uploads, but kTeardown, kept for the
+// destructors (server, links, metrics endpoint).
+constexpr auto kShutdownDeadline = 5s;
+constexpr auto kSubscriberDrain = 500ms;
+constexpr auto kCallGrace = 500ms;
+constexpr auto kTeardown = 250ms;
 
 struct Args {
   std::string topology;
@@ -158,6 +174,11 @@ int run(const Args& args, const sigset_t& stop_signals) {
 
   int signal = 0;
   sigwait(&stop_signals, &signal);
+  const auto signalled = std::chrono::steady_clock::now();
+  const auto left = [deadline = signalled + kShutdownDeadline - kTeardown] {
+    const auto rest = deadline - std::chrono::steady_clock::now();
+    return std::max(0ms, std::chrono::duration_cast<std::chrono::milliseconds>(rest));
+  };
 
   // Nothing acknowledged is abandoned: stop taking uploads (unanswered ones are re-sent by the
   // children to the restarted node), emit every open epoch, let subscribers read what was
@@ -165,13 +186,15 @@ int run(const Args& args, const sigset_t& stop_signals) {
   ingest.stopAccepting();
   emitter.stop();
   emitter.drain();
-  if (global_maps) global_maps->shutdown();
-  server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
+  if (global_maps) global_maps->shutdown(std::min<std::chrono::milliseconds>(kSubscriberDrain, left()));
+  server->Shutdown(std::chrono::system_clock::now() + std::min<std::chrono::milliseconds>(kCallGrace, left()));
   server->Wait();
-  if (parent_link && !parent_link->flush(std::chrono::seconds(2))) {
+  if (parent_link && !parent_link->flush(left())) {
     std::cerr << "merge-aggregator " << self->name << ": " << parent_link->unacknowledged()
               << " upload(s) unanswered by the parent at shutdown\n";
   }
+  const auto took = std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - signalled);
+  std::cerr << "merge-aggregator " << self->name << ": stopped " << took.count() << " ms after the signal\n";
   return EXIT_SUCCESS;
 }
 

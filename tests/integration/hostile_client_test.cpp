@@ -1,6 +1,7 @@
 // Integration: a hostile (or broken) client attacks a running root over gRPC while three honest
 // edges replay the bundled KITTI frames. The root must keep publishing every period with the
-// honest data, answer geofences on current epochs, refuse every attack and count it by reason.
+// honest data, answer geofences on current epochs, refuse every attack with its reason and gRPC
+// code, and count it by reason.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -97,7 +98,7 @@ TEST(HostileClient, RootKeepsPublishingHonestDataAndCountsEveryAttack) {
   t.name = "hostile";
   t.deadline_ms = 500.0;  // a loaded CI machine must not turn slow epochs into partial ones
   for (auto& n : t.nodes) {
-    if (n.sensor) n.sensor->frames = 80;
+    if (n.sensor) n.sensor->frames = 150;  // longer than the attacks take on a loaded machine
   }
   const NodeConfig& root = *t.root();
   const std::string target = root.host + ":" + std::to_string(root.port);
@@ -111,7 +112,7 @@ TEST(HostileClient, RootKeepsPublishingHonestDataAndCountsEveryAttack) {
   std::uint64_t attack_end_epoch = 0;
   std::string answers;  // what the root said to each attack, for the failure messages
   cli::RunOptions options;
-  options.frames = 60;
+  options.frames = 150;  // every epoch the edges make, to see the root publish after the attacks
   options.timeout = 90s;
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("fogmap-it-" + std::to_string(::getpid()) + "-hostile");
   std::filesystem::create_directories(dir);
@@ -120,10 +121,14 @@ TEST(HostileClient, RootKeepsPublishingHonestDataAndCountsEveryAttack) {
     std::this_thread::sleep_for(500ms);
     Attacker attacker(target);
     std::uint64_t sequence = 1;
-    const auto expect_refused = [&](v1::Upload upload, const std::string& what) {
+    // Refused with the reason and gRPC code of the rule: INVALID_ARGUMENT, RESOURCE_EXHAUSTED for
+    // a size bound.
+    const auto expect_refused = [&](v1::Upload upload, const std::string& what,
+                                    grpc::StatusCode code = grpc::StatusCode::INVALID_ARGUMENT) {
       const auto ack = attacker.send(sequence++, std::move(upload));
       ASSERT_TRUE(ack.has_value()) << what << ": the root closed the stream";
       EXPECT_EQ(ack->status(), v1::ACK_STATUS_REFUSED) << what << ": " << ack->reason();
+      EXPECT_EQ(ack->code(), static_cast<int>(code)) << what << ": " << ack->reason();
       EXPECT_FALSE(ack->reason().empty()) << what;
       if (what != "flood") answers += what + ": " + ack->reason() + "\n";
     };
@@ -133,6 +138,8 @@ TEST(HostileClient, RootKeepsPublishingHonestDataAndCountsEveryAttack) {
     // 2. The last epoch there is, which used to freeze the geofences on it.
     const std::uint64_t last = std::numeric_limits<std::uint64_t>::max();
     expect_refused(mapUpload(1, last, {ball(1, last, 500, {0, 0, 0})}), "epoch 2^64 - 1");
+    expect_refused(mapUpload(1, 1ULL << 63, {ball(1, 1ULL << 63, 500, {0, 0, 0})}), "epoch 2^63");
+    expect_refused(mapUpload(1, 0, {ball(1, 0, 500, {0, 0, 0})}), "epoch 0");
     // 3. A flood of distinct epochs near 2^62, which used to jam the closed-epoch history.
     for (std::uint64_t i = 0; i < 5000 && !::testing::Test::HasFailure(); ++i) {
       const std::uint64_t epoch = (1ULL << 62) + i;
@@ -153,26 +160,50 @@ TEST(HostileClient, RootKeepsPublishingHonestDataAndCountsEveryAttack) {
         *e = one;
         e->mutable_id()->set_index(500 + k);
       }
-      expect_refused(std::move(huge), "1,000,000 ellipsoids");
+      expect_refused(std::move(huge), "1,000,000 ellipsoids", grpc::StatusCode::RESOURCE_EXHAUSTED);
     }
     const std::uint64_t soon = now_epoch() + 1;  // building the huge map took a while
     expect_refused(mapUpload(1, soon, {ball(1, soon, 500, {1e30, 0, 0})}), "centre at 1e30");
     Ellipsoid needle = ball(1, soon, 500, {0, 0, 0});
     needle.shape = Eigen::Vector3d(1e30, 1e-30, 1e-30).asDiagonal();
     expect_refused(mapUpload(1, soon, {needle}), "condition 1e60");
-    // 6. Duplicates with other content. An epoch two back was emitted already, so whatever is
+    //    Values that do not convert: a shape that is not positive definite, a NaN centre.
+    {
+      v1::Upload indefinite = mapUpload(1, soon, {ball(1, soon, 500, {0, 0, 0})});
+      indefinite.mutable_map()->mutable_objects(0)->mutable_ellipsoids(0)->mutable_shape()->Set(0, -0.25F);
+      expect_refused(std::move(indefinite), "shape not positive definite");
+      v1::Upload nan = mapUpload(1, soon, {ball(1, soon, 500, {0, 0, 0})});
+      nan.mutable_map()->mutable_objects(0)->mutable_ellipsoids(0)->mutable_center()->Set(
+          2, std::numeric_limits<float>::quiet_NaN());
+      expect_refused(std::move(nan), "NaN centre");
+    }
+    // 6. Duplicates with other content. The epoch six back passed its deadline (500 ms) a period
+    //    or more ago and is still inside the admission window: it was emitted, so whatever is
     //    applied to it is a late revision that never replaces the live picture.
-    const std::uint64_t past = now_epoch() - 2;
+    const std::uint64_t past = now_epoch() - 6;
     const std::uint64_t reused = sequence++;
     const auto first = attacker.send(reused, mapUpload(1, past, {}));
     ASSERT_TRUE(first.has_value());
-    EXPECT_NE(first->status(), v1::ACK_STATUS_REFUSED) << first->reason();
+    EXPECT_EQ(first->status(), v1::ACK_STATUS_LATE) << first->reason();
     const auto conflict = attacker.send(reused, mapUpload(1, past, {ball(1, past, 900, {40, 0, 0})}));
     ASSERT_TRUE(conflict.has_value());
     EXPECT_EQ(conflict->status(), v1::ACK_STATUS_REFUSED) << "same sequence, other content";
-    //    Edge 1's own ellipsoid 0 of that epoch, with other geometry.
-    expect_refused(mapUpload(1, past, {ball(1, past, 0, {-300, 300, 0})}), "same ellipsoid id, other geometry");
+    //    An ellipsoid id merged into that epoch, sent again with other geometry.
+    const auto own = attacker.send(sequence++, mapUpload(1, past, {ball(1, past, 901, {60, 0, 0})}));
+    ASSERT_TRUE(own.has_value());
+    EXPECT_EQ(own->status(), v1::ACK_STATUS_LATE) << own->reason();
+    expect_refused(mapUpload(1, past, {ball(1, past, 901, {-300, 300, 0})}), "same ellipsoid id, other geometry");
     EXPECT_TRUE(attacker.finish().ok());
+    // 7. A stream from a node that is in no topology: answered REFUSED, then ended.
+    {
+      Attacker stranger(target);
+      const auto ack = stranger.send(1, mapUpload(77, now_epoch(), {ball(77, now_epoch(), 500, {0, 0, 0})}));
+      ASSERT_TRUE(ack.has_value()) << "unknown node: unanswered";
+      EXPECT_EQ(ack->status(), v1::ACK_STATUS_REFUSED);
+      EXPECT_EQ(ack->code(), static_cast<int>(grpc::StatusCode::INVALID_ARGUMENT)) << ack->reason();
+      answers += "unknown node: " + ack->reason() + "\n";
+      EXPECT_EQ(stranger.finish().error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    }
     attack_end_epoch = now_epoch();
 
     // Geofences answer on a current epoch.
@@ -199,7 +230,9 @@ TEST(HostileClient, RootKeepsPublishingHonestDataAndCountsEveryAttack) {
 
   // Every attack shows in its counter.
   SCOPED_TRACE("the root's answers:\n" + answers);
-  EXPECT_GE(refusedCount(metrics_page, "clock_skew"), 5002.0);
+  EXPECT_GE(refusedCount(metrics_page, "clock_skew"), 5004.0);
+  EXPECT_GE(refusedCount(metrics_page, "malformed"), 2.0);
+  EXPECT_GE(refusedCount(metrics_page, "unknown_node"), 1.0);
   EXPECT_GE(refusedCount(metrics_page, "forged_node"), 2.0);
   EXPECT_GE(refusedCount(metrics_page, "too_large"), 1.0);
   EXPECT_GE(refusedCount(metrics_page, "out_of_world"), 1.0);

@@ -51,7 +51,14 @@ Cloud preprocessed(const Cloud& scan, const EdgeConfig& config) {
   return cloud ? *cloud : Cloud{};
 }
 
-MapHeader expectedHeader() { return MapHeader{kNode, kFrame, kSensorTimeNs, {kNode}, {}}; }
+MapHeader expectedHeader() {
+  MapHeader header;
+  header.node = kNode;
+  header.epoch = kFrame;
+  header.sensor_time_ns = kSensorTimeNs;
+  header.contributing_nodes = {kNode};
+  return header;
+}
 
 EdgeOutput process(const EdgeNode& edge, const Cloud& scan) {
   Expected<EdgeOutput> output = edge.processFrame(scan, kFrame, kSensorTimeNs);

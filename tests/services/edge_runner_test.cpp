@@ -4,15 +4,23 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
+#include <filesystem>
 #include <functional>
 #include <limits>
 #include <map>
+#include <numeric>
 #include <optional>
+#include <random>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
+
+#include "common/cloud_io.hpp"
+#include "services/common/metrics.hpp"
+#include "services/edge_cluster/edge_metrics.hpp"
 
 namespace fogmap {
 namespace {
@@ -578,6 +586,179 @@ TEST(EdgeRunner, StatusLinesComeEveryTenEpochsWithTheLinkStatus) {
   EXPECT_EQ(replay.logLinesContaining("; link up"), 2);
   EXPECT_EQ(replay.logLinesContaining("epoch " + std::to_string(firstEpoch()) + ", scan "), 1);
   EXPECT_EQ(replay.logLinesContaining("epoch " + std::to_string(firstEpoch() + 10) + ", scan "), 1);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Hostile values: 1 % of every scan's points have a NaN or infinite coordinate.
+
+constexpr std::size_t kHostileScans = 50;  // distinct scans, replayed in turn
+
+struct HostileScan {
+  Cloud points;                // the non-finite points in place
+  std::size_t non_finite = 0;  // how many of them
+};
+
+// Scan s: 200 to 3,000 points (a multiple of 100) in one to six blobs of 0.1 m jitter, exactly
+// 1 % of them, at random positions, with NaN, +inf or -inf in one, two or three coordinates.
+std::vector<HostileScan> hostileScans() {
+  std::mt19937_64 rng(2024);
+  std::uniform_int_distribution<std::size_t> hundreds(2, 30);
+  std::uniform_int_distribution<std::size_t> blob_count(1, 6);
+  std::uniform_real_distribution<float> anywhere(-30.0F, 30.0F);
+  std::normal_distribution<float> jitter(0.0F, 0.1F);
+  std::uniform_int_distribution<int> kind(0, 5);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  std::vector<HostileScan> scans(kHostileScans);
+  for (HostileScan& scan : scans) {
+    const std::size_t n = 100 * hundreds(rng);
+    std::vector<Point> centres(blob_count(rng));
+    for (Point& c : centres) c = {anywhere(rng), anywhere(rng), 1.0F, 0.0F};
+    for (std::size_t i = 0; i < n; ++i) {
+      const Point& c = centres[i % centres.size()];
+      scan.points.push_back({c.x + jitter(rng), c.y + jitter(rng), c.z + jitter(rng), 1.0F});
+    }
+    std::vector<std::size_t> order(n);
+    std::iota(order.begin(), order.end(), 0);
+    std::shuffle(order.begin(), order.end(), rng);
+    scan.non_finite = n / 100;
+    for (std::size_t k = 0; k < scan.non_finite; ++k) {
+      Point& p = scan.points[order[k]];
+      switch (kind(rng)) {
+        case 0: p.x = nan; break;
+        case 1: p.y = inf; break;
+        case 2: p.z = -inf; break;
+        case 3: p.x = -inf; p.y = nan; break;
+        case 4: p.y = nan; p.z = inf; break;
+        default: p.x = p.y = p.z = nan; break;
+      }
+    }
+  }
+  return scans;
+}
+
+// The scans from memory, non-finite points included, as a live sensor would hand them over.
+class InMemoryScans : public ScanProvider {
+ public:
+  InMemoryScans(const std::vector<HostileScan>& scans, std::size_t limit) : scans_(scans), limit_(limit) {}
+  bool done() const override { return reads_ >= limit_; }
+  Expected<ScanFrame> at(std::uint64_t n) override {
+    ++reads_;
+    ScanFrame frame;
+    frame.sequence = n;
+    frame.file = "memory";
+    frame.points = scans_[n % scans_.size()].points;
+    return frame;
+  }
+
+ private:
+  const std::vector<HostileScan>& scans_;
+  std::size_t limit_;
+  std::size_t reads_ = 0;
+};
+
+struct HostileReplay {
+  EdgeRunnerStats stats;
+  std::uint64_t injected = 0;         // non-finite points in the scans the runner read
+  std::uint64_t finite_points = 0;    // the other points of those scans
+  std::uint64_t points_in = 0;        // EdgeOutput::points_in summed over the scans processed
+  std::uint64_t non_finite_out = 0;   // non-finite centre or shape values in what was shipped
+};
+
+// Runs an edge at 10 Hz (one fresh scan per epoch) over `scans` to the end, on a clock that jumps
+// to every instant waited for.
+HostileReplay replayToTheEnd(ScanProvider& scans, const std::vector<HostileScan>& recorded, EdgeObserver& observer) {
+  EdgeConfig config = edgeConfig(Mode::kMadc);
+  config.preprocess.crop = CropBox{};  // as the edges run: the crop box, then clustering
+  HostileReplay replay;
+  std::int64_t now_ns = kStartNs;
+  std::vector<std::uint64_t> epochs;
+  EdgeRunnerHooks hooks;
+  hooks.now = [&] { return now_ns; };
+  hooks.wait_until = [&](std::int64_t until_ns) {
+    now_ns = std::max(now_ns, until_ns);
+    return true;
+  };
+  hooks.ship = [&](const EdgeOutput& output) {
+    epochs.push_back(epochOf(output));
+    replay.points_in += output.points_in;
+    if (!output.map) return;
+    for (const MapObject& object : output.map->map.objects) {
+      for (const Ellipsoid& e : object.ellipsoids) {
+        replay.non_finite_out += static_cast<std::uint64_t>((!e.center.array().isFinite()).count() +
+                                                            (!e.shape.array().isFinite()).count());
+      }
+    }
+  };
+  hooks.observer = &observer;
+  EdgeRunner runner(EdgeNode(config), scans, schedule(), 10.0, std::move(hooks));
+  EXPECT_EQ(runner.run(), EdgeStep::kDone);
+  for (const std::uint64_t epoch : epochs) {
+    const HostileScan& scan = recorded[runner.scanNumberAt(epoch) % recorded.size()];
+    replay.injected += scan.non_finite;
+    replay.finite_points += scan.points.size() - scan.non_finite;
+  }
+  replay.stats = runner.stats();
+  return replay;
+}
+
+double counterValue(Metrics& metrics, const std::string& family, const std::string& label, const std::string& value) {
+  double sum = 0.0;
+  for (const auto& f : metrics.registry().Collect()) {
+    if (f.name != family) continue;
+    for (const auto& m : f.metric) {
+      for (const auto& l : m.label) {
+        if (l.name == label && l.value == value) sum += m.counter.value;
+      }
+    }
+  }
+  return sum;
+}
+
+TEST(EdgeRunner, OnePercentNonFinitePointsOverTenThousandFramesAreDroppedAndCountedExactly) {
+  constexpr std::size_t kFramesEach = 5000;  // read from files, then handed over from memory
+  const std::vector<HostileScan> scans = hostileScans();
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("fogmap_hostile_scans_" + std::to_string(std::random_device{}()));
+  std::filesystem::create_directories(dir);
+  for (std::size_t s = 0; s < scans.size(); ++s) {
+    char name[32];
+    std::snprintf(name, sizeof name, "scan_%03zu.%s", s, s % 2 == 0 ? "bin" : "pcd");
+    const Cloud& points = scans[s].points;
+    const Status written = s % 2 == 0 ? writeKittiBin(dir / name, points) : writePcd(dir / name, points);
+    ASSERT_TRUE(written.ok()) << written.error().message;
+  }
+  SensorConfig sensor;
+  sensor.source = dir;
+  sensor.frames = kFramesEach;
+  Expected<ScanSource> files = ScanSource::open(sensor);
+  ASSERT_TRUE(files.ok()) << files.error().message;
+  InMemoryScans memory(scans, kFramesEach);
+
+  Metrics metrics("", "edge-cluster", "hostile");  // the edge's one Metrics, nothing served
+  MetricsObserver observer(metrics);
+  const HostileReplay from_files = replayToTheEnd(*files, scans, observer);
+  const HostileReplay from_memory = replayToTheEnd(memory, scans, observer);
+  std::filesystem::remove_all(dir);
+
+  for (const HostileReplay* replay : {&from_files, &from_memory}) {
+    SCOPED_TRACE(replay == &from_files ? "from files" : "from memory");
+    EXPECT_EQ(replay->stats.scans_processed, kFramesEach);
+    EXPECT_EQ(replay->stats.epochs_shipped, kFramesEach);
+    EXPECT_EQ(replay->stats.failed_frames, 0U) << "a non-finite point must never fail a frame";
+    EXPECT_EQ(replay->stats.dropped_non_finite_points, replay->injected);
+    EXPECT_EQ(replay->points_in, replay->finite_points) << "only finite points reach processing";
+    EXPECT_EQ(replay->non_finite_out, 0U);
+  }
+  const std::uint64_t injected = from_files.injected + from_memory.injected;
+  const std::uint64_t finite = from_files.finite_points + from_memory.finite_points;
+  EXPECT_EQ(injected * 99, finite) << "exactly 1 % of the points were non-finite";
+  const double exported = counterValue(metrics, "fogmap_dropped_points_total", "reason", "non_finite");
+  EXPECT_EQ(exported, static_cast<double>(injected));
+  EXPECT_EQ(counterValue(metrics, "fogmap_malformed_inputs_total", "what", "non_finite_points"),
+            static_cast<double>(2 * kFramesEach));
+  std::printf("%zu frames, %llu points, %llu non-finite injected, %.0f dropped and exported\n", 2 * kFramesEach,
+              static_cast<unsigned long long>(injected + finite), static_cast<unsigned long long>(injected), exported);
 }
 
 }  // namespace

@@ -8,7 +8,9 @@
 #include <sys/time.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <map>
+#include <memory>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -123,6 +125,8 @@ TEST(Metrics, ServesExpositionTextWithLabelsAndValues) {
   metrics.droppedUploads();
   metrics.framesProcessed();
   metrics.framesProcessed();
+  metrics.droppedPoints("non_finite", 7);
+  metrics.droppedPoints("non_finite", 5);
 
   const std::string response = httpGet(port, "/metrics");
   ASSERT_NE(response.find(" 200 "), std::string::npos) << response.substr(0, 200);
@@ -154,13 +158,15 @@ TEST(Metrics, ServesExpositionTextWithLabelsAndValues) {
   EXPECT_EQ(sample(text, "fogmap_reconnects_total", withBase()), 1.0);
   EXPECT_EQ(sample(text, "fogmap_dropped_uploads_total", withBase()), 1.0);
   EXPECT_EQ(sample(text, "fogmap_frames_total", withBase()), 2.0);
+  EXPECT_EQ(sample(text, "fogmap_dropped_points_total", withBase({{"reason", "non_finite"}})), 12.0);
 
   // Every family is documented and typed.
   for (const std::string name :
        {"fogmap_bytes_sent_total", "fogmap_bytes_received_total", "fogmap_maps_in_total", "fogmap_maps_out_total",
         "fogmap_points_in_total", "fogmap_points_out_total", "fogmap_merge_pairs_tested_total",
         "fogmap_merge_pairs_pruned_total", "fogmap_malformed_inputs_total", "fogmap_late_maps_total",
-        "fogmap_reconnects_total", "fogmap_dropped_uploads_total", "fogmap_frames_total"}) {
+        "fogmap_reconnects_total", "fogmap_dropped_uploads_total", "fogmap_frames_total",
+        "fogmap_dropped_points_total"}) {
     EXPECT_NE(text.find("# HELP " + name + " "), std::string::npos) << name;
     EXPECT_NE(text.find("# TYPE " + name + " counter"), std::string::npos) << name;
   }
@@ -196,6 +202,21 @@ TEST(Metrics, WithoutBindAddressServesNothingButCounts) {
     found = true;
   }
   EXPECT_TRUE(found);
+}
+
+// A service exits promptly: the HTTP server, just woken by a scrape, would otherwise sleep up to
+// 2 s before it notices the stop.
+TEST(Metrics, StopsServingWithinMilliseconds) {
+  auto metrics = std::make_unique<Metrics>("127.0.0.1:0", "merge-aggregator", "sink");
+  const int port = metrics->listeningPort();
+  ASSERT_GT(port, 0);
+  ASSERT_NE(httpGet(port, "/metrics").find(" 200 "), std::string::npos);
+  const auto start = std::chrono::steady_clock::now();
+  metrics.reset();
+  const auto took = std::chrono::steady_clock::now() - start;
+  EXPECT_LT(took, std::chrono::milliseconds(500))
+      << std::chrono::duration_cast<std::chrono::milliseconds>(took).count() << " ms";
+  EXPECT_EQ(httpGet(port, "/metrics"), "") << "still served after the destructor";
 }
 
 TEST(Metrics, RefusesAnAddressInUse) {

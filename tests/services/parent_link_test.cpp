@@ -266,10 +266,10 @@ const Outcome kDroppedOrAbandoned{std::nullopt, ""};
 class SettledLog {
  public:
   ParentLink::Settled callbackFor(std::uint64_t key) {
-    return [this, key](std::optional<v1::AckStatus> status, const std::string& reason) {
+    return [this, key](const std::optional<v1::Ack>& answer) {
       {
         std::lock_guard lock(mu_);
-        outcomes_[key].push_back({status, reason});
+        outcomes_[key].push_back(answer ? Outcome{answer->status(), answer->reason()} : kDroppedOrAbandoned);
       }
       cv_.notify_all();
     };
@@ -744,8 +744,8 @@ TEST(ParentLink, SettledMayCallBackIntoTheLink) {
   // On the reader thread: each answered upload sends the next, as a relay would, up to 5.
   constexpr std::uint64_t kChain = 5;
   relay = [&](std::uint64_t epoch) -> ParentLink::Settled {
-    return [&, epoch](std::optional<v1::AckStatus> status, const std::string& /*reason*/) {
-      if (!status) return;
+    return [&, epoch](const std::optional<v1::Ack>& answer) {
+      if (!answer) return;
       (void)link->unacknowledged();
       if (epoch == kChain) {
         chain_done.set();
@@ -763,8 +763,8 @@ TEST(ParentLink, SettledMayCallBackIntoTheLink) {
   auto drop_done = std::make_shared<Signal>();
   auto seen_dropped = std::make_shared<std::atomic<std::uint64_t>>(0);
   std::thread([link = link.get(), drop_done, seen_dropped] {
-    link->send(pointsUpload(1), [link, seen_dropped](std::optional<v1::AckStatus> /*status*/,
-                                                     const std::string& /*reason*/) { *seen_dropped = link->dropped(); });
+    link->send(pointsUpload(1),
+               [link, seen_dropped](const std::optional<v1::Ack>& /*answer*/) { *seen_dropped = link->dropped(); });
     drop_done->set();
   }).detach();
   const bool dropped_returned = drop_done->wait();
@@ -788,7 +788,7 @@ TEST(ParentLink, FlushWaitsForSettledCallbacksToReturn) {
   Signal release;
   std::atomic<bool> returned{false};
   ParentLink link(configFor(parent.target()), {});
-  link.send(mapUpload(1), [&](std::optional<v1::AckStatus> /*status*/, const std::string& /*reason*/) {
+  link.send(mapUpload(1), [&](const std::optional<v1::Ack>& /*answer*/) {
     entered.set();
     (void)release.wait();
     returned = true;

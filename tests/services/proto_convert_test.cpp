@@ -591,5 +591,27 @@ TEST(ProtoConvert, ContainmentRoundTripsAndUnknownValuesAreRejected) {
   EXPECT_FALSE(fromProto(static_cast<v1::Containment>(42)).ok());
 }
 
+TEST(ProtoConvert, AnswersCarryTheirGrpcCode) {
+  const v1::Ack applied = appliedAck(7, false);
+  EXPECT_EQ(applied.sequence(), 7U);
+  EXPECT_EQ(applied.status(), v1::ACK_STATUS_APPLIED);
+  EXPECT_EQ(applied.code(), 0);
+  EXPECT_TRUE(applied.reason().empty());
+  EXPECT_EQ(appliedAck(8, true).status(), v1::ACK_STATUS_LATE);
+  EXPECT_EQ(appliedAck(8, true).code(), 0);
+  // Every refusal is INVALID_ARGUMENT (3) but a size bound, RESOURCE_EXHAUSTED (8).
+  for (const Refusal r : {Refusal::kMalformed, Refusal::kWrongMode, Refusal::kUnknownNode, Refusal::kForgedNode,
+                          Refusal::kClockSkew, Refusal::kTooLarge, Refusal::kOutOfWorld, Refusal::kBadShape,
+                          Refusal::kSequenceConflict, Refusal::kEllipsoidConflict, Refusal::kInconsistentChunks}) {
+    const v1::Ack refused = refusedAck(9, Refused{r, std::string("why: ") + refusalName(r)});
+    EXPECT_EQ(refused.sequence(), 9U);
+    EXPECT_EQ(refused.status(), v1::ACK_STATUS_REFUSED);
+    EXPECT_EQ(refused.reason(), std::string("why: ") + refusalName(r));
+    EXPECT_EQ(refused.code(), r == Refusal::kTooLarge ? 8 : 3) << refusalName(r);
+  }
+  EXPECT_EQ(refusedAck(10, resourceExhausted("queue full")).code(), 8);
+  EXPECT_EQ(refusedAck(10, Error{ErrorCode::kInternal, "no parent"}).code(), 13);
+}
+
 }  // namespace
 }  // namespace fogmap

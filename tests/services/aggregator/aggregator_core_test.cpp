@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <limits>
 #include <map>
 #include <random>
@@ -88,6 +89,16 @@ MapMessage mapMessage(std::uint32_t node, std::uint64_t epoch, Map map, std::int
   message.header.contributing_nodes = {node};
   message.map = std::move(map);
   return message;
+}
+
+// A ball of radius 0.5 m.
+Ellipsoid ball(std::uint32_t node, std::uint64_t epoch, std::uint32_t index, const Eigen::Vector3d& centre) {
+  Ellipsoid e;
+  e.id = {node, epoch, index};
+  e.center = centre;
+  e.shape = Eigen::Matrix3d::Identity() * 0.25;  // radius 0.5 m
+  e.point_count = 10;
+  return e;
 }
 
 // Numbers every child's uploads as its stream would: one sequence after the other, and a
@@ -587,6 +598,155 @@ TEST(MergeAggregator, FloodOfDistinctEpochsCannotJamTheRoot) {
   }
 }
 
+// What the core holds (open epochs, emitted epochs kept for late maps) stays within the admission
+// window however many distinct epochs are offered: 200,000 uploads, each for an epoch never
+// offered before, inside the window, just outside it either way, and absurdly far (2^63 and up,
+// 0 and up), under a clock that advances one period every 1,000 uploads and is polled as the
+// emitter polls it. Each upload is admitted exactly when an independent window check says so;
+// everything else is refused and counted as clock skew.
+TEST(MergeAggregator, FloodOfDistinctEpochsHoldsNoMoreThanTheAdmissionWindow) {
+  constexpr std::uint64_t kUploads = 200'000;
+  constexpr std::int64_t kTick = kPeriodNs / 1000;  // the clock's advance per upload
+  constexpr std::uint64_t kPollEvery = 10;          // uploads between polls
+  auto aggregator = makeAggregator(starConfig({1, 2}));
+  connectAll(aggregator, {1, 2});
+  const std::int64_t window = 3 * kPeriodNs;  // starConfig: window_periods 3, one level, deadline 80 ms
+  const std::int64_t deadline = 80 * kMs;
+  EXPECT_EQ(aggregator.windowEpochs(), 7U) << "(2 x 300 + 80) / 100 + 1";
+  // The oracle, from the rule as documented: the epoch starts at most W after now and its deadline
+  // passed at most W before now. Epochs beyond int64 time are never admitted.
+  const auto admissible = [&](std::uint64_t epoch, std::int64_t now) {
+    if (epoch > static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max() / kPeriodNs) - 1) return false;
+    const std::int64_t start = static_cast<std::int64_t>(epoch) * kPeriodNs;
+    return start - now <= window && now - (start + deadline) <= window;
+  };
+
+  Streams streams;
+  std::set<std::uint64_t> offered;
+  std::uint64_t admitted = 0;
+  std::uint64_t refused = 0;
+  std::size_t most_held = 0;
+  // Cursors over the epochs not offered yet: ahead beyond the run's last window, behind the window
+  // (moving away as they are used), from 0 up, and from 2^63 up.
+  std::uint64_t ahead = E(1000);
+  std::uint64_t behind = std::numeric_limits<std::uint64_t>::max();
+  std::uint64_t low = 0;
+  std::uint64_t far = 1ULL << 63;
+  for (std::uint64_t i = 0; i < kUploads; ++i) {
+    const std::int64_t now = kT0 + static_cast<std::int64_t>(i) * kTick;
+    const std::uint64_t current = static_cast<std::uint64_t>(now / kPeriodNs);
+    std::uint64_t epoch = 0;
+    switch (i % 5) {
+      case 0:  // the window's epochs (and the one just behind it), each once; then far
+        epoch = far;
+        for (std::uint64_t k = current - 4; k <= current + 3; ++k) {
+          if (!offered.contains(k)) {
+            epoch = k;
+            break;
+          }
+        }
+        if (epoch == far) ++far;
+        break;
+      case 1:  // just ahead of the window in odd epochs (even ones are left to enter it), else beyond the run
+        if ((current + 4) % 2 == 1 && !offered.contains(current + 4)) {
+          epoch = current + 4;
+        } else {
+          while (offered.contains(ahead)) ++ahead;
+          epoch = ahead++;
+        }
+        break;
+      case 2:
+        behind = std::min(behind, current - 5);
+        while (offered.contains(behind)) --behind;
+        epoch = behind;
+        break;
+      case 3: epoch = far++; break;
+      default:
+        while (offered.contains(low)) ++low;
+        epoch = low;
+        break;
+    }
+    ASSERT_TRUE(offered.insert(epoch).second) << "epoch " << epoch << " offered twice";
+    const std::uint32_t node = 1 + static_cast<std::uint32_t>(i % 2);
+    const auto message = mapMessage(node, epoch, localMap({ball(node, epoch, 0, {1, 2, 1})}));
+    const Outcome outcome = send(aggregator, streams, node, message, now);
+    const bool expected = admissible(epoch, now);
+    ASSERT_EQ(outcome.ok(), expected) << "upload " << i << ", epoch " << static_cast<std::int64_t>(epoch - current)
+                                      << " from now: " << (outcome.ok() ? "admitted" : outcome.refused->message);
+    if (outcome.ok()) {
+      ++admitted;
+    } else {
+      ASSERT_EQ(outcome.refused->reason, Refusal::kClockSkew) << outcome.refused->message;
+      ++refused;
+    }
+    if (i % kPollEvery == kPollEvery - 1) {
+      (void)aggregator.poll(now);
+      const std::size_t held = aggregator.pendingEpochs() + aggregator.retainedEpochs();
+      ASSERT_LE(held, aggregator.windowEpochs()) << "after upload " << i;
+      most_held = std::max(most_held, held);
+    }
+  }
+  EXPECT_EQ(admitted + refused, kUploads);
+  EXPECT_GE(admitted, 90U) << "the window's epochs were offered and taken";
+  EXPECT_EQ(aggregator.counters().refused.at(Refusal::kClockSkew), refused);
+  EXPECT_EQ(aggregator.counters().refusedTotal(), refused);
+  EXPECT_EQ(aggregator.counters().accepted + aggregator.counters().late, admitted);
+  EXPECT_EQ(aggregator.counters().dropped_epochs, 0U) << "the window, not max_pending_epochs, bounds the epochs";
+  EXPECT_LE(aggregator.rememberedUploads(), 2 * MergeAggregator::kUploadHistory);
+  std::printf("%llu uploads of distinct epochs: %llu admitted, %llu refused (clock_skew); at most %zu epochs held "
+              "(bound %zu)\n",
+              static_cast<unsigned long long>(kUploads), static_cast<unsigned long long>(admitted),
+              static_cast<unsigned long long>(refused), most_held, aggregator.windowEpochs());
+}
+
+TEST(MergeAggregator, SequenceHistoryIsBoundedPerChildAndRecentResendsAreStillRecognised) {
+  Streams streams;
+  auto aggregator = makeAggregator(starConfig({1}));
+  connectAll(aggregator, {1});
+  const std::uint64_t uploads = 3 * MergeAggregator::kUploadHistory;
+  for (std::uint64_t i = 0; i < uploads; ++i) {
+    const std::int64_t now = at(0, 0) + static_cast<std::int64_t>(i) * kMs / 10;
+    const std::uint64_t epoch = static_cast<std::uint64_t>(now / kPeriodNs);
+    ASSERT_TRUE(aggregator.onMap(1, {i + 1, i + 1}, mapMessage(1, epoch, {}), kWireBytes, now).ok());
+    if (i % 100 == 0) (void)aggregator.poll(now);
+  }
+  EXPECT_EQ(aggregator.rememberedUploads(), MergeAggregator::kUploadHistory);
+  // The newest are remembered: a re-sent copy is a duplicate, the same sequence with other
+  // content a conflict.
+  const std::int64_t now = at(0, 0) + static_cast<std::int64_t>(uploads) * kMs / 10;
+  const auto epoch = static_cast<std::uint64_t>(now / kPeriodNs);
+  const std::uint64_t duplicates = aggregator.counters().duplicates;
+  EXPECT_TRUE(aggregator.onMap(1, {uploads, uploads}, mapMessage(1, epoch, {}), kWireBytes, now).ok());
+  EXPECT_EQ(aggregator.counters().duplicates, duplicates + 1);
+  const Outcome conflict = aggregator.onMap(1, {uploads, 7}, mapMessage(1, epoch, {}), kWireBytes, now);
+  ASSERT_FALSE(conflict.ok());
+  EXPECT_EQ(conflict.refused->reason, Refusal::kSequenceConflict);
+}
+
+TEST(MergeAggregator, OneSensorsEllipsoidsInAnEpochAreBoundedLikeOneMap) {
+  Streams streams;
+  AggregatorConfig config = starConfig({1, 2});
+  config.admission.max_ellipsoids_per_map = 10;
+  auto aggregator = makeAggregator(config);
+  connectAll(aggregator, {1, 2});
+  // Maps of four new ids each, under new sequences: the third would bring node 1 to 12.
+  const auto part = [&](std::uint32_t node, std::uint32_t first) {
+    std::vector<Ellipsoid> ellipsoids;
+    for (std::uint32_t k = first; k < first + 4; ++k) ellipsoids.push_back(ball(node, E(1), k, {3.0 * k, 0, 1}));
+    return mapMessage(node, E(1), localMap(std::move(ellipsoids)));
+  };
+  accept(aggregator, streams, part(1, 0), at(1, 5));
+  accept(aggregator, streams, part(1, 4), at(1, 5));
+  expectRefused(aggregator, streams, 1, part(1, 8), at(1, 5), Refusal::kTooLarge);
+  // Ids already held do not count again (a re-sent map), and the bound is per sensor.
+  accept(aggregator, streams, part(1, 4), at(1, 6));
+  accept(aggregator, streams, part(2, 0), at(1, 6));
+  accept(aggregator, streams, part(2, 4), at(1, 6));
+  const auto outputs = aggregator.poll(at(1, 7));
+  ASSERT_EQ(outputs.size(), 1U);
+  EXPECT_EQ(globalOf(outputs[0]).map.ellipsoidCount(), 16U);
+}
+
 TEST(MergeAggregator, StreamSpeaksForOneNodeOnly) {
   std::mt19937_64 rng(42);
   Streams streams;
@@ -860,6 +1020,40 @@ TEST(MergeAggregator, BaselineChunksSpeakForTheirStreamsSensorsOnly) {
   EXPECT_EQ(aggregator.pendingEpochs(), 0U);
 }
 
+// A sensor's chunks of an epoch hold at most its scan's points: chunks that cannot tile it (more
+// chunks than points, empty chunks of a non-empty scan, more points than the scan) are refused
+// before they are stored, so no stream of distinct chunk indices grows the epoch.
+TEST(MergeAggregator, ChunksCannotStoreMoreThanTheirScan) {
+  std::mt19937_64 rng(27);
+  Streams streams;
+  const auto clouds = twoSensorScene(rng);
+  auto aggregator = makeAggregator(starConfig({1, 2}, Mode::kBaseline));
+  connectAll(aggregator, {1, 2});
+  const auto chunks = chunksOf(1, E(1), clouds[0], 2);
+  const auto refusedAs = [&](PointChunk chunk, Refusal reason) {
+    const Outcome outcome = aggregator.onPoints(1, streams.next(1), std::move(chunk), kWireBytes, at(1, 5));
+    ASSERT_FALSE(outcome.ok());
+    EXPECT_EQ(outcome.refused->reason, reason) << outcome.refused->message;
+  };
+  PointChunk many = chunks[0];
+  many.chunk_count = many.total_points + 1;
+  refusedAs(many, Refusal::kMalformed);
+  PointChunk empty = chunks[1];
+  empty.chunk = 7;
+  empty.chunk_count = 8;
+  empty.points.clear();
+  refusedAs(empty, Refusal::kMalformed);
+  acceptChunk(aggregator, streams, 1, chunks[0], at(1, 5));
+  PointChunk again = chunks[0];  // the whole scan under the second index: the first chunk twice
+  again.chunk = 1;
+  again.points = clouds[0];
+  refusedAs(again, Refusal::kInconsistentChunks);
+  acceptChunk(aggregator, streams, 1, chunks[0], at(1, 6));  // an identical re-send is harmless
+  acceptChunk(aggregator, streams, 1, chunks[1], at(1, 6));
+  EXPECT_EQ(aggregator.counters().refused.at(Refusal::kMalformed), 2U);
+  EXPECT_EQ(aggregator.counters().refused.at(Refusal::kInconsistentChunks), 1U);
+}
+
 TEST(MergeAggregator, IntermediateRelaysPointChunksAtOnce) {
   std::mt19937_64 rng(23);
   Streams streams;
@@ -935,15 +1129,6 @@ TEST(MergeAggregator, ExtRootLabelsPointsWithTheirGlobalObjects) {
 // ---------------------------------------------------------------------------------------------
 // Geofences.
 
-Ellipsoid ball(std::uint32_t node, std::uint64_t epoch, std::uint32_t index, const Eigen::Vector3d& centre) {
-  Ellipsoid e;
-  e.id = {node, epoch, index};
-  e.center = centre;
-  e.shape = Eigen::Matrix3d::Identity() * 0.25;  // radius 0.5 m
-  e.point_count = 10;
-  return e;
-}
-
 TEST(MergeAggregator, GeofencesAreSetReplacedAndQueriedOnTheLatestGlobalMap) {
   Streams streams;
   auto aggregator = makeAggregator(starConfig({1}));
@@ -984,6 +1169,28 @@ TEST(MergeAggregator, GeofencesAreSetReplacedAndQueriedOnTheLatestGlobalMap) {
 
   auto intermediate = makeAggregator(starConfig({1}, Mode::kMadc, /*is_root=*/false));
   EXPECT_FALSE(intermediate.setGeofence(boxGeofence("zone", {-1, -1, -1}, {1, 1, 1})).ok());
+}
+
+TEST(MergeAggregator, GeofencesAreBoundedInNumberAndSize) {
+  auto aggregator = makeAggregator(starConfig({1}));
+  for (std::size_t i = 0; i < MergeAggregator::kMaxGeofences; ++i) {
+    ASSERT_TRUE(aggregator.setGeofence(boxGeofence("zone-" + std::to_string(i), {-1, -1, -1}, {1, 1, 1})).ok());
+  }
+  const auto one_more = aggregator.setGeofence(boxGeofence("one-more", {-1, -1, -1}, {1, 1, 1}));
+  ASSERT_FALSE(one_more.ok());
+  EXPECT_EQ(one_more.error().code, ErrorCode::kResourceExhausted) << one_more.error().message;
+  const auto replaced = aggregator.setGeofence(boxGeofence("zone-0", {-2, -2, -2}, {2, 2, 2}));
+  ASSERT_TRUE(replaced.ok()) << "replacing one by name is always possible";
+  EXPECT_EQ(*replaced, MergeAggregator::kMaxGeofences);
+  Geofence facets = boxGeofence("facets", {-1, -1, -1}, {1, 1, 1});
+  while (facets.half_spaces.size() <= kMaxHalfSpaces) facets.half_spaces.push_back(facets.half_spaces.front());
+  const auto too_many = aggregator.setGeofence(facets);
+  ASSERT_FALSE(too_many.ok());
+  EXPECT_EQ(too_many.error().code, ErrorCode::kInvalidArgument);
+  const std::string long_name_text(kMaxGeofenceNameBytes + 1, 'z');
+  const auto long_name = aggregator.setGeofence(boxGeofence(long_name_text, {-1, -1, -1}, {1, 1, 1}));
+  ASSERT_FALSE(long_name.ok());
+  EXPECT_EQ(long_name.error().code, ErrorCode::kInvalidArgument);
 }
 
 TEST(MergeAggregator, GeofencesAnswerOnTheNewestOnTimeEpochOnly) {

@@ -5,8 +5,11 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <limits>
+#include <map>
 #include <memory>
 #include <random>
+#include <string>
 #include <thread>
 
 #include <grpcpp/grpcpp.h>
@@ -81,6 +84,13 @@ MergeAggregator makeCore(AggregatorConfig config) {
   return std::move(core).value();
 }
 
+ParentLinkConfig linkTo(const std::string& target) {
+  ParentLinkConfig config;
+  config.target = target;
+  config.max_message_bytes = kMaxMessageBytes;
+  return config;
+}
+
 // An aggregator served in-process on 127.0.0.1, port chosen by the OS, on the given clock; with a
 // parent target it is an intermediate that uploads (and relays) through a real ParentLink.
 class AggregatorServer {
@@ -90,9 +100,7 @@ class AggregatorServer {
       : aggregator_(makeCore(std::move(config))),
         parent_(parent_target.empty()
                     ? nullptr
-                    : std::make_unique<ParentLink>(
-                          ParentLinkConfig{.target = parent_target, .max_message_bytes = kMaxMessageBytes},
-                          ParentLinkHooks{})),
+                    : std::make_unique<ParentLink>(linkTo(parent_target), ParentLinkHooks{})),
         ingest_(aggregator_, metrics, parent_ ? relay() : Relay{}, clock.fn()),
         global_maps_(aggregator_, metrics, 16, 20ms),
         emitter_(aggregator_,
@@ -383,6 +391,7 @@ TEST(AggregatorService, EveryUploadIsAnsweredWithItsStatusAndRefusalsAreCounted)
     ASSERT_TRUE(ack.has_value());
     EXPECT_EQ(ack->sequence(), sequence);
     EXPECT_EQ(ack->status(), v1::ACK_STATUS_REFUSED);
+    EXPECT_EQ(ack->code(), static_cast<int>(grpc::StatusCode::INVALID_ARGUMENT));
     EXPECT_FALSE(ack->reason().empty()) << "a refusal says why";
   }
   EXPECT_TRUE(child.answered(6));
@@ -432,7 +441,11 @@ TEST(AggregatorService, MessagesAboveTheSizeBoundsAreRefusedAndOtherStreamsGoOn)
   *big.mutable_map() = toProto(randomMap(rng, 1, E(1), 1));
   big.mutable_map()->mutable_objects(0)->mutable_ellipsoids(0)->mutable_shape()->Resize((9U << 20) / 4, 1.0F);
   ASSERT_TRUE(child.write(2, big));
-  ASSERT_TRUE(child.answered(2, v1::ACK_STATUS_REFUSED));
+  const auto too_large = child.readAck();
+  ASSERT_TRUE(too_large.has_value());
+  EXPECT_EQ(too_large->sequence(), 2U);
+  EXPECT_EQ(too_large->status(), v1::ACK_STATUS_REFUSED);
+  EXPECT_EQ(too_large->code(), static_cast<int>(grpc::StatusCode::RESOURCE_EXHAUSTED)) << too_large->reason();
   server.emitter().pollOnce();
   EXPECT_EQ(counterValue(metrics, "fogmap_refused_uploads_total", {"reason", "too_large"}), 1.0);
   // Above the transport limit: gRPC ends the stream RESOURCE_EXHAUSTED before the service sees it.
@@ -449,6 +462,146 @@ TEST(AggregatorService, MessagesAboveTheSizeBoundsAreRefusedAndOtherStreamsGoOn)
   EXPECT_TRUE(other.finish().ok());
 }
 
+// Each class of hostile upload, on a stream of its own next to a legitimate one: answered REFUSED
+// with its gRPC code and a reason naming the rule, counted by reason in
+// fogmap_refused_uploads_total, while every legitimate upload is applied and published.
+TEST(AggregatorService, HostileUploadsAreRefusedWithTheirCodeWhileALegitimateStreamIsApplied) {
+  Metrics metrics("", "merge-aggregator", "sink");
+  FakeClock clock(at(1, 5));
+  AggregatorServer server(rootConfig(Mode::kMadc, {1, 2}), clock, "", &metrics);
+  ASSERT_TRUE(server.started());
+  auto global_stub = server.globalStub();
+  Subscription subscription(*global_stub, false);
+  ASSERT_TRUE(eventually([&] { return server.globalMaps().subscriberCount() == 1; }));
+  std::mt19937_64 rng(41);
+  auto stub = server.ingestStub();
+  Child legitimate(*stub);
+  std::uint64_t legitimate_sequence = 0;
+  std::int64_t epoch = 1;
+  // One legitimate map of the current epoch, answered APPLIED; then the epoch is published.
+  const auto legitimate_upload = [&] {
+    ASSERT_TRUE(legitimate.writeMap(++legitimate_sequence, randomMap(rng, 2, E(epoch), 3)));
+    const auto ack = legitimate.readAck();
+    ASSERT_TRUE(ack.has_value());
+    EXPECT_EQ(ack->sequence(), legitimate_sequence);
+    EXPECT_EQ(ack->status(), v1::ACK_STATUS_APPLIED) << ack->reason();
+    EXPECT_EQ(ack->code(), 0);
+  };
+  legitimate_upload();
+
+  const auto proto = [&](std::uint32_t node, std::uint64_t e) {
+    v1::Upload upload;
+    *upload.mutable_map() = toProto(randomMap(rng, node, e, 2));
+    return upload;
+  };
+  struct Attack {
+    std::string what;
+    v1::Upload upload;
+    const char* reason;        // the counter's label
+    grpc::StatusCode code;
+    std::string says;          // in the answer's reason
+    bool own_epoch = false;    // sent with its own epoch, not the current one
+  };
+  std::vector<Attack> attacks;
+  {
+    v1::Upload upload = proto(1, E(1));
+    auto* shape = upload.mutable_map()->mutable_objects(0)->mutable_ellipsoids(0)->mutable_shape();
+    for (int i = 0; i < shape->size(); ++i) shape->Set(i, 0.0F);
+    shape->Set(0, -1.0F);  // xx < 0: not positive definite
+    shape->Set(3, 1.0F);
+    shape->Set(5, 1.0F);
+    attacks.push_back({"non-positive-definite shape", upload, "malformed", grpc::StatusCode::INVALID_ARGUMENT,
+                       "shape is not positive definite"});
+  }
+  {
+    v1::Upload upload = proto(1, E(1));
+    upload.mutable_map()->mutable_objects(0)->mutable_ellipsoids(0)->mutable_center()->Set(
+        1, std::numeric_limits<float>::quiet_NaN());
+    attacks.push_back({"NaN centre", upload, "malformed", grpc::StatusCode::INVALID_ARGUMENT, "center is not finite"});
+  }
+  {
+    v1::Upload upload = proto(1, E(1));
+    upload.mutable_map()->mutable_objects(0)->mutable_ellipsoids(0)->mutable_center()->Set(0, 1e30F);
+    attacks.push_back({"centre at 1e30", upload, "out_of_world", grpc::StatusCode::INVALID_ARGUMENT, "world extent"});
+  }
+  attacks.push_back({"epoch 2^63", proto(1, 1ULL << 63), "clock_skew", grpc::StatusCode::INVALID_ARGUMENT,
+                     "admission window", true});
+  attacks.push_back({"epoch 0", proto(1, 0), "clock_skew", grpc::StatusCode::INVALID_ARGUMENT, "admission window",
+                     true});
+  attacks.push_back({"map of another node", proto(2, E(1)), "forged_node", grpc::StatusCode::INVALID_ARGUMENT,
+                     "speaks for one node only"});
+  attacks.push_back({"no payload", v1::Upload{}, "malformed", grpc::StatusCode::INVALID_ARGUMENT, "without a payload"});
+  {
+    v1::Upload upload = proto(1, E(1));
+    upload.mutable_map()->mutable_objects(0)->mutable_ellipsoids(0)->mutable_shape()->Resize((9U << 20) / 4, 1.0F);
+    attacks.push_back({"9 MiB map", upload, "too_large", grpc::StatusCode::RESOURCE_EXHAUSTED, "max_map_bytes"});
+  }
+
+  // Each attack on a stream of its own that speaks for child 1 (a legitimate first upload names
+  // it); child 1's sequences go on across its streams, as a restarted sender's do.
+  std::map<std::string, double> expected_counts;
+  std::uint64_t attacker_sequence = 0;
+  for (auto& attack : attacks) {
+    SCOPED_TRACE(attack.what);
+    auto channel = makeChannel(server.target(), 256U << 20);
+    auto attacker_stub = v1::MapIngest::NewStub(channel);
+    Child attacker(*attacker_stub);
+    ASSERT_TRUE(attacker.writeMap(++attacker_sequence, randomMap(rng, 1, E(epoch), 1)));
+    ASSERT_TRUE(attacker.answered(attacker_sequence));
+    // The current epoch, so that only the attack's own flaw refuses it (ellipsoid ids follow the
+    // header's epoch: their frames are left out on the wire).
+    if (!attack.own_epoch && attack.upload.has_map()) {
+      attack.upload.mutable_map()->mutable_header()->set_epoch(E(epoch));
+    }
+    ASSERT_TRUE(attacker.write(++attacker_sequence, attack.upload));
+    const auto ack = attacker.readAck();
+    ASSERT_TRUE(ack.has_value()) << "the stream ended unanswered";
+    EXPECT_EQ(ack->sequence(), attacker_sequence);
+    EXPECT_EQ(ack->status(), v1::ACK_STATUS_REFUSED);
+    EXPECT_EQ(ack->code(), static_cast<int>(attack.code)) << ack->reason();
+    EXPECT_NE(ack->reason().find(attack.says), std::string::npos) << ack->reason();
+    ++expected_counts[attack.reason];
+    EXPECT_TRUE(attacker.finish().ok()) << "a refusal does not end the stream";
+    // Next to it, the legitimate stream is applied, epoch after epoch.
+    clock.set(at(++epoch, 5));
+    legitimate_upload();
+  }
+  // A stream from a node that is no child: answered REFUSED, then ended, both INVALID_ARGUMENT.
+  {
+    Child stranger(*stub);
+    ASSERT_TRUE(stranger.writeMap(1, randomMap(rng, 7, E(epoch), 2)));
+    const auto ack = stranger.readAck();
+    ASSERT_TRUE(ack.has_value());
+    EXPECT_EQ(ack->status(), v1::ACK_STATUS_REFUSED);
+    EXPECT_EQ(ack->code(), static_cast<int>(grpc::StatusCode::INVALID_ARGUMENT));
+    EXPECT_NE(ack->reason().find("neither a child"), std::string::npos) << ack->reason();
+    EXPECT_EQ(stranger.finish().error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    ++expected_counts["unknown_node"];
+  }
+
+  // Every epoch published, each with the legitimate child's map and nothing of the attacks.
+  clock.set(at(epoch, 80));
+  server.emitter().pollOnce();
+  for (std::int64_t k = 1; k <= epoch; ++k) {
+    const auto map = subscription.next();
+    ASSERT_TRUE(map.has_value()) << "epoch " << k << " was not published";
+    EXPECT_EQ(map->header().epoch(), E(k));
+    EXPECT_EQ(map->revision(), 0U);
+    const auto global = fromProto(*map);
+    ASSERT_TRUE(global.ok()) << global.error().message;
+    EXPECT_NE(std::find(global->header.contributing_nodes.begin(), global->header.contributing_nodes.end(), 2U),
+              global->header.contributing_nodes.end())
+        << "epoch " << k;
+  }
+  for (const auto& [reason, count] : expected_counts) {
+    EXPECT_EQ(counterValue(metrics, "fogmap_refused_uploads_total", {"reason", reason}), count) << reason;
+  }
+  EXPECT_EQ(counterValue(metrics, "fogmap_refused_uploads_total", {}), static_cast<double>(attacks.size() + 1));
+  EXPECT_EQ(server.core([](MergeAggregator& core) { return core.counters().accepted; }),
+            legitimate_sequence + attacks.size());
+  EXPECT_TRUE(legitimate.finish().ok());
+}
+
 TEST(AggregatorService, StreamFromANodeThatIsNoChildIsRefused) {
   FakeClock clock(at(1, 5));
   AggregatorServer server(rootConfig(Mode::kMadc, {1, 2}), clock);
@@ -457,6 +610,13 @@ TEST(AggregatorService, StreamFromANodeThatIsNoChildIsRefused) {
   auto stub = server.ingestStub();
   Child stranger(*stub);
   ASSERT_TRUE(stranger.writeMap(1, randomMap(rng, 7, E(1), 2)));
+  // The upload is answered like any other (so the sender settles it), then the stream ends.
+  const auto ack = stranger.readAck();
+  ASSERT_TRUE(ack.has_value());
+  EXPECT_EQ(ack->sequence(), 1U);
+  EXPECT_EQ(ack->status(), v1::ACK_STATUS_REFUSED);
+  EXPECT_EQ(ack->code(), static_cast<int>(grpc::StatusCode::INVALID_ARGUMENT));
+  EXPECT_NE(ack->reason().find("node 7 is neither a child"), std::string::npos) << ack->reason();
   EXPECT_FALSE(stranger.readAck().has_value());
   const auto status = stranger.finish();
   EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << status.error_message();
