@@ -123,6 +123,7 @@ TEST(Metrics, ServesExpositionTextWithLabelsAndValues) {
   metrics.droppedUploads();
   metrics.framesProcessed();
   metrics.framesProcessed();
+  metrics.geofencesDenied();
 
   const std::string response = httpGet(port, "/metrics");
   ASSERT_NE(response.find(" 200 "), std::string::npos) << response.substr(0, 200);
@@ -154,13 +155,15 @@ TEST(Metrics, ServesExpositionTextWithLabelsAndValues) {
   EXPECT_EQ(sample(text, "fogmap_reconnects_total", withBase()), 1.0);
   EXPECT_EQ(sample(text, "fogmap_dropped_uploads_total", withBase()), 1.0);
   EXPECT_EQ(sample(text, "fogmap_frames_total", withBase()), 2.0);
+  EXPECT_EQ(sample(text, "fogmap_geofence_denied_total", withBase()), 1.0);
 
   // Every family is documented and typed.
   for (const std::string name :
        {"fogmap_bytes_sent_total", "fogmap_bytes_received_total", "fogmap_maps_in_total", "fogmap_maps_out_total",
         "fogmap_points_in_total", "fogmap_points_out_total", "fogmap_merge_pairs_tested_total",
         "fogmap_merge_pairs_pruned_total", "fogmap_malformed_inputs_total", "fogmap_late_maps_total",
-        "fogmap_reconnects_total", "fogmap_dropped_uploads_total", "fogmap_frames_total"}) {
+        "fogmap_reconnects_total", "fogmap_dropped_uploads_total", "fogmap_frames_total",
+        "fogmap_geofence_denied_total"}) {
     EXPECT_NE(text.find("# HELP " + name + " "), std::string::npos) << name;
     EXPECT_NE(text.find("# TYPE " + name + " counter"), std::string::npos) << name;
   }
