@@ -11,5 +11,6 @@ int runSplit(int argc, char** argv);
 int runWatch(int argc, char** argv);
 int runGeofence(int argc, char** argv);
 int runDemo(int argc, char** argv);
+int runCerts(int argc, char** argv);
 
 }  // namespace fogmap::cli
