@@ -1,5 +1,6 @@
 // fogctl as a user runs it: the real binary in a child process, its stdout, stderr and exit code;
 // a root aggregator stood in for by an in-process GlobalMapService on loopback where one is needed.
+#include <arpa/inet.h>
 #include <fcntl.h>
 #include <netinet/in.h>
 #include <poll.h>
@@ -719,6 +720,40 @@ TEST(ServicesTls, AMissingOrWrongCertificateStopsAServiceAtStartNamingTheFile) {
   o = service("edge-cluster", "edge-1");
   EXPECT_EQ(o.code, 2) << describe(o);
   EXPECT_TRUE(contains(o.err, (pki / "ca.crt").string())) << describe(o);
+}
+
+// True when a TCP connection to address:port is accepted.
+bool accepts(const std::string& address, std::uint16_t port) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return false;
+  sockaddr_in to{};
+  to.sin_family = AF_INET;
+  to.sin_port = htons(port);
+  const bool ok = ::inet_pton(AF_INET, address.c_str(), &to.sin_addr) == 1 &&
+                  ::connect(fd, reinterpret_cast<sockaddr*>(&to), sizeof to) == 0;
+  ::close(fd);
+  return ok;
+}
+
+// A service listens on the address its node has in the topology, not on every interface: an
+// aggregator on 127.0.0.2 cannot be reached on 127.0.0.1, neither its gRPC port nor /metrics.
+TEST(ServicesListen, OnTheTopologysAddressOnly) {
+  ScratchDir dir("listen");
+  const fs::path topology = writeTopology(dir.path(), "listen-star");
+  ASSERT_FALSE(topology.empty());
+  auto t = loadTopology(topology);
+  ASSERT_TRUE(t.ok()) << t.error().message;
+  for (auto& n : t->nodes) n.host = "127.0.0.2";
+  std::ofstream(topology) << toYaml(*t);
+  const NodeConfig& sink = *t->root();
+  Child aggregator({(cli::binaryDir() / "merge-aggregator").string(), "--topology", topology.string(), "--node", "sink"}, {});
+  ASSERT_TRUE(aggregator.started());
+  ASSERT_TRUE(aggregator.readUntil([](const std::string&, const std::string& err) { return contains(err, "ready"); }, 30s))
+      << aggregator.err();
+  EXPECT_TRUE(accepts("127.0.0.2", sink.port));
+  EXPECT_TRUE(accepts("127.0.0.2", sink.metrics_port));
+  EXPECT_FALSE(accepts("127.0.0.1", sink.port));
+  EXPECT_FALSE(accepts("127.0.0.1", sink.metrics_port));
 }
 
 }  // namespace
