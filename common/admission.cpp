@@ -54,6 +54,7 @@ const char* refusalName(Refusal refusal) {
     case Refusal::kSequenceConflict: return "sequence_conflict";
     case Refusal::kEllipsoidConflict: return "ellipsoid_conflict";
     case Refusal::kInconsistentChunks: return "inconsistent_chunks";
+    case Refusal::kUnknownPeer: return "unknown_peer";
   }
   return "unknown";
 }

@@ -43,6 +43,7 @@ enum class Refusal {
   kSequenceConflict,    // an upload sequence seen before with other content
   kEllipsoidConflict,   // an ellipsoid id seen before in the epoch with other geometry
   kInconsistentChunks,  // point chunks that disagree with earlier chunks of the same scan
+  kUnknownPeer,         // TLS: the stream's certificate names no child of this aggregator
 };
 const char* refusalName(Refusal refusal);
 // The error kind a refusal is answered with, in one place: kResourceExhausted for too_large (the

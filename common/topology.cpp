@@ -68,6 +68,20 @@ std::vector<std::uint32_t> TopologyConfig::sensorsBelow(const std::string& node_
   return out;
 }
 
+std::optional<TlsIdentity> TopologyConfig::tlsIdentity(const std::string& name) const {
+  if (!tls) return std::nullopt;
+  const NodeConfig* node = find(name);
+  if (node != nullptr && node->tls) return TlsIdentity{tls->ca, node->tls->cert, node->tls->key};
+  return TlsIdentity{tls->ca, tls->cert_dir / (name + ".crt"), tls->cert_dir / (name + ".key")};
+}
+
+bool isCertificateName(const std::string& name) {
+  if (name.empty() || name.front() == '.' || name == "ca") return false;
+  return std::all_of(name.begin(), name.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' || c == '_' || c == '-';
+  });
+}
+
 namespace {
 
 // Errors name the place in the file: "topology: nodes[3].sensor.rate_hz: must be positive".
@@ -181,6 +195,58 @@ Expected<SensorConfig> parseSensor(const YAML::Node& node, const std::string& wh
   return s;
 }
 
+std::filesystem::path resolve(const std::string& path, const std::filesystem::path& base_dir) {
+  return std::filesystem::path(path).is_absolute() ? std::filesystem::path(path) : base_dir / path;
+}
+
+// A required path: present, a string, not empty.
+Expected<std::filesystem::path> requiredPath(const YAML::Node& node, const std::string& key, const std::string& where,
+                                             const std::filesystem::path& base_dir, const std::string& what) {
+  const auto text = scalar<std::string>(node, key, where, "");
+  if (!text) return text.error();
+  if (text->empty()) return bad(where + "." + key, "is required (" + what + ")");
+  return resolve(*text, base_dir);
+}
+
+Expected<TlsConfig> parseTls(const YAML::Node& node, const std::filesystem::path& base_dir) {
+  if (const Status s = checkSection(node, "tls", {"ca", "cert_dir", "geofence_clients"}); !s) return s.error();
+  TlsConfig tls;
+  const auto ca = requiredPath(node, "ca", "tls", base_dir, "the CA certificate every certificate must chain to");
+  if (!ca) return ca.error();
+  tls.ca = *ca;
+  tls.cert_dir = tls.ca.parent_path();
+  if (node["cert_dir"]) {
+    const auto dir = requiredPath(node, "cert_dir", "tls", base_dir, "the directory of <name>.crt and <name>.key");
+    if (!dir) return dir.error();
+    tls.cert_dir = *dir;
+  }
+  if (const YAML::Node clients = node["geofence_clients"]) {
+    if (!clients.IsSequence()) return bad("tls.geofence_clients", "expected a list of certificate names");
+    for (std::size_t i = 0; i < clients.size(); ++i) {
+      const std::string where = "tls.geofence_clients[" + std::to_string(i) + "]";
+      if (!clients[i].IsScalar()) return bad(where, "expected a certificate name");
+      const std::string name = clients[i].Scalar();
+      if (!isCertificateName(name)) {
+        return bad(where, "'" + name + "' is not a certificate name (letters, digits, '.', '_', '-'; not 'ca')");
+      }
+      if (std::find(tls.geofence_clients.begin(), tls.geofence_clients.end(), name) != tls.geofence_clients.end()) {
+        return bad(where, "'" + name + "' is listed twice");
+      }
+      tls.geofence_clients.push_back(name);
+    }
+  }
+  return tls;
+}
+
+Expected<TlsFiles> parseNodeTls(const YAML::Node& node, const std::string& where, const std::filesystem::path& base_dir) {
+  if (const Status s = checkSection(node, where, {"cert", "key"}); !s) return s.error();
+  const auto cert = requiredPath(node, "cert", where, base_dir, "the node's certificate; give it with key, or neither");
+  if (!cert) return cert.error();
+  const auto key = requiredPath(node, "key", where, base_dir, "the certificate's private key; give it with cert, or neither");
+  if (!key) return key.error();
+  return TlsFiles{*cert, *key};
+}
+
 // The services listen on and connect to "host:port" as written, and fogctl polls /metrics over
 // IPv4, so a name such as localhost (or an IPv6 address, which would need brackets) would pass
 // here and then time out at start-up.
@@ -246,13 +312,23 @@ Status validate(const TopologyConfig& t) {
     return bad("nodes", "the parents of '" + cycle.front() + "' form a cycle: " + path);
   }
   if (roots != 1) return bad("nodes", "exactly one node (the root aggregator) must have no parent, found " + std::to_string(roots));
+  for (std::size_t i = 0; i < t.nodes.size(); ++i) {
+    const auto& n = t.nodes[i];
+    const std::string where = "nodes[" + std::to_string(i) + "] (" + n.name + ")";
+    if (n.tls && !t.tls) return bad(where + ".tls", "the topology has no tls section (add tls: {ca: ...})");
+    // The name is the certificate's common name, and (without an override) a file name.
+    if (t.tls && !n.tls && !isCertificateName(n.name)) {
+      return bad(where + ".name", "with tls, a node name is its certificate's file name: letters, digits, '.', '_', '-', "
+                                  "not 'ca' (or give the node tls: {cert, key})");
+    }
+  }
   return {};
 }
 
 Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesystem::path& base_dir) {
   if (!root.IsMap()) return invalidArgument("topology: the document must be a mapping with 'nodes'");
   if (const Status s = checkSection(root, "", {"name", "mode", "deadline_ms", "period_ms", "max_message_bytes",
-                                               "max_scan_bytes", "admission", "madc", "preprocess", "nodes"});
+                                               "max_scan_bytes", "admission", "madc", "preprocess", "tls", "nodes"});
       !s) {
     return s.error();
   }
@@ -377,13 +453,21 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
     }
   }
 
+  if (const YAML::Node tls = root["tls"]) {
+    auto parsed = parseTls(tls, base_dir);
+    if (!parsed) return parsed.error();
+    t.tls = std::move(*parsed);
+  }
+
   const YAML::Node nodes = root["nodes"];
   if (!nodes || !nodes.IsSequence()) return bad("nodes", "a list of nodes is required");
   for (std::size_t i = 0; i < nodes.size(); ++i) {
     const YAML::Node n = nodes[i];
     const std::string where = "nodes[" + std::to_string(i) + "]";
     if (!n.IsMap()) return bad(where, "each node must be a mapping");
-    if (const Status s = checkSection(n, where, {"name", "id", "role", "parent", "host", "port", "metrics_port", "sensor"}); !s) {
+    if (const Status s =
+            checkSection(n, where, {"name", "id", "role", "parent", "host", "port", "metrics_port", "sensor", "tls"});
+        !s) {
       return s.error();
     }
     NodeConfig node;
@@ -422,6 +506,11 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
       auto s = parseSensor(sensor, where + ".sensor", base_dir);
       if (!s) return s.error();
       node.sensor = std::move(*s);
+    }
+    if (const YAML::Node tls = n["tls"]) {
+      auto files = parseNodeTls(tls, where + ".tls", base_dir);
+      if (!files) return files.error();
+      node.tls = std::move(*files);
     }
     t.nodes.push_back(std::move(node));
   }
@@ -562,6 +651,14 @@ std::string toYaml(const TopologyConfig& t) {
     out << YAML::EndMap;
   }
   out << YAML::EndMap;
+  if (t.tls) {
+    out << YAML::Key << "tls" << YAML::Value << YAML::BeginMap << YAML::Key << "ca" << YAML::Value << t.tls->ca.string();
+    // Left to its default when it is the CA's directory (which may be "", not a valid value).
+    if (t.tls->cert_dir != t.tls->ca.parent_path()) {
+      out << YAML::Key << "cert_dir" << YAML::Value << t.tls->cert_dir.string();
+    }
+    out << YAML::Key << "geofence_clients" << YAML::Value << YAML::Flow << t.tls->geofence_clients << YAML::EndMap;
+  }
   out << YAML::Key << "nodes" << YAML::Value << YAML::BeginSeq;
   for (const auto& n : t.nodes) {
     out << YAML::BeginMap;
@@ -593,6 +690,10 @@ std::string toYaml(const TopologyConfig& t) {
         out << YAML::EndMap;
       }
       out << YAML::EndMap;
+    }
+    if (n.tls) {
+      out << YAML::Key << "tls" << YAML::Value << YAML::BeginMap << YAML::Key << "cert" << YAML::Value
+          << n.tls->cert.string() << YAML::Key << "key" << YAML::Value << n.tls->key.string() << YAML::EndMap;
     }
     out << YAML::EndMap;
   }

@@ -38,6 +38,29 @@ struct SensorConfig {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
 };
 
+// A node's own certificate and private key (PEM files), when they are not <cert_dir>/<name>.crt
+// and .key.
+struct TlsFiles {
+  std::filesystem::path cert;
+  std::filesystem::path key;
+};
+
+// Mutual TLS on every gRPC link (topology `tls:`; plaintext when absent). Every endpoint presents a
+// certificate issued by the CA, and a certificate's common name is its holder's identity: a node's
+// name, or a client's (fogctl). Paths are resolved against the topology file's directory.
+struct TlsConfig {
+  std::filesystem::path ca;        // CA bundle (PEM) every peer's certificate must chain to
+  std::filesystem::path cert_dir;  // <name>.crt and <name>.key of nodes and clients (default: the CA's directory)
+  std::vector<std::string> geofence_clients;  // certificate names the root lets call SetGeofence
+};
+
+// What one TLS endpoint presents (cert, key) and trusts (ca), as file paths.
+struct TlsIdentity {
+  std::filesystem::path ca;
+  std::filesystem::path cert;
+  std::filesystem::path key;
+};
+
 struct NodeConfig {
   std::uint32_t id = 0;
   std::string name;
@@ -48,6 +71,7 @@ struct NodeConfig {
   std::uint16_t port = 0;              // gRPC port (aggregators)
   std::uint16_t metrics_port = 0;      // Prometheus /metrics
   std::optional<SensorConfig> sensor;  // edges only
+  std::optional<TlsFiles> tls;         // overrides <cert_dir>/<name>.crt and .key (TLS on only)
 };
 
 struct TopologyConfig {
@@ -62,6 +86,7 @@ struct TopologyConfig {
   std::size_t max_message_bytes = 64U << 20;  // gRPC transport limit
   std::uintmax_t max_scan_bytes = kDefaultMaxScanBytes;  // scan files above this are refused unread
   AdmissionLimits admission;           // what every aggregator accepts (common/admission.hpp)
+  std::optional<TlsConfig> tls;        // mutual TLS on every link; plaintext when absent
   std::vector<NodeConfig> nodes;
 
   const NodeConfig* find(const std::string& name) const;
@@ -72,11 +97,21 @@ struct TopologyConfig {
   int aggregatorLevels(const std::string& name) const;
   // Sensor (edge) node ids in the subtree of `name` (itself if it is an edge), sorted.
   std::vector<std::uint32_t> sensorsBelow(const std::string& name) const;
+  // The files TLS endpoint `name` uses: a node's own override, else <cert_dir>/<name>.crt and .key
+  // (nodes and clients alike). std::nullopt when TLS is off.
+  std::optional<TlsIdentity> tlsIdentity(const std::string& name) const;
 };
+
+// With TLS a name is also a file name (<cert_dir>/<name>.crt): letters, digits, '.', '_' and '-',
+// not starting with '.', and not "ca" (the CA's own files).
+bool isCertificateName(const std::string& name);
 
 // Parses and validates (unique names, ids and ports; exactly one root; parents exist and are
 // aggregators; no cycles; edges have sensors). Relative sensor paths resolve against `base_dir`.
 // Hosts must be IPv4 addresses; madc and admission values are checked by common/admission.hpp.
+// The optional tls section: `ca` is required, `cert_dir` and `geofence_clients` optional; a node's
+// `tls: {cert, key}` needs both keys and the top-level section. TLS files are read when a service
+// starts, not here.
 Expected<TopologyConfig> parseTopology(const std::string& yaml_text, const std::filesystem::path& base_dir);
 Expected<TopologyConfig> loadTopology(const std::filesystem::path& path);
 

@@ -37,8 +37,39 @@ grpc::ChannelArguments channelArguments(std::size_t max_message_bytes, std::chro
 
 std::shared_ptr<grpc::Channel> makeChannel(const std::string& target, std::size_t max_message_bytes,
                                            std::chrono::milliseconds keepalive) {
-  return grpc::CreateCustomChannel(target, grpc::InsecureChannelCredentials(),
-                                   channelArguments(max_message_bytes, keepalive));
+  return makeChannel(target, grpc::InsecureChannelCredentials(), max_message_bytes, keepalive);
+}
+
+std::shared_ptr<grpc::Channel> makeChannel(const std::string& target,
+                                           const std::shared_ptr<grpc::ChannelCredentials>& credentials,
+                                           std::size_t max_message_bytes, std::chrono::milliseconds keepalive) {
+  return grpc::CreateCustomChannel(target, credentials, channelArguments(max_message_bytes, keepalive));
+}
+
+std::shared_ptr<grpc::ServerCredentials> serverCredentials(const std::optional<TlsPem>& tls) {
+  if (!tls) return grpc::InsecureServerCredentials();
+  grpc::SslServerCredentialsOptions options(GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY);
+  options.pem_root_certs = tls->ca;
+  options.pem_key_cert_pairs.push_back({tls->key, tls->cert});
+  return grpc::SslServerCredentials(options);
+}
+
+std::shared_ptr<grpc::ChannelCredentials> channelCredentials(const std::optional<TlsPem>& tls) {
+  if (!tls) return grpc::InsecureChannelCredentials();
+  grpc::SslCredentialsOptions options;
+  options.pem_root_certs = tls->ca;
+  options.pem_private_key = tls->key;
+  options.pem_cert_chain = tls->cert;
+  return grpc::SslCredentials(options);
+}
+
+std::optional<std::string> peerCertificateName(const grpc::ServerContext& context) {
+  const std::shared_ptr<const grpc::AuthContext> auth = context.auth_context();
+  // Only a verified peer has properties worth reading; the server requires one, this is a guard.
+  if (!auth || !auth->IsPeerAuthenticated()) return std::nullopt;
+  const std::vector<grpc::string_ref> names = auth->FindPropertyValues(GRPC_X509_CN_PROPERTY_NAME);
+  if (names.size() != 1) return std::nullopt;
+  return std::string(names.front().data(), names.front().size());
 }
 
 void configureServer(grpc::ServerBuilder& builder, std::size_t max_message_bytes) {

@@ -113,6 +113,8 @@ Metrics::Metrics(const std::string& bind_address, const std::string& service, co
   dropped_epochs_ = &counter(r, "fogmap_dropped_epochs_total", "Epochs dropped without being emitted.", c);
   subscriber_drops_ = &counter(r, "fogmap_subscriber_drops_total",
                                "Global maps a slow subscriber lost from its bounded queue.", c);
+  geofences_denied_ = &counter(r, "fogmap_geofence_denied_total",
+                               "SetGeofence calls refused: the peer's certificate is not a geofence client.", c);
   late_emits_ = &counter(r, "fogmap_late_emits_total",
                          "Epochs emitted as late revisions (late maps merged in, or emitted after a stall).", c);
   uploads_refused_ = &counter(r, "fogmap_uploads_refused_by_parent_total",
@@ -203,6 +205,8 @@ void Metrics::refused(const std::string& reason, std::uint64_t n) {
 void Metrics::droppedEpochs(std::uint64_t n) { dropped_epochs_->Increment(static_cast<double>(n)); }
 void Metrics::subscriberDrops(std::uint64_t n) { subscriber_drops_->Increment(static_cast<double>(n)); }
 void Metrics::lateEmits(std::uint64_t n) { late_emits_->Increment(static_cast<double>(n)); }
+void Metrics::geofencesDenied() { geofences_denied_->Increment(); }
+
 void Metrics::uploadsRefused() { uploads_refused_->Increment(); }
 void Metrics::failedFrames() { failed_frames_->Increment(); }
 void Metrics::paddedScans() { padded_scans_->Increment(); }

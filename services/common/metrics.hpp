@@ -53,6 +53,8 @@ class Metrics {
   void droppedEpochs(std::uint64_t n = 1);
   // Global maps a slow subscriber lost from its bounded queue.
   void subscriberDrops(std::uint64_t n = 1);
+  // SetGeofence calls refused because the peer's certificate is not a geofence client (TLS).
+  void geofencesDenied();
   // Revisions of already emitted epochs (late maps merged in) and epochs emitted late (stall).
   void lateEmits(std::uint64_t n = 1);
   // Uploads the parent answered as refused (never re-sent).
@@ -100,6 +102,7 @@ class Metrics {
   prometheus::Family<prometheus::Counter>* refused_;
   prometheus::Counter* dropped_epochs_;
   prometheus::Counter* subscriber_drops_;
+  prometheus::Counter* geofences_denied_;
   prometheus::Counter* late_emits_;
   prometheus::Counter* uploads_refused_;
   prometheus::Counter* failed_frames_;

@@ -82,7 +82,8 @@ struct ParentLink::State {
   State(ParentLinkConfig c, ParentLinkHooks h)
       : config(std::move(c)),
         hooks(std::move(h)),
-        channel(makeChannel(config.target, config.max_message_bytes, config.keepalive)),
+        channel(config.credentials ? makeChannel(config.target, config.credentials, config.max_message_bytes, config.keepalive)
+                                   : makeChannel(config.target, config.max_message_bytes, config.keepalive)),
         stub(v1::MapIngest::NewStub(channel)),
         // The wall clock, not a counter from 1: a restarted sender must not reuse a sequence the
         // parent has already seen with other content.

@@ -25,15 +25,20 @@
 #include <string>
 #include <thread>
 
+#include <grpcpp/security/credentials.h>
+
 #include "fogmap/v1/fogmap.pb.h"
 
 namespace fogmap {
 
 struct ParentLinkConfig {
   std::string target;                      // host:port of the parent
+  // Transport credentials (grpc_options channelCredentials: this node's certificate with TLS);
+  // null means plaintext.
+  std::shared_ptr<grpc::ChannelCredentials> credentials{};
   std::size_t max_message_bytes = 64U << 20;
   std::size_t max_unacked_bytes = 64U << 20;  // serialised bytes of unanswered uploads kept for re-send
-  std::optional<std::uint64_t> first_sequence;  // default: wall clock in microseconds at construction
+  std::optional<std::uint64_t> first_sequence{};  // default: wall clock in microseconds at construction
   std::chrono::milliseconds backoff_initial{50};  // wait before re-opening a failed stream, doubled
   std::chrono::milliseconds backoff_max{2000};    // per failure up to this
   std::chrono::milliseconds keepalive{10000};     // transport ping interval (>= 5 s, see grpc_options)

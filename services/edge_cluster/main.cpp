@@ -15,10 +15,12 @@
 #include <thread>
 #include <utility>
 
+#include "common/certs.hpp"
 #include "common/clock.hpp"
 #include "common/epochs.hpp"
 #include "common/topology.hpp"
 #include "services/common/delivery_journal.hpp"
+#include "services/common/grpc_options.hpp"
 #include "services/common/metrics.hpp"
 #include "services/common/parent_link.hpp"
 #include "services/common/proto_convert.hpp"
@@ -141,6 +143,9 @@ int run(const Flags& flags) {
     if (!opened) return badConfig(opened.error().message);
     journal.emplace(std::move(*opened));
   }
+  // Read and checked before anything starts: a missing or wrong file is a configuration error.
+  const auto tls = fogmap::loadTls(*topology, node->name, std::chrono::system_clock::now());
+  if (!tls) return badConfig("tls: " + tls.error().message);
 
   const std::string host = node->host.empty() ? "127.0.0.1" : node->host;
   fogmap::Metrics metrics(host + ":" + std::to_string(node->metrics_port), "edge-cluster", node->name);
@@ -148,6 +153,7 @@ int run(const Flags& flags) {
 
   fogmap::ParentLinkConfig link_config;
   link_config.target = parent->host + ":" + std::to_string(parent->port);
+  link_config.credentials = fogmap::channelCredentials(*tls);
   link_config.max_message_bytes = topology->max_message_bytes;
   fogmap::ParentLinkHooks hooks;
   const std::string peer = parent->name;
@@ -191,7 +197,7 @@ int run(const Flags& flags) {
   std::cerr << prefix << source->files().size() << " scan(s) from " << sensor.source.string() << " at "
             << sensor.rate_hz << " Hz, epochs of " << topology->period_ms << " ms, mode "
             << fogmap::modeName(topology->mode) << ", sending to " << parent->name << " (" << link_config.target
-            << ")\n";
+            << (*tls ? ", mutual TLS" : "") << ")\n";
 
   runner.run();
   const fogmap::EdgeRunnerStats& stats = runner.stats();

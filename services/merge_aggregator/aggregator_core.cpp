@@ -65,7 +65,7 @@ Expected<AggregatorConfig> aggregatorConfigFor(const TopologyConfig& topology, c
   config.admission = topology.admission;
   config.madc = topology.madc;
   for (const NodeConfig* child : topology.children(self->name)) {
-    config.children.push_back({child->id, topology.sensorsBelow(child->name)});
+    config.children.push_back({child->id, topology.sensorsBelow(child->name), child->name});
   }
   return config;
 }
@@ -105,6 +105,7 @@ MergeAggregator::MergeAggregator(AggregatorConfig config, EpochSchedule schedule
   for (const auto& child : config_.children) {
     sensors_.insert(sensors_.end(), child.sensors.begin(), child.sensors.end());
     Child state;
+    state.name = child.name;
     state.sensors = child.sensors;
     std::sort(state.sensors.begin(), state.sensors.end());
     children_.emplace(child.id, std::move(state));
@@ -159,6 +160,17 @@ Expected<std::uint32_t> MergeAggregator::childConnected(std::uint32_t sender) {
   ++state.open_streams;
   state.disconnected_ns.reset();
   return *child;
+}
+
+std::optional<std::uint32_t> MergeAggregator::peerConnected(const std::string& certificate_name) {
+  if (certificate_name.empty()) return std::nullopt;
+  for (auto& [id, child] : children_) {
+    if (child.name != certificate_name) continue;
+    ++child.open_streams;
+    child.disconnected_ns.reset();
+    return id;
+  }
+  return std::nullopt;
 }
 
 void MergeAggregator::childDisconnected(std::uint32_t child, std::int64_t now_ns) {

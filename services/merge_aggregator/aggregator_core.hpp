@@ -30,6 +30,7 @@ namespace fogmap {
 struct ChildConfig {
   std::uint32_t id = 0;
   std::vector<std::uint32_t> sensors;
+  std::string name;  // the node's name: with TLS, the common name of its certificate
 };
 
 struct AggregatorConfig {
@@ -141,6 +142,11 @@ class MergeAggregator {
   // Returns the direct child, now live: the stream speaks for that child only from now on.
   // Streams are counted, so a reconnect that overlaps the old stream keeps the child live.
   Expected<std::uint32_t> childConnected(std::uint32_t sender);
+  // With TLS the stream's child is the one its peer certificate names (`certificate_name`, empty
+  // when the peer has none) instead of its first upload: returns that child, now live as with
+  // childConnected, or std::nullopt when no direct child has that name; every upload on such a
+  // stream is then refused as unknown_peer (see refuse).
+  std::optional<std::uint32_t> peerConnected(const std::string& certificate_name);
   // The stream of `child` (as returned by childConnected) closed. The child stays live for a
   // grace of one period plus one deadline, so a brief reconnect does not cost it its epochs.
   void childDisconnected(std::uint32_t child, std::int64_t now_ns);
@@ -214,6 +220,7 @@ class MergeAggregator {
   };
 
   struct Child {
+    std::string name;
     std::vector<std::uint32_t> sensors;  // sorted
     int open_streams = 0;
     std::optional<std::int64_t> disconnected_ns;  // when the last stream closed

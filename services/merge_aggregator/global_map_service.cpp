@@ -139,8 +139,18 @@ grpc::Status GlobalMapService::Subscribe(grpc::ServerContext* context, const v1:
   return grpc::Status::OK;
 }
 
-grpc::Status GlobalMapService::SetGeofence(grpc::ServerContext* /*context*/, const v1::Geofence* request,
+grpc::Status GlobalMapService::SetGeofence(grpc::ServerContext* context, const v1::Geofence* request,
                                            v1::SetGeofenceReply* reply) {
+  if (geofence_setters_) {
+    const std::optional<std::string> peer = peerCertificateName(*context);
+    if (!peer || std::find(geofence_setters_->begin(), geofence_setters_->end(), *peer) == geofence_setters_->end()) {
+      ++denied_geofences_;
+      if (metrics_ != nullptr) metrics_->geofencesDenied();
+      std::string message = peer ? "'" + *peer + "'" : std::string("a peer without a certificate name");
+      message += " may not set geofences: the topology's tls.geofence_clients does not list it";
+      return {grpc::StatusCode::PERMISSION_DENIED, message};
+    }
+  }
   auto fence = fromProto(*request);
   if (!fence) return toGrpcStatus(fence.error());
   const auto count = aggregator_.with([&](MergeAggregator& core) { return core.setGeofence(std::move(*fence)); });

@@ -4,6 +4,11 @@
 //
 // Every subscriber has its own bounded queue: a slow subscriber loses its oldest global maps
 // (counted) and never slows the emitter or the other subscribers.
+//
+// With TLS (allowGeofenceSetters) only the certificate names listed may call SetGeofence; any other
+// peer is answered PERMISSION_DENIED and counted. Subscribe and QueryGeofences are open to every
+// peer the server let in (any certificate the CA issued).
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstddef>
@@ -11,6 +16,8 @@
 #include <deque>
 #include <memory>
 #include <mutex>
+#include <optional>
+#include <string>
 #include <vector>
 
 #include "fogmap/v1/fogmap.grpc.pb.h"
@@ -33,6 +40,11 @@ class GlobalMapService final : public v1::GlobalMapService::Service {
   void shutdown(std::chrono::milliseconds drain = std::chrono::milliseconds(500));
   std::size_t subscriberCount() const;
   std::uint64_t droppedMessages() const;
+  // From now on SetGeofence is allowed only to peers whose certificate names one of `names`. Set
+  // before the server starts.
+  void allowGeofenceSetters(std::vector<std::string> names) { geofence_setters_ = std::move(names); }
+  // SetGeofence calls refused because the peer may not set geofences.
+  std::uint64_t deniedGeofences() const { return denied_geofences_.load(); }
 
   grpc::Status Subscribe(grpc::ServerContext* context, const v1::SubscribeRequest* request,
                          grpc::ServerWriter<v1::GlobalMap>* writer) override;
@@ -62,6 +74,8 @@ class GlobalMapService final : public v1::GlobalMapService::Service {
   std::condition_variable drained_;  // a subscriber left
   std::vector<std::shared_ptr<Subscriber>> subscribers_;
   std::uint64_t dropped_ = 0;
+  std::optional<std::vector<std::string>> geofence_setters_;  // none: everyone may (plaintext)
+  std::atomic<std::uint64_t> denied_geofences_{0};
   bool shutting_down_ = false;
   bool drain_expired_ = false;
 };

@@ -63,10 +63,24 @@ IngestService::IngestService(SharedAggregator& aggregator, Metrics* metrics, Rel
       // The configuration is fixed once the core exists: read the bound once, not per upload.
       max_map_bytes_(aggregator.with([](MergeAggregator& core) { return core.config().admission.max_map_bytes; })) {}
 
-grpc::Status IngestService::Push(grpc::ServerContext* /*context*/,
+grpc::Status IngestService::Push(grpc::ServerContext* context,
                                  grpc::ServerReaderWriter<v1::Ack, v1::Upload>* stream) {
   std::optional<std::uint32_t> child;
-  std::string peer = "unknown";  // until the first upload names the child
+  std::string peer = "unknown";  // until the first upload (or the certificate) names the child
+  std::optional<std::string> unknown_peer;  // TLS: why every upload of this stream is refused
+  if (by_certificate_) {
+    const std::optional<std::string> name = peerCertificateName(*context);
+    child = aggregator_.with([&](MergeAggregator& core) { return core.peerConnected(name.value_or("")); });
+    if (child) {
+      const auto known = peer_names_.find(*child);
+      peer = known != peer_names_.end() ? known->second : std::to_string(*child);
+    } else {
+      // The reason's name leads: the peer's log shows which rule refused it.
+      unknown_peer = std::string(refusalName(Refusal::kUnknownPeer)) + ": " +
+                     (name ? "the client certificate names '" + *name + "', which is not a child of this aggregator"
+                           : std::string("the client certificate names no single peer"));
+    }
+  }
   const auto writer = std::make_shared<AckWriter>();
   writer->stream = stream;
   // The child stays live as long as this stream (and a grace after), however the handler ends.
@@ -86,6 +100,14 @@ grpc::Status IngestService::Push(grpc::ServerContext* /*context*/,
   v1::Upload upload;
   while (stream->Read(&upload)) {
     if (stopping_) return stoppedStatus();
+    if (unknown_peer) {
+      // Read, counted and answered, never converted.
+      if (metrics_ != nullptr) metrics_->bytesReceived(peer, kindOf(upload), upload.ByteSizeLong());
+      const Refused refused =
+          aggregator_.with([&](MergeAggregator& core) { return core.refuse(Refusal::kUnknownPeer, *unknown_peer); });
+      if (!writer->write(refusedAck(upload.sequence(), refused))) break;
+      continue;
+    }
     if (!child) {
       const auto sender = senderOf(upload);
       if (!sender) {

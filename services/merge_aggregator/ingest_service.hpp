@@ -13,6 +13,11 @@
 // sensor's id, which the core maps to that child); every later upload must speak for that child.
 // A sender that resolves to no child has that upload answered REFUSED (unknown_node) and the
 // stream ended with INVALID_ARGUMENT.
+// With TLS (identifyPeersByCertificate) the child is the one named by the stream's verified client
+// certificate instead, fixed before any upload is read; the same rule then holds for every upload
+// (forged_node). A certificate that names no child gets every upload on its stream answered
+// REFUSED as unknown_peer (counted, never applied) while the stream stays open, so the peer learns
+// why, and never reconnects in a loop as an ended stream would make it.
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
@@ -45,6 +50,9 @@ class IngestService final : public v1::MapIngest::Service {
   // Names for the `peer` label of the byte counters (child id -> node name), so that they match the
   // sender's own label; unnamed children are labelled by id. Set before the server starts.
   void peerNames(std::map<std::uint32_t, std::string> names) { peer_names_ = std::move(names); }
+  // The server requires client certificates (TLS): a stream's child is the one its certificate
+  // names. Set before the server starts.
+  void identifyPeersByCertificate() { by_certificate_ = true; }
   // From now on no upload is taken: open streams end UNAVAILABLE without answering what they
   // read, so nothing is acknowledged that the drain before shutdown would not emit.
   void stopAccepting() { stopping_ = true; }
@@ -62,6 +70,7 @@ class IngestService final : public v1::MapIngest::Service {
   std::size_t max_map_bytes_;  // admission bound, checked before an upload is converted
   std::function<void()> on_arrival_;
   std::map<std::uint32_t, std::string> peer_names_;
+  bool by_certificate_ = false;
   std::atomic<bool> stopping_{false};
 };
 

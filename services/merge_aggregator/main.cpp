@@ -15,6 +15,7 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include "common/certs.hpp"
 #include "common/topology.hpp"
 #include "services/common/grpc_options.hpp"
 #include "services/common/metrics.hpp"
@@ -86,6 +87,13 @@ int run(const Args& args, const sigset_t& stop_signals) {
     return kBadConfig;
   }
 
+  // Read and checked before anything starts: a missing or wrong file is a configuration error.
+  const auto tls = loadTls(*topology, self->name, std::chrono::system_clock::now());
+  if (!tls) {
+    std::cerr << "merge-aggregator " << self->name << ": tls: " << tls.error().message << "\n";
+    return kBadConfig;
+  }
+
   auto config = aggregatorConfigFor(*topology, self->name);
   if (!config) {
     std::cerr << "merge-aggregator: " << args.topology << ": " << config.error().message << "\n";
@@ -107,6 +115,7 @@ int run(const Args& args, const sigset_t& stop_signals) {
     const std::string parent_name = parent->name;
     ParentLinkConfig link_config;
     link_config.target = parent->host + ":" + std::to_string(parent->port);
+    link_config.credentials = channelCredentials(*tls);
     link_config.max_message_bytes = topology->max_message_bytes;
     ParentLinkHooks hooks;
     hooks.on_sent = [&metrics, parent_name](const std::string& kind, std::size_t bytes) {
@@ -156,12 +165,16 @@ int run(const Args& args, const sigset_t& stop_signals) {
   std::map<std::uint32_t, std::string> peer_names;
   for (const NodeConfig* child : topology->children(self->name)) peer_names[child->id] = child->name;
   ingest.peerNames(std::move(peer_names));
+  if (*tls) {
+    ingest.identifyPeersByCertificate();
+    if (global_maps) global_maps->allowGeofenceSetters(topology->tls->geofence_clients);
+  }
 
   grpc::ServerBuilder builder;
   configureServer(builder, topology->max_message_bytes);
   int bound_port = 0;
   const std::string address = self->host + ":" + std::to_string(self->port);
-  builder.AddListeningPort(address, grpc::InsecureServerCredentials(), &bound_port);
+  builder.AddListeningPort(address, serverCredentials(*tls), &bound_port);
   builder.RegisterService(&ingest);
   if (global_maps) builder.RegisterService(&*global_maps);
   const std::unique_ptr<grpc::Server> server = builder.BuildAndStart();

@@ -43,6 +43,12 @@ void expectSameTopology(const TopologyConfig& a, const TopologyConfig& b) {
     EXPECT_DOUBLE_EQ(a.preprocess.ground->max_tilt_deg, b.preprocess.ground->max_tilt_deg);
     EXPECT_EQ(a.preprocess.ground->ground_z_hint_m, b.preprocess.ground->ground_z_hint_m);
   }
+  ASSERT_EQ(a.tls.has_value(), b.tls.has_value());
+  if (a.tls) {
+    EXPECT_EQ(a.tls->ca, b.tls->ca);
+    EXPECT_EQ(a.tls->cert_dir, b.tls->cert_dir);
+    EXPECT_EQ(a.tls->geofence_clients, b.tls->geofence_clients);
+  }
   ASSERT_EQ(a.nodes.size(), b.nodes.size());
   for (std::size_t i = 0; i < a.nodes.size(); ++i) {
     const NodeConfig& x = a.nodes[i];
@@ -55,6 +61,11 @@ void expectSameTopology(const TopologyConfig& a, const TopologyConfig& b) {
     EXPECT_EQ(x.host, y.host);
     EXPECT_EQ(x.port, y.port);
     EXPECT_EQ(x.metrics_port, y.metrics_port);
+    ASSERT_EQ(x.tls.has_value(), y.tls.has_value());
+    if (x.tls) {
+      EXPECT_EQ(x.tls->cert, y.tls->cert);
+      EXPECT_EQ(x.tls->key, y.tls->key);
+    }
     ASSERT_EQ(x.sensor.has_value(), y.sensor.has_value());
     if (!x.sensor) continue;
     EXPECT_EQ(x.sensor->source.lexically_normal(), y.sensor->source.lexically_normal());
@@ -411,6 +422,94 @@ TEST(Topology, HostMustBeANumericIPv4Address) {
     ASSERT_TRUE(parsed.ok()) << host << ": " << parsed.error().message;
     EXPECT_EQ(parsed->root()->host, host);
   }
+}
+
+// ---------------------------------------------------------------------------------------------
+// tls
+
+TEST(Topology, TlsIsOffUnlessTheTopologySaysSo) {
+  const Expected<TopologyConfig> parsed = parseTopology(topologyYaml(""), "");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  EXPECT_FALSE(parsed->tls.has_value());
+  EXPECT_FALSE(parsed->tlsIdentity("sink").has_value());
+  EXPECT_EQ(toYaml(*parsed).find("tls"), std::string::npos) << "a plaintext topology writes no tls section";
+}
+
+TEST(Topology, TlsPathsResolveAgainstTheTopologyDirectoryAndDefaultToCertDir) {
+  const std::string nodes =
+      "  - {name: sink, id: 100, role: aggregator, port: 50000, metrics_port: 50200}\n"
+      "  - {name: edge-1, id: 1, role: edge, parent: sink, metrics_port: 50101, sensor: {source: scans},\n"
+      "     tls: {cert: own/e1.pem, key: /etc/fogmap/e1.key}}\n";
+  const Expected<TopologyConfig> parsed =
+      parseTopology(topologyYaml("tls: {ca: certs/ca.crt, geofence_clients: [operator, ops-2]}\n", "", nodes), "base");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  ASSERT_TRUE(parsed->tls.has_value());
+  EXPECT_EQ(parsed->tls->ca, fs::path("base/certs/ca.crt"));
+  EXPECT_EQ(parsed->tls->cert_dir, fs::path("base/certs")) << "cert_dir defaults to the CA's directory";
+  EXPECT_EQ(parsed->tls->geofence_clients, (std::vector<std::string>{"operator", "ops-2"}));
+  const auto sink = parsed->tlsIdentity("sink");
+  ASSERT_TRUE(sink.has_value());
+  EXPECT_EQ(sink->ca, fs::path("base/certs/ca.crt"));
+  EXPECT_EQ(sink->cert, fs::path("base/certs/sink.crt"));
+  EXPECT_EQ(sink->key, fs::path("base/certs/sink.key"));
+  const auto edge = parsed->tlsIdentity("edge-1");
+  ASSERT_TRUE(edge.has_value());
+  EXPECT_EQ(edge->cert, fs::path("base/own/e1.pem"));
+  EXPECT_EQ(edge->key, fs::path("/etc/fogmap/e1.key"));
+  const auto client = parsed->tlsIdentity("operator");  // a client: not a node, same directory
+  ASSERT_TRUE(client.has_value());
+  EXPECT_EQ(client->cert, fs::path("base/certs/operator.crt"));
+
+  const Expected<TopologyConfig> explicit_dir =
+      parseTopology(topologyYaml("tls: {ca: /pki/ca.pem, cert_dir: keys}\n"), "base");
+  ASSERT_TRUE(explicit_dir.ok()) << explicit_dir.error().message;
+  EXPECT_EQ(explicit_dir->tls->cert_dir, fs::path("base/keys"));
+  EXPECT_TRUE(explicit_dir->tls->geofence_clients.empty());
+  EXPECT_EQ(explicit_dir->tlsIdentity("sink")->key, fs::path("base/keys/sink.key"));
+}
+
+TEST(Topology, TlsRoundTripsThroughYaml) {
+  for (const fs::path& ca : {fs::path("certs/ca.crt"), fs::path("ca.crt")}) {
+    SCOPED_TRACE(ca.string());
+    TopologyConfig tree = makeTreeTopology(3, "scans", 52000);
+    customize(tree);
+    tree.tls = TlsConfig{ca, ca.parent_path(), {"operator", "ci"}};
+    tree.nodes.back().tls = TlsFiles{"own/edge.crt", "own/edge.key"};
+    const Expected<TopologyConfig> parsed = parseTopology(toYaml(tree), "");
+    ASSERT_TRUE(parsed.ok()) << parsed.error().message << "\n" << toYaml(tree);
+    expectSameTopology(*parsed, tree);
+    tree.tls->cert_dir = "elsewhere";
+    tree.tls->geofence_clients.clear();
+    const Expected<TopologyConfig> moved = parseTopology(toYaml(tree), "");
+    ASSERT_TRUE(moved.ok()) << moved.error().message;
+    expectSameTopology(*moved, tree);
+  }
+}
+
+TEST(Topology, TlsErrorsNameTheirField) {
+  expectRejectedWith(topologyYaml("tls: {cert_dir: certs}\n"), {"tls.ca", "required"});
+  expectRejectedWith(topologyYaml("tls: {ca: \"\"}\n"), {"tls.ca", "required"});
+  expectRejectedWith(topologyYaml("tls: {ca: [a, b]}\n"), {"tls.ca"});
+  expectRejectedWith(topologyYaml("tls: {ca: c.crt, cert_dir: \"\"}\n"), {"tls.cert_dir", "required"});
+  expectRejectedWith(topologyYaml("tls: {ca: c.crt, certdir: x}\n"), {"tls.certdir", "unknown key"});
+  expectRejectedWith(topologyYaml("tls: certs/ca.crt\n"), {"tls", "mapping"});
+  expectRejectedWith(topologyYaml("tls: {ca: c.crt, geofence_clients: operator}\n"), {"tls.geofence_clients", "list"});
+  expectRejectedWith(topologyYaml("tls: {ca: c.crt, geofence_clients: [ops, \"\"]}\n"), {"tls.geofence_clients[1]"});
+  expectRejectedWith(topologyYaml("tls: {ca: c.crt, geofence_clients: [\"../x\"]}\n"), {"tls.geofence_clients[0]", "../x"});
+  expectRejectedWith(topologyYaml("tls: {ca: c.crt, geofence_clients: [ops, ops]}\n"), {"tls.geofence_clients[1]", "twice"});
+  const std::string sink = "  - {name: sink, id: 100, role: aggregator, port: 50000, metrics_port: 50200}\n";
+  const std::string edge = "  - {name: edge-1, id: 1, role: edge, parent: sink, metrics_port: 50101, sensor: {source: s}";
+  expectRejectedWith(topologyYaml("tls: {ca: c.crt}\n", "", sink + edge + ", tls: {cert: e.crt}}\n"),
+                     {"nodes[1].tls.key", "required"});
+  expectRejectedWith(topologyYaml("tls: {ca: c.crt}\n", "", sink + edge + ", tls: {cert: e.crt, key: e.key, ca: x}}\n"),
+                     {"nodes[1].tls.ca", "unknown key"});
+  expectRejectedWith(topologyYaml("", "", sink + edge + ", tls: {cert: e.crt, key: e.key}}\n"),
+                     {"nodes[1] (edge-1).tls", "no tls section"});
+  // With TLS a node's name is a file name, unless the node names its files itself.
+  const std::string ca_edge = "  - {name: ca, id: 1, role: edge, parent: sink, metrics_port: 50101, sensor: {source: s}";
+  expectRejectedWith(topologyYaml("tls: {ca: c.crt}\n", "", sink + ca_edge + "}\n"), {"nodes[1] (ca).name", "file name"});
+  EXPECT_TRUE(parseTopology(topologyYaml("", "", sink + ca_edge + "}\n"), "").ok()) << "without tls any name goes";
+  EXPECT_TRUE(parseTopology(topologyYaml("tls: {ca: c.crt}\n", "", sink + ca_edge + ", tls: {cert: e.crt, key: e.key}}\n"), "").ok());
 }
 
 }  // namespace

@@ -127,6 +127,7 @@ TEST(Metrics, ServesExpositionTextWithLabelsAndValues) {
   metrics.framesProcessed();
   metrics.droppedPoints("non_finite", 7);
   metrics.droppedPoints("non_finite", 5);
+  metrics.geofencesDenied();
 
   const std::string response = httpGet(port, "/metrics");
   ASSERT_NE(response.find(" 200 "), std::string::npos) << response.substr(0, 200);
@@ -159,6 +160,7 @@ TEST(Metrics, ServesExpositionTextWithLabelsAndValues) {
   EXPECT_EQ(sample(text, "fogmap_dropped_uploads_total", withBase()), 1.0);
   EXPECT_EQ(sample(text, "fogmap_frames_total", withBase()), 2.0);
   EXPECT_EQ(sample(text, "fogmap_dropped_points_total", withBase({{"reason", "non_finite"}})), 12.0);
+  EXPECT_EQ(sample(text, "fogmap_geofence_denied_total", withBase()), 1.0);
 
   // Every family is documented and typed.
   for (const std::string name :
@@ -166,7 +168,7 @@ TEST(Metrics, ServesExpositionTextWithLabelsAndValues) {
         "fogmap_points_in_total", "fogmap_points_out_total", "fogmap_merge_pairs_tested_total",
         "fogmap_merge_pairs_pruned_total", "fogmap_malformed_inputs_total", "fogmap_late_maps_total",
         "fogmap_reconnects_total", "fogmap_dropped_uploads_total", "fogmap_frames_total",
-        "fogmap_dropped_points_total"}) {
+        "fogmap_dropped_points_total", "fogmap_geofence_denied_total"}) {
     EXPECT_NE(text.find("# HELP " + name + " "), std::string::npos) << name;
     EXPECT_NE(text.find("# TYPE " + name + " counter"), std::string::npos) << name;
   }

@@ -1,5 +1,6 @@
 // fogctl as a user runs it: the real binary in a child process, its stdout, stderr and exit code;
 // a root aggregator stood in for by an in-process GlobalMapService on loopback where one is needed.
+#include <arpa/inet.h>
 #include <fcntl.h>
 #include <netinet/in.h>
 #include <poll.h>
@@ -19,6 +20,7 @@
 #include <limits>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <string>
@@ -27,6 +29,7 @@
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
+#include "common/certs.hpp"
 #include "common/topology.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "services/common/proto_convert.hpp"
@@ -460,8 +463,8 @@ class ServiceReaper {
 };
 
 // A one-edge star on free ports, written to dir/name.yaml; the edge replays the bundled scans
-// forever, so both services run until stopped.
-fs::path writeTopology(const fs::path& dir, const std::string& name) {
+// forever, so both services run until stopped. With `tls`, its tls section is that.
+fs::path writeTopology(const fs::path& dir, const std::string& name, const std::optional<TlsConfig>& tls = std::nullopt) {
   const auto ports = test_support::freePorts(3);
   if (ports.size() != 3) return {};
   TopologyConfig t = makeStarTopology(1, fs::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a", 40000);
@@ -476,6 +479,7 @@ fs::path writeTopology(const fs::path& dir, const std::string& name) {
       n.sensor->loop = true;
     }
   }
+  t.tls = tls;
   const fs::path file = dir / (name + ".yaml");
   std::ofstream(file) << toYaml(t);
   return file;
@@ -575,6 +579,181 @@ TEST(FogctlDown, LeavesAloneARecordedPidThatIsNoLongerAService) {
   EXPECT_TRUE(contains(down.err, "pid " + std::to_string(pid) + " (edge-1)")) << describe(down);
   EXPECT_TRUE(contains(down.err, "pid " + std::to_string(pid) + " (sink)")) << describe(down);
   EXPECT_TRUE(contains(down.err, "left alone")) << describe(down);
+}
+
+// ---------------------------------------------------------------------------------------------
+// certs, and the clients' identities with TLS
+
+bool ownerOnly(const fs::path& file) {
+  return (fs::status(file).permissions() & fs::perms::all) == (fs::perms::owner_read | fs::perms::owner_write);
+}
+
+std::string readText(const fs::path& file) {
+  std::ifstream in(file);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+TEST(FogctlCerts, WritesACaAndACertificatePerNodeAndClientKeysReadableByTheirOwnerOnly) {
+  ScratchDir dir("certs");
+  const fs::path topology = writeTopology(dir.path(), "certs-star");
+  ASSERT_FALSE(topology.empty());
+  const fs::path out = dir.path() / "pki";
+  const Outcome made = fogctl({"certs", topology.string(), "--out", out.string(), "--days", "2", "--clients", "operator,ci"});
+  ASSERT_EQ(made.code, 0) << describe(made);
+  EXPECT_TRUE(contains(made.out, "tls: {ca: pki/ca.crt")) << describe(made);
+  const std::string ca = readText(out / "ca.crt");
+  const auto now = std::chrono::system_clock::now();
+  for (const std::string name : {"sink", "edge-1", "operator", "ci"}) {
+    SCOPED_TRACE(name);
+    EXPECT_TRUE(ownerOnly(out / (name + ".key")));
+    const std::string cert = readText(out / (name + ".crt"));
+    const Status verified = verifyCertificate(cert, ca, now);
+    EXPECT_TRUE(verified.ok()) << verified.error().message;
+    EXPECT_FALSE(verifyCertificate(cert, ca, now + std::chrono::hours(24 * 3)).ok()) << "valid beyond --days";
+    EXPECT_EQ(certificateCommonName(cert).value(), name);
+    const auto loaded = loadTls(TlsIdentity{out / "ca.crt", out / (name + ".crt"), out / (name + ".key")}, now);
+    EXPECT_TRUE(loaded.ok()) << loaded.error().message;
+  }
+  EXPECT_TRUE(ownerOnly(out / "ca.key"));
+
+  // The CA is not replaced by accident: what it issued would stop being trusted.
+  const Outcome again = fogctl({"certs", topology.string(), "--out", out.string()});
+  EXPECT_EQ(again.code, 2) << describe(again);
+  EXPECT_TRUE(contains(again.err, "--force")) << describe(again);
+  EXPECT_EQ(readText(out / "ca.crt"), ca);
+  const Outcome forced = fogctl({"certs", topology.string(), "--out", out.string(), "--force"});
+  EXPECT_EQ(forced.code, 0) << describe(forced);
+  EXPECT_NE(readText(out / "ca.crt"), ca);
+
+  for (const auto& bad : {std::vector<std::string>{"--clients", "../x"}, {"--clients", "sink"},
+                         {"--days", "0"}}) {
+    std::vector<std::string> args{"certs", topology.string(), "--out", (dir.path() / "other").string()};
+    args.insert(args.end(), bad.begin(), bad.end());
+    const Outcome o = fogctl(args);
+    EXPECT_EQ(o.code, 2) << bad[0] << " " << bad[1] << "\n" << describe(o);
+  }
+}
+
+TEST(FogctlTls, ClientsWithoutAnIdentityAreToldHowToGiveOne) {
+  ScratchDir dir("identity");
+  const fs::path topology = writeTopology(dir.path(), "tls-star", TlsConfig{"pki/ca.crt", "pki", {"operator"}});
+  ASSERT_FALSE(topology.empty());
+  ASSERT_EQ(fogctl({"certs", topology.string(), "--out", (dir.path() / "pki").string(), "--clients", "ops"}).code, 0);
+  // No operator certificate: the default identity is missing, and fogctl says what to give.
+  Outcome o = fogctl({"watch", topology.string()}, {}, 30s);
+  EXPECT_EQ(o.code, 2) << describe(o);
+  EXPECT_TRUE(contains(o.err, "--identity NAME")) << describe(o);
+  EXPECT_TRUE(contains(o.err, "operator.crt")) << describe(o);
+  o = fogctl({"geofence", "query", topology.string(), "--identity", "nobody"}, {}, 30s);
+  EXPECT_NE(o.code, 0) << describe(o);
+  EXPECT_TRUE(contains(o.err, "nobody.crt")) << describe(o);
+  o = fogctl({"geofence", "query", "--target", "127.0.0.1:1", "--identity", "ops"}, {}, 30s);
+  EXPECT_EQ(o.code, 2) << describe(o);
+  EXPECT_TRUE(contains(o.err, "--identity needs the topology file")) << describe(o);
+  o = fogctl({"watch", "--target", "127.0.0.1:1", "--cert", (dir.path() / "pki" / "ops.crt").string()}, {}, 30s);
+  EXPECT_EQ(o.code, 2) << describe(o);
+  EXPECT_TRUE(contains(o.err, "--key is missing")) << describe(o);
+}
+
+TEST(FogctlTls, UpWatchAndGeofenceOverMutualTls) {
+  ScratchDir dir("tls-up");
+  const fs::path topology = writeTopology(dir.path(), "tls-up-star", TlsConfig{"pki/ca.crt", "pki", {"operator"}});
+  ASSERT_FALSE(topology.empty());
+  const fs::path pki = dir.path() / "pki";
+  const Outcome certs = fogctl({"certs", topology.string(), "--out", pki.string()});
+  ASSERT_EQ(certs.code, 0) << describe(certs);
+  ServiceReaper reaper(topology);
+  const Outcome up = fogctl({"up", topology.string(), "--detach", "--state", (dir.path() / "state").string()}, {}, 90s);
+  reaper.track(recordedPids(dir.path()));
+  ASSERT_EQ(up.code, 0) << describe(up);
+  const auto loaded = loadTopology(topology);
+  ASSERT_TRUE(loaded.ok());
+  const std::string target = loaded->root()->host + ":" + std::to_string(loaded->root()->port);
+
+  Outcome o = fogctl({"watch", topology.string(), "--count", "1"}, {}, 60s);  // as operator, by default
+  EXPECT_EQ(o.code, 0) << describe(o);
+  EXPECT_TRUE(contains(o.out, "epoch ")) << describe(o);
+  o = fogctl({"watch", "--target", target, "--count", "1", "--cert", (pki / "edge-1.crt").string(), "--key",
+              (pki / "edge-1.key").string(), "--ca", (pki / "ca.crt").string()},
+             {}, 60s);
+  EXPECT_EQ(o.code, 0) << describe(o);
+  o = fogctl({"watch", "--target", target, "--count", "1"}, {}, 60s);  // plaintext
+  EXPECT_EQ(o.code, 1) << describe(o);
+  EXPECT_TRUE(contains(o.err, "cannot reach the root")) << describe(o);
+
+  o = fogctl({"geofence", "set", topology.string(), "--name", "front", "--box", "0,-4,-3,20,4,3"}, {}, 60s);
+  EXPECT_EQ(o.code, 0) << describe(o);
+  o = fogctl({"geofence", "set", topology.string(), "--identity", "edge-1", "--name", "x", "--box", "0,0,0,1,1,1"}, {}, 60s);
+  EXPECT_EQ(o.code, 1) << describe(o);
+  EXPECT_TRUE(contains(o.err, "'edge-1' may not set geofences")) << describe(o);
+  o = fogctl({"geofence", "query", topology.string(), "--identity", "edge-1"}, {}, 60s);
+  EXPECT_EQ(o.code, 0) << describe(o);
+
+  const Outcome down = fogctl({"down", "--state", (dir.path() / "state").string()}, {}, 60s);
+  EXPECT_EQ(down.code, 0) << describe(down);
+}
+
+// The services themselves check their TLS files when they start: a missing or wrong one stops the
+// service at once, exit code 2, naming the file.
+TEST(ServicesTls, AMissingOrWrongCertificateStopsAServiceAtStartNamingTheFile) {
+  ScratchDir dir("tls-start");
+  const fs::path topology = writeTopology(dir.path(), "tls-start-star", TlsConfig{"pki/ca.crt", "pki", {}});
+  ASSERT_FALSE(topology.empty());
+  const fs::path pki = dir.path() / "pki";
+  ASSERT_EQ(fogctl({"certs", topology.string(), "--out", pki.string()}).code, 0);
+  const auto service = [&](const std::string& binary, const std::string& node) {
+    Child child({(cli::binaryDir() / binary).string(), "--topology", topology.string(), "--node", node}, {});
+    return child.finish(30s);
+  };
+  // The edge's certificate and key replaced by the sink's: the right CA, the wrong name.
+  fs::copy_file(pki / "sink.crt", pki / "edge-1.crt", fs::copy_options::overwrite_existing);
+  fs::copy_file(pki / "sink.key", pki / "edge-1.key", fs::copy_options::overwrite_existing);
+  Outcome o = service("edge-cluster", "edge-1");
+  EXPECT_EQ(o.code, 2) << describe(o);
+  EXPECT_TRUE(contains(o.err, (pki / "edge-1.crt").string())) << describe(o);
+  EXPECT_TRUE(contains(o.err, "issued to 'sink', not to 'edge-1'")) << describe(o);
+  fs::remove(pki / "sink.key");
+  o = service("merge-aggregator", "sink");
+  EXPECT_EQ(o.code, 2) << describe(o);
+  EXPECT_TRUE(contains(o.err, (pki / "sink.key").string())) << describe(o);
+  fs::remove(pki / "ca.crt");
+  o = service("edge-cluster", "edge-1");
+  EXPECT_EQ(o.code, 2) << describe(o);
+  EXPECT_TRUE(contains(o.err, (pki / "ca.crt").string())) << describe(o);
+}
+
+// True when a TCP connection to address:port is accepted.
+bool accepts(const std::string& address, std::uint16_t port) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return false;
+  sockaddr_in to{};
+  to.sin_family = AF_INET;
+  to.sin_port = htons(port);
+  const bool ok = ::inet_pton(AF_INET, address.c_str(), &to.sin_addr) == 1 &&
+                  ::connect(fd, reinterpret_cast<sockaddr*>(&to), sizeof to) == 0;
+  ::close(fd);
+  return ok;
+}
+
+// A service listens on the address its node has in the topology, not on every interface: an
+// aggregator on 127.0.0.2 cannot be reached on 127.0.0.1, neither its gRPC port nor /metrics.
+TEST(ServicesListen, OnTheTopologysAddressOnly) {
+  ScratchDir dir("listen");
+  const fs::path topology = writeTopology(dir.path(), "listen-star");
+  ASSERT_FALSE(topology.empty());
+  auto t = loadTopology(topology);
+  ASSERT_TRUE(t.ok()) << t.error().message;
+  for (auto& n : t->nodes) n.host = "127.0.0.2";
+  std::ofstream(topology) << toYaml(*t);
+  const NodeConfig& sink = *t->root();
+  Child aggregator({(cli::binaryDir() / "merge-aggregator").string(), "--topology", topology.string(), "--node", "sink"}, {});
+  ASSERT_TRUE(aggregator.started());
+  ASSERT_TRUE(aggregator.readUntil([](const std::string&, const std::string& err) { return contains(err, "ready"); }, 30s))
+      << aggregator.err();
+  EXPECT_TRUE(accepts("127.0.0.2", sink.port));
+  EXPECT_TRUE(accepts("127.0.0.2", sink.metrics_port));
+  EXPECT_FALSE(accepts("127.0.0.1", sink.port));
+  EXPECT_FALSE(accepts("127.0.0.1", sink.metrics_port));
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include "common/certs.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "services/common/grpc_options.hpp"
 #include "services/common/proto_convert.hpp"
@@ -41,9 +42,10 @@ double sumMetric(const std::string& text, const std::string& name) {
 
 // Subscribes to the root (retrying until it listens) and keeps global maps until `frames` epochs
 // arrived or the time runs out.
-static void collect(const std::string& target, bool labels, std::uint64_t frames, std::chrono::steady_clock::time_point deadline,
-             RunResult& out, std::mutex& mutex, grpc::ClientContext& context) {
-  auto channel = makeChannel(target, 256U << 20);
+static void collect(const std::string& target, const std::shared_ptr<grpc::ChannelCredentials>& credentials, bool labels,
+                    std::uint64_t frames, std::chrono::steady_clock::time_point deadline, RunResult& out, std::mutex& mutex,
+                    grpc::ClientContext& context) {
+  auto channel = makeChannel(target, credentials, 256U << 20);
   while (!channel->WaitForConnected(std::chrono::system_clock::now() + std::chrono::milliseconds(200))) {
     if (std::chrono::steady_clock::now() > deadline || stopRequested()) return;
   }
@@ -66,6 +68,8 @@ static void collect(const std::string& target, bool labels, std::uint64_t frames
 Expected<RunResult> runCluster(const std::filesystem::path& dir, const TopologyConfig& topology, const RunOptions& options,
                                const std::function<void(const Cluster&)>& during) {
   const std::uint64_t frames = options.frames;
+  const auto tls = loadTls(topology, options.identity, std::chrono::system_clock::now());
+  if (!tls) return Error{tls.error().code, "tls: the subscriber's identity '" + options.identity + "': " + tls.error().message};
   const auto file = dir / (topology.name + ".yaml");
   {
     std::ofstream out(file);
@@ -77,8 +81,8 @@ Expected<RunResult> runCluster(const std::filesystem::path& dir, const TopologyC
   grpc::ClientContext context;
   const auto* root = topology.root();
   const auto deadline = std::chrono::steady_clock::now() + options.timeout;
-  std::thread subscriber(collect, root->host + ":" + std::to_string(root->port), options.point_labels, frames,
-                         deadline, std::ref(result), std::ref(mutex), std::ref(context));
+  std::thread subscriber(collect, root->host + ":" + std::to_string(root->port), channelCredentials(*tls),
+                         options.point_labels, frames, deadline, std::ref(result), std::ref(mutex), std::ref(context));
   auto cluster = startCluster(file, topology, dir / topology.name, std::chrono::seconds(30));
   if (!cluster) {
     context.TryCancel();

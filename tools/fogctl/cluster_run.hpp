@@ -31,10 +31,13 @@ struct RunOptions {
   std::uint64_t frames = 20;          // epochs to wait for
   std::chrono::milliseconds timeout{60000};
   bool point_labels = false;          // ask the root for per-point labels
+  // With TLS, the client certificate the subscriber presents: <cert_dir>/<identity>.crt and .key.
+  std::string identity = "operator";
 };
 
 // Writes the topology to dir/<name>.yaml, starts it (logs under dir/<name>/), subscribes to the
-// root, waits for `frames` epochs or the timeout, scrapes every service's metrics and stops it.
+// root (with TLS as options.identity), waits for `frames` epochs or the timeout, scrapes every
+// service's metrics and stops it.
 // `during` (may be empty) runs once the cluster is up, e.g. to kill a node.
 Expected<RunResult> runCluster(const std::filesystem::path& dir, const TopologyConfig& topology, const RunOptions& options,
                                const std::function<void(const Cluster&)>& during = {});

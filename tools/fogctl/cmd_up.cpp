@@ -13,10 +13,13 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <memory>
+#include <optional>
 #include <thread>
 
 #include <grpcpp/grpcpp.h>
 
+#include "common/certs.hpp"
 #include "common/cloud_io.hpp"
 #include "common/geofence.hpp"
 #include "common/topology.hpp"
@@ -55,13 +58,64 @@ std::string shellWord(const std::string& word) {
   return quoted + "'";
 }
 
-// The root aggregator's address: --target HOST:PORT, or the root of the topology file given.
-Expected<std::string> rootTarget(const Args& args, const std::string& usage) {
-  if (args.has("target")) return args.get("target");
-  if (args.positional().size() != 1) return invalidArgument("usage: " + usage);
-  const auto topology = loadTopology(args.positional()[0]);
-  if (!topology) return topology.error();
-  return topology->root()->host + ":" + std::to_string(topology->root()->port);
+// The client identity fogctl uses by default when the topology has a tls section.
+constexpr const char* kDefaultIdentity = "operator";
+
+// How fogctl reaches the root aggregator: its address and the transport credentials.
+struct RootConnection {
+  std::string target;
+  std::shared_ptr<grpc::ChannelCredentials> credentials;
+};
+
+// The root's address: --target HOST:PORT, or the root of the topology file given. The credentials:
+// --cert, --key and --ca when given; else, when the topology has a tls section, the certificate of
+// --identity NAME (default: operator) in its cert_dir; else plaintext. Every file is read and
+// checked here, so a problem is reported before any connection is tried.
+Expected<RootConnection> rootConnection(const Args& args, const std::string& usage) {
+  std::optional<TopologyConfig> topology;
+  if (!args.has("target") || args.has("identity")) {
+    if (args.positional().size() != 1) {
+      return invalidArgument(args.has("identity") ? "--identity needs the topology file (its tls section says where the "
+                                                    "certificates are); with --target give --cert, --key and --ca"
+                                                  : "usage: " + usage);
+    }
+    auto loaded = loadTopology(args.positional()[0]);
+    if (!loaded) return loaded.error();
+    topology = std::move(*loaded);
+  }
+  RootConnection connection;
+  connection.target = args.has("target") ? args.get("target")
+                                         : topology->root()->host + ":" + std::to_string(topology->root()->port);
+  const auto now = std::chrono::system_clock::now();
+  const bool explicit_files = args.has("cert") || args.has("key") || args.has("ca");
+  if (explicit_files) {
+    if (args.has("identity")) return invalidArgument("give either --identity or --cert, --key and --ca, not both");
+    for (const char* flag : {"cert", "key", "ca"}) {
+      if (!args.has(flag)) return invalidArgument(std::string("--cert, --key and --ca go together: --") + flag + " is missing");
+    }
+    auto tls = loadTls(TlsIdentity{args.get("ca"), args.get("cert"), args.get("key")}, now);
+    if (!tls) return Error{tls.error().code, "tls: " + tls.error().message};
+    connection.credentials = channelCredentials(*tls);
+    return connection;
+  }
+  if (!topology || !topology->tls) {
+    if (args.has("identity")) return invalidArgument("--identity: " + args.positional()[0] + " has no tls section");
+    connection.credentials = channelCredentials(std::nullopt);
+    return connection;
+  }
+  const std::string identity = args.get("identity", kDefaultIdentity);
+  const auto files = topology->tlsIdentity(identity);
+  std::error_code ec;
+  if (!args.has("identity") && !std::filesystem::exists(files->cert, ec)) {
+    return invalidArgument(args.positional()[0] + " uses TLS, and fogctl needs a client certificate: give --identity NAME "
+                           "(NAME.crt and NAME.key in " + topology->tls->cert_dir.string() + ") or --cert, --key and "
+                           "--ca; the default identity '" + identity + "' has no certificate (" + files->cert.string() +
+                           "; fogctl certs makes one)");
+  }
+  auto tls = loadTls(*topology, identity, now);
+  if (!tls) return Error{tls.error().code, "tls: identity '" + identity + "': " + tls.error().message};
+  connection.credentials = channelCredentials(*tls);
+  return connection;
 }
 
 // "a,b,c,d,e,f": exactly `count` finite numbers separated by commas.
@@ -102,8 +156,8 @@ int runUp(int argc, char** argv) {
     std::printf("%-14s %-11s %-22s %-8u %s\n", n.name.c_str(), n.role == Role::kEdge ? "edge" : "aggregator", listen.c_str(),
                 n.metrics_port, n.parent.empty() ? "(root)" : n.parent.c_str());
   }
-  std::printf("cluster '%s' is up (%zu services, mode %s); logs in %s\n", topology->name.c_str(), topology->nodes.size(),
-              modeName(topology->mode), (state / "logs").c_str());
+  std::printf("cluster '%s' is up (%zu services, mode %s, %s); logs in %s\n", topology->name.c_str(), topology->nodes.size(),
+              modeName(topology->mode), topology->tls ? "mutual TLS" : "plaintext", (state / "logs").c_str());
   if (args->has("detach")) {
     std::printf("stop it with: fogctl down --state %s\n", shellWord(state.string()).c_str());
     return 0;
@@ -275,12 +329,13 @@ void printGlobalMap(const v1::GlobalMap& message, long shown) {
 }  // namespace
 
 int runWatch(int argc, char** argv) {
-  const auto args = Args::parse(argc, argv, 2, {"target", "count", "objects", "idle-s", "timeout-s"}, {});
+  const auto args =
+      Args::parse(argc, argv, 2, {"target", "count", "objects", "idle-s", "timeout-s", "identity", "cert", "key", "ca"}, {});
   if (!args) return fail(args.error());
-  const auto target_or =
-      rootTarget(*args, "fogctl watch TOPOLOGY.yaml | --target HOST:PORT [--count N] [--objects 10] [--idle-s 10] [--timeout-s 0]");
-  if (!target_or) return fail(target_or.error());
-  const std::string target = *target_or;
+  const auto connection =
+      rootConnection(*args, "fogctl watch TOPOLOGY.yaml | --target HOST:PORT [--count N] [--objects 10] [--idle-s 10] [--timeout-s 0]");
+  if (!connection) return fail(connection.error());
+  const std::string target = connection->target;
   const auto count = args->getInt("count", 0);
   const auto shown = args->getInt("objects", 10);
   if (!count || *count < 0 || !shown || *shown < 0) return fail(invalidArgument("--count and --objects must be non-negative"));
@@ -289,7 +344,7 @@ int runWatch(int argc, char** argv) {
   const auto timeout_s = args->getDouble("timeout-s", 0.0);
   if (!timeout_s || *timeout_s < 0.0) return fail(invalidArgument("--timeout-s must be a non-negative number of seconds"));
   installStopHandlers();
-  auto channel = makeChannel(target, 64U << 20);
+  auto channel = makeChannel(target, connection->credentials, 64U << 20);
   if (const std::string problem = connect(*channel); !problem.empty()) {
     if (stopRequested()) return 0;
     std::fprintf(stderr, "fogctl: cannot reach the root at %s: %s (is the cluster up?)\n", target.c_str(), problem.c_str());
@@ -371,11 +426,12 @@ int runGeofence(int argc, char** argv) {
     return fail(invalidArgument("usage: " + usage));
   }
   const bool set = std::string(argv[2]) == "set";
-  const auto args = Args::parse(argc, argv, 3, {"target", "name", "box"}, {});
+  const auto args = Args::parse(argc, argv, 3, {"target", "name", "box", "identity", "cert", "key", "ca"}, {});
   if (!args) return fail(args.error());
-  const auto target = rootTarget(*args, usage);
-  if (!target) return fail(target.error());
-  auto stub = v1::GlobalMapService::NewStub(makeChannel(*target, 64U << 20));
+  const auto connection = rootConnection(*args, usage);
+  if (!connection) return fail(connection.error());
+  const std::string& target = connection->target;
+  auto stub = v1::GlobalMapService::NewStub(makeChannel(target, connection->credentials, 64U << 20));
   grpc::ClientContext context;
   context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
 
@@ -388,15 +444,15 @@ int runGeofence(int argc, char** argv) {
     if ((lo.array() >= hi.array()).any()) return fail(invalidArgument("--box: the minimum must be below the maximum on every axis"));
     v1::SetGeofenceReply reply;
     const grpc::Status status = stub->SetGeofence(&context, toProto(boxGeofence(args->get("name"), lo, hi)), &reply);
-    if (!status.ok()) return fail(fromGrpcStatus(status, "SetGeofence at " + *target));
-    std::printf("geofence '%s' set on %s (%u geofences)\n", args->get("name").c_str(), target->c_str(), reply.geofence_count());
+    if (!status.ok()) return fail(fromGrpcStatus(status, "SetGeofence at " + target));
+    std::printf("geofence '%s' set on %s (%u geofences)\n", args->get("name").c_str(), target.c_str(), reply.geofence_count());
     return 0;
   }
   v1::GeofenceQuery query;
   query.set_name(args->get("name"));
   v1::GeofenceReport report;
   const grpc::Status status = stub->QueryGeofences(&context, query, &report);
-  if (!status.ok()) return fail(fromGrpcStatus(status, "QueryGeofences at " + *target));
+  if (!status.ok()) return fail(fromGrpcStatus(status, "QueryGeofences at " + target));
   if (report.epoch() == 0) {
     std::printf("no global map yet\n");
     return 0;

@@ -12,5 +12,6 @@ int runWatch(int argc, char** argv);
 int runGeofence(int argc, char** argv);
 int runDemo(int argc, char** argv);
 int runFaults(int argc, char** argv);
+int runCerts(int argc, char** argv);
 
 }  // namespace fogmap::cli

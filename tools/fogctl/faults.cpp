@@ -18,6 +18,7 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include "common/certs.hpp"
 #include "common/clock.hpp"
 #include "common/epochs.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
@@ -158,8 +159,8 @@ class Observer {
   Observer(const TopologyConfig& topology, Oracle* oracle, std::vector<std::uint32_t> sensors)
       : topology_(topology), oracle_(oracle), sensors_(std::move(sensors)) {}
 
-  void start(const std::string& target) {
-    subscriber_ = std::thread([this, target] { subscribe(target); });
+  void start(const std::string& target, std::shared_ptr<grpc::ChannelCredentials> credentials) {
+    subscriber_ = std::thread([this, target, credentials] { subscribe(target, credentials); });
     checker_ = std::thread([this] { check(); });
   }
 
@@ -211,8 +212,8 @@ class Observer {
   }
 
  private:
-  void subscribe(const std::string& target) {
-    auto channel = makeChannel(target, topology_.max_message_bytes);
+  void subscribe(const std::string& target, const std::shared_ptr<grpc::ChannelCredentials>& credentials) {
+    auto channel = makeChannel(target, credentials, topology_.max_message_bytes);
     auto stub = v1::GlobalMapService::NewStub(channel);
     context_.set_wait_for_ready(true);
     auto reader = stub->Subscribe(&context_, v1::SubscribeRequest{});
@@ -495,12 +496,15 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
     out << toYaml(topology);
     if (!out) return ioError("cannot write " + file.string());
   }
+  // With TLS the harness subscribes as plan.identity, like any client.
+  const auto tls = loadTls(topology, plan.identity, std::chrono::system_clock::now());
+  if (!tls) return Error{tls.error().code, "tls: the harness's identity '" + plan.identity + "': " + tls.error().message};
   phase("oracle");
   Observer observer(topology, oracle ? &*oracle : nullptr, sensors);
   auto cluster = startCluster(file, topology, state, 30s, options);
   if (!cluster) return cluster.error();
   phase("start");
-  observer.start(root->host + ":" + std::to_string(root->port));
+  observer.start(root->host + ":" + std::to_string(root->port), channelCredentials(*tls));
 
   std::set<std::string> down;  // killed or stopped, not yet back
   std::map<std::string, std::int64_t> stopped_at;

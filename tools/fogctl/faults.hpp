@@ -54,6 +54,7 @@ struct FaultPlan {
   std::chrono::milliseconds downtime{3000};   // crash: until the restart; stall: SIGSTOP to SIGCONT
   bool check_oracle = true;                   // needs mode madc
   StallMethod stall_method = StallMethod::kSigstop;
+  std::string identity = "operator";  // with TLS, the client certificate the harness subscribes with
 };
 
 struct FaultEvent {

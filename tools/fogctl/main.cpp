@@ -9,6 +9,12 @@
 
 namespace {
 
+// The client identity flags of the commands that talk to the root.
+constexpr const char* kTlsFlags =
+    "With TLS (the topology's tls section) fogctl presents a client certificate:\n"
+    "  --identity NAME  NAME.crt and NAME.key in the topology's tls.cert_dir (default: operator)\n"
+    "  --cert FILE --key FILE --ca FILE   explicit files instead (with --target, no topology needed)\n";
+
 struct Command {
   std::string name;
   std::string synopsis;  // its line in `fogctl --help`
@@ -63,19 +69,24 @@ const std::vector<Command>& commands() {
       {"watch",
        "TOPOLOGY.yaml | --target HOST:PORT [--count N] [--objects 10]   print the live global map",
        "usage: fogctl watch TOPOLOGY.yaml | --target HOST:PORT [--count N] [--objects 10] [--idle-s 10] [--timeout-s 0]\n"
+       "                    [--identity NAME | --cert FILE --key FILE --ca FILE]\n"
        "Prints the root aggregator's global maps as they come. Exits 1 when the root cannot be reached\n"
        "within 5 s, when it goes away, or after --timeout-s without a map.\n"
        "  --count N      stop after N maps (default 0: until Ctrl-C)\n"
        "  --objects N    objects listed per map, the largest first (default 10)\n"
        "  --idle-s S     say so after every S seconds without a global map (default 10)\n"
-       "  --timeout-s S  give up after S seconds without a global map (default 0: never)\n",
+       "  --timeout-s S  give up after S seconds without a global map (default 0: never)\n" +
+           std::string(kTlsFlags),
        fogmap::cli::runWatch},
       {"geofence",
        "set|query TOPOLOGY.yaml | --target HOST:PORT [--name NAME] [--box XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX]",
        "usage: fogctl geofence set TOPOLOGY.yaml | --target HOST:PORT --name NAME --box XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX\n"
        "       fogctl geofence query TOPOLOGY.yaml | --target HOST:PORT [--name NAME]\n"
-       "set: defines (or replaces) a box geofence on the root aggregator.\n"
-       "query: the objects of the latest global map inside or crossing the geofences (or the one named).\n",
+       "       (either one: [--identity NAME | --cert FILE --key FILE --ca FILE])\n"
+       "set: defines (or replaces) a box geofence on the root aggregator; with TLS only the clients\n"
+       "     the topology's tls.geofence_clients lists may.\n"
+       "query: the objects of the latest global map inside or crossing the geofences (or the one named).\n" +
+           std::string(kTlsFlags),
        fogmap::cli::runGeofence},
       {"faults",
        "TOPOLOGY.yaml --scenario soak|edge-crash|aggregator-crash|stall [--duration-s 60] [--seed 1] [--report FILE]",
@@ -99,6 +110,18 @@ const std::vector<Command>& commands() {
        "The long soak: fogctl topology tree --edges 8 --source data/kitti_raw_seq_a --out tree-8.yaml &&\n"
        "               fogctl faults tree-8.yaml --scenario soak --duration-s 600 --warmup-s 60\n",
        fogmap::cli::runFaults},
+      {"certs",
+       "TOPOLOGY.yaml --out DIR [--days 365] [--clients operator,...]   a CA and certificates for mutual TLS",
+       "usage: fogctl certs TOPOLOGY.yaml --out DIR [--days 365] [--clients operator,...] [--force]\n"
+       "Makes a CA (DIR/ca.crt, ca.key) and a certificate for every node of the topology and every client\n"
+       "named (DIR/NAME.crt, NAME.key; keys readable by their owner only), EC P-256, signed by the CA.\n"
+       "A certificate's common name is its holder's identity; a node's also names its host (IP\n"
+       "subjectAltName), so its peers verify HOST:PORT. Point the topology at them: tls: {ca: DIR/ca.crt}.\n"
+       "  --days N       valid from now for N days (default 365)\n"
+       "  --clients A,B  client identities besides the nodes, for fogctl --identity\n"
+       "                 (default: operator and the topology's tls.geofence_clients)\n"
+       "  --force        replace a CA already in DIR (what it issued is no longer trusted)\n",
+       fogmap::cli::runCerts},
       {"topology",
        "star|tree --edges K --source DIR [--base-port P] [--mode madc|baseline|ext] [--frames N] [--out FILE]",
        "usage: fogctl topology star|tree --edges K --source DIR [--base-port 50000] [--mode madc|baseline|ext]\n"

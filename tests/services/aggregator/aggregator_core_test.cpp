@@ -38,7 +38,7 @@ AggregatorConfig starConfig(std::vector<std::uint32_t> edges, Mode mode = Mode::
   config.is_root = is_root;
   config.period_ms = 100.0;
   config.deadline_ms = 80.0;
-  for (const auto edge : edges) config.children.push_back({edge, {edge}});
+  for (const auto edge : edges) config.children.push_back({edge, {edge}, "edge-" + std::to_string(edge)});
   return config;
 }
 
@@ -293,10 +293,10 @@ TEST(MergeAggregator, TreeOfThreeLevelsNeverDropsAnOnTimeMap) {
   AggregatorConfig mid_config = starConfig({}, Mode::kMadc, /*is_root=*/false);
   mid_config.node = kMid;
   mid_config.levels = 2;
-  mid_config.children = {{kLeaf, {1, 2}}};
+  mid_config.children = {{kLeaf, {1, 2}, "leaf"}};
   AggregatorConfig root_config = starConfig({}, Mode::kMadc, /*is_root=*/true);
   root_config.levels = 3;
-  root_config.children = {{kMid, {1, 2}}, {3, {3}}};
+  root_config.children = {{kMid, {1, 2}, "mid"}, {3, {3}, "edge-3"}};
   auto leaf = makeAggregator(leaf_config);
   auto mid = makeAggregator(mid_config);
   auto root = makeAggregator(root_config);
@@ -478,7 +478,7 @@ TEST(MergeAggregator, ResolvesStreamsToDirectChildrenInATree) {
   config.node = kRoot;
   config.is_root = true;
   config.mode = Mode::kBaseline;
-  config.children = {{10, {1, 2}}, {11, {3, 4}}, {5, {5}}};
+  config.children = {{10, {1, 2}, "agg-10"}, {11, {3, 4}, "agg-11"}, {5, {5}, "edge-5"}};
   auto aggregator = makeAggregator(config);
   EXPECT_EQ(aggregator.sensors(), (std::vector<std::uint32_t>{1, 2, 3, 4, 5}));
   // An intermediate's own id, a sensor relayed through it, and an edge child.
@@ -494,6 +494,22 @@ TEST(MergeAggregator, ResolvesStreamsToDirectChildrenInATree) {
   EXPECT_EQ(aggregator.liveChildren(at(2, 0)), 2U);
 }
 
+TEST(MergeAggregator, CertificateNameFixesTheStreamsChild) {
+  AggregatorConfig config = starConfig({});
+  config.children = {{10, {1, 2}, "agg-10"}, {11, {3, 4}, "agg-11"}, {5, {5}, "edge-5"}};
+  auto aggregator = makeAggregator(config);
+  EXPECT_EQ(aggregator.peerConnected("agg-11"), 11U);
+  EXPECT_EQ(aggregator.peerConnected("edge-5"), 5U);
+  // A sensor below a child is not a child: with TLS it cannot speak to the root directly.
+  EXPECT_EQ(aggregator.peerConnected("edge-1"), std::nullopt);
+  EXPECT_EQ(aggregator.peerConnected("sink"), std::nullopt);
+  EXPECT_EQ(aggregator.peerConnected(""), std::nullopt);
+  EXPECT_EQ(aggregator.liveChildren(at(0, 0)), 2U);
+  EXPECT_TRUE(aggregator.counters().refused.empty()) << "unknown peers are counted per refused upload, not per stream";
+  aggregator.childDisconnected(11, at(0, 0));
+  EXPECT_EQ(aggregator.liveChildren(at(2, 0)), 1U);
+}
+
 TEST(MergeAggregator, RejectsInvalidConfig) {
   EXPECT_FALSE(MergeAggregator::create(starConfig({1, 1})).ok());
   auto no_deadline = starConfig({1});
@@ -503,7 +519,7 @@ TEST(MergeAggregator, RejectsInvalidConfig) {
   no_period.period_ms = std::numeric_limits<double>::quiet_NaN();
   EXPECT_FALSE(MergeAggregator::create(no_period).ok());
   AggregatorConfig shared_sensor = starConfig({});
-  shared_sensor.children = {{10, {1}}, {11, {1}}};
+  shared_sensor.children = {{10, {1}, "agg-10"}, {11, {1}, "agg-11"}};
   EXPECT_FALSE(MergeAggregator::create(shared_sensor).ok());
   auto no_window = starConfig({1});
   no_window.admission.window_periods = 0.0;
@@ -751,7 +767,7 @@ TEST(MergeAggregator, StreamSpeaksForOneNodeOnly) {
   std::mt19937_64 rng(42);
   Streams streams;
   AggregatorConfig config = starConfig({1, 2});
-  config.children.push_back({10, {5, 6}});  // an intermediate over sensors 5 and 6
+  config.children.push_back({10, {5, 6}, "agg-10"});  // an intermediate over sensors 5 and 6
   auto aggregator = makeAggregator(config);
   connectAll(aggregator, {1, 2, 10});
   // On child 1's stream: a map claiming to be node 2's.
@@ -982,7 +998,8 @@ TEST(MergeAggregator, BaselineRootSkipsSensorsUnderDeadChildren) {
   Streams streams;
   const auto clouds = twoSensorScene(rng);
   AggregatorConfig config = starConfig({}, Mode::kBaseline);
-  config.children = {{10, {1, 2}}, {3, {3}}};  // an intermediate over sensors 1 and 2, and edge 3
+  // An intermediate over sensors 1 and 2, and edge 3.
+  config.children = {{10, {1, 2}, "agg-10"}, {3, {3}, "edge-3"}};
   auto aggregator = makeAggregator(config);
   const auto child = aggregator.childConnected(1);  // the intermediate's stream, named by a relayed chunk
   ASSERT_TRUE(child.ok());

@@ -74,7 +74,7 @@ AggregatorConfig rootConfig(Mode mode, std::vector<std::uint32_t> edges) {
   config.is_root = true;
   config.period_ms = 100.0;
   config.deadline_ms = 80.0;
-  for (const auto edge : edges) config.children.push_back({edge, {edge}});
+  for (const auto edge : edges) config.children.push_back({edge, {edge}, "edge-" + std::to_string(edge)});
   return config;
 }
 
@@ -833,7 +833,7 @@ TEST(AggregatorService, ExtTreeMergesAtTheIntermediateAndRelaysPointsToTheRoot) 
   FakeClock clock(at(1, 5));
   AggregatorConfig root_config = rootConfig(Mode::kExt, {});
   root_config.levels = 2;
-  root_config.children = {{101, {1, 2}}, {3, {3}}};
+  root_config.children = {{101, {1, 2}, "agg-101"}, {3, {3}, "edge-3"}};
   AggregatorServer root(root_config, clock);
   ASSERT_TRUE(root.started());
   root.emitter().start();
@@ -927,7 +927,7 @@ TEST(AggregatorService, RelayedChunkCarriesTheRootsAnswerBackToTheEdge) {
   FakeClock mid_clock(at(1, 5));
   AggregatorConfig root_config = rootConfig(Mode::kBaseline, {});
   root_config.levels = 2;
-  root_config.children = {{101, {1}}};
+  root_config.children = {{101, {1}, "agg-101"}};
   AggregatorServer root(root_config, root_clock);
   ASSERT_TRUE(root.started());
   AggregatorConfig mid_config = rootConfig(Mode::kBaseline, {1});

@@ -60,7 +60,7 @@ Cluster makeCluster(std::uint32_t leaves) {
   root.levels = leaves == 0 ? 1 : 2;
   if (leaves == 0) {
     for (std::uint32_t edge = 1; edge <= kEdges; ++edge) {
-      root.children.push_back({edge, {edge}});
+      root.children.push_back({edge, {edge}, {}});
       cluster.parent[edge] = kRoot;
     }
   } else {
@@ -70,11 +70,11 @@ Cluster makeCluster(std::uint32_t leaves) {
       config.node = kRoot + 1 + leaf;
       std::vector<std::uint32_t> sensors;
       for (std::uint32_t edge = 1 + leaf * per_leaf; edge <= (leaf + 1) * per_leaf; ++edge) {
-        config.children.push_back({edge, {edge}});
+        config.children.push_back({edge, {edge}, {}});
         cluster.parent[edge] = config.node;
         sensors.push_back(edge);
       }
-      root.children.push_back({config.node, sensors});
+      root.children.push_back({config.node, sensors, {}});
       cluster.parent[config.node] = kRoot;
       cluster.aggregators.emplace(config.node, std::move(MergeAggregator::create(config)).value());
     }
