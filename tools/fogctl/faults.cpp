@@ -9,6 +9,7 @@
 #include <deque>
 #include <fstream>
 #include <iomanip>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <random>
@@ -512,11 +513,19 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
   std::set<std::string> restarted;
   std::optional<std::int64_t> heal_ns;
   struct FaultWindow {
+    std::string node;
     std::set<std::uint32_t> sensors;
     std::uint64_t first_epoch = 0;
     std::uint64_t last_epoch = 0;
   };
   std::vector<FaultWindow> windows;
+  const auto closeWindow = [&](const std::string& node, std::int64_t heal) {
+    const std::int64_t settle_ns = static_cast<std::int64_t>(
+        (2000.0 + topology.admission.window_periods * topology.period_ms) * 1e6);  // ParentLink backoff cap
+    for (FaultWindow& w : windows) {
+      if (w.node == node && w.last_epoch == std::numeric_limits<std::uint64_t>::max()) w.last_epoch = schedule->epochAt(heal + settle_ns);
+    }
+  };
   std::map<std::string, std::int64_t> rss_warm;
   std::vector<std::pair<std::string, std::int64_t>> kills;    // node, time: for missing notices
   std::vector<std::pair<std::string, std::int64_t>> restarts; // edge restarts, for rejoin times
@@ -547,12 +556,15 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
         }
         down.insert(a.node);
         kills.emplace_back(a.node, now);
-        if (a.what == "kill" && config->role == Role::kAggregator) {
-          // Maps it acknowledged for epochs it had not emitted yet die with it.
+        if (config->role == Role::kAggregator) {
+          // Maps it acknowledged for epochs it had not emitted yet die with it (kill), and maps the
+          // aggregators below it acknowledged meanwhile wait in their links until they are too old
+          // to be admitted: until the heal, plus the link's backoff cap and the admission window.
           const auto emit_ns = static_cast<std::int64_t>(
               (topology.deadline_ms * topology.aggregatorLevels(a.node) + topology.period_ms) * 1e6);
           const auto below = topology.sensorsBelow(a.node);
-          windows.push_back({{below.begin(), below.end()}, schedule->epochAt(now - emit_ns), schedule->epochAt(now) + 1});
+          windows.push_back({a.node, {below.begin(), below.end()}, schedule->epochAt(now - emit_ns),
+                             std::numeric_limits<std::uint64_t>::max()});
         }
         if (a.what == "stop") {
           stopped_at[a.node] = now;
@@ -571,6 +583,7 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
         }
         down.erase(a.node);
         heal_ns = now;
+        closeWindow(a.node, now);
       } else if (a.what == "restart") {
         auto again = restartNode(*cluster, topology, a.node, 10s, options);
         if (!again) {
@@ -580,7 +593,10 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
         down.erase(a.node);
         restarted.insert(a.node);
         if (config->role == Role::kEdge) restarts.emplace_back(a.node, now);
-        if (config->role == Role::kAggregator) heal_ns = now;
+        if (config->role == Role::kAggregator) {
+          heal_ns = now;
+          closeWindow(a.node, now);
+        }
       }
     }
     if (failure) break;
@@ -829,7 +845,7 @@ std::string summary(const FaultReport& r) {
     << r.publications << " publications\n";
   o << "  maps: " << r.maps_sent << " sent, " << r.maps_acknowledged << " acknowledged, " << r.maps_refused
     << " refused, " << r.maps_unsettled << " unsettled; " << r.maps_lost << " lost, " << r.maps_lost_in_fault
-    << " lost with a killed aggregator; " << r.applied_twice << " applied twice (" << r.duplicates_recognised
+    << " lost in the faulty subtree during the fault; " << r.applied_twice << " applied twice (" << r.duplicates_recognised
     << " re-sent copies recognised)\n";
   o << "  oracle: " << r.publications_mismatched << " of " << r.publications_checked
     << " global maps differ from the specification\n";

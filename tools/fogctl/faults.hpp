@@ -98,7 +98,9 @@ struct FaultReport {
   std::uint64_t maps_refused = 0;
   std::uint64_t maps_unsettled = 0;      // dropped, or abandoned by a stopped edge
   std::uint64_t maps_lost = 0;           // acknowledged, absent at the root, outside any fault window
-  std::uint64_t maps_lost_in_fault = 0;  // acknowledged by an aggregator killed before emitting them
+  // Acknowledged in the subtree of a killed or stopped aggregator during the fault: by it before
+  // it was killed, or by the aggregators below it, whose uploads waited until too old to admit.
+  std::uint64_t maps_lost_in_fault = 0;
   std::uint64_t applied_twice = 0;
   std::uint64_t duplicates_recognised = 0;  // re-sent copies the aggregators recognised (metrics)
 
