@@ -559,8 +559,26 @@ void MergeAggregator::forgetOldEpochs(std::int64_t now_ns) {
   }
 }
 
+void MergeAggregator::openSilentEpochs(std::int64_t now_ns) {
+  // The root publishes every epoch, with every sensor missing when nothing came: a silent map is
+  // news (every child dead or cut off), silence from the root is not. Epochs from the first poll
+  // on, and only within the admission window: after a stall of the root itself, older ones are
+  // not invented.
+  const std::int64_t due_ns = now_ns - static_cast<std::int64_t>(config_.levels) * schedule_.deadlineNs();
+  if (due_ns <= 0) return;
+  const std::uint64_t last_due = schedule_.epochAt(due_ns);  // the latest epoch whose deadline has passed
+  if (!silent_from_) silent_from_ = last_due + 1;
+  const std::uint64_t window_epochs = static_cast<std::uint64_t>(windowNs() / schedule_.periodNs()) + 1;
+  std::uint64_t from = std::max(*silent_from_, last_due > window_epochs ? last_due - window_epochs : 0);
+  for (std::uint64_t e = from; e <= last_due; ++e) {
+    if (!pending_.contains(e) && !emitted_.contains(e)) openEpoch(e);
+  }
+  silent_from_ = std::max(*silent_from_, last_due + 1);
+}
+
 std::vector<EpochOutput> MergeAggregator::poll(std::int64_t now_ns) {
   std::vector<EpochOutput> outputs;
+  if (config_.is_root) openSilentEpochs(now_ns);
   for (auto it = pending_.begin(); it != pending_.end();) {
     // Never before the epoch has begun: an early upload cannot make an epoch look complete.
     const bool begun = now_ns >= schedule_.startNs(it->first);

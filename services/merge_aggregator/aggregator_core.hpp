@@ -229,6 +229,7 @@ class MergeAggregator {
   };
 
   explicit MergeAggregator(AggregatorConfig config, EpochSchedule schedule);
+  std::optional<std::uint64_t> silent_from_;  // the root: first epoch not yet checked for silence
 
   std::optional<std::uint32_t> childOf(std::uint32_t node) const;
   bool isLive(const Child& child, std::int64_t now_ns) const;
@@ -242,6 +243,8 @@ class MergeAggregator {
   std::optional<Refused> checkEllipsoids(std::uint32_t child, const MapMessage& message, const Epoch* epoch,
                                          const std::string& what) const;
   Epoch& openEpoch(std::uint64_t epoch);
+  // The root: opens, empty, the epochs whose deadline passed without any upload.
+  void openSilentEpochs(std::int64_t now_ns);
   void mergeInto(Epoch& epoch, const MapMessage& message);
   bool isComplete(const Epoch& epoch, std::int64_t now_ns) const;
   EpochOutput emit(std::uint64_t epoch_id, Epoch& epoch, bool complete, std::int64_t now_ns);
