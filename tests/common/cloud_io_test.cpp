@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <initializer_list>
+#include <iterator>
 #include <limits>
 #include <random>
 #include <string>
@@ -364,6 +365,32 @@ TEST_F(CloudIo, RejectsPcdWithGarbageHeader) {
   // PCL would stop its header at this line and read zero points.
   const fs::path blank = writeBytes("blank.pcd", "VERSION 0.7\n \t\n" + kXyzFields + "POINTS 1\nDATA ascii\n1 2 3\n");
   expectRejected(readPcd(blank), blank, {"unparseable PCD header", "line 2 holds only whitespace"});
+}
+
+TEST_F(CloudIo, ParsesBytesInMemoryAsTheFileReadersDo) {
+  const fs::path kitti = file("scan.bin");
+  const fs::path pcd = file("scan.pcd");
+  ASSERT_TRUE(writeKittiBin(kitti, sampleCloud()).ok());
+  ASSERT_TRUE(writePcd(pcd, sampleCloud()).ok());
+  const auto bytesOf = [](const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  };
+  const Expected<LoadedCloud> from_kitti = parseKittiBin(bytesOf(kitti), "memory");
+  ASSERT_TRUE(from_kitti.ok()) << from_kitti.error().message;
+  expectSamePoints(from_kitti->points, sampleCloud());
+  const Expected<LoadedCloud> from_pcd = parsePcd(bytesOf(pcd), "memory");
+  ASSERT_TRUE(from_pcd.ok()) << from_pcd.error().message;
+  expectSamePoints(from_pcd->points, sampleCloud());
+
+  // Errors start with the name given; the size bound holds as for files.
+  const Expected<LoadedCloud> empty = parseNuscenesBin("", "sweep 7");
+  ASSERT_FALSE(empty.ok());
+  EXPECT_EQ(empty.error().message, "sweep 7: the file is empty (0 bytes)");
+  const Expected<LoadedCloud> large = parseKittiBin(bytesOf(kitti), "memory", ReadLimits{.max_bytes = 16});
+  ASSERT_FALSE(large.ok());
+  EXPECT_NE(large.error().message.find("more than the scan size bound of 16 bytes"), std::string::npos)
+      << large.error().message;
 }
 
 TEST_F(CloudIo, ReadsAsciiPcdWithCrlfLineEndings) {
