@@ -198,6 +198,7 @@ Expected<PcdHeader> parsePcdHeader(const std::string& name, std::string_view tex
   std::optional<std::uint64_t> height;
   std::optional<std::uint64_t> points;
   std::optional<std::string_view> data;
+  std::vector<std::string_view> seen;  // header lines read so far (COLUMNS counts as FIELDS)
 
   std::size_t pos = 0;
   for (int line_number = 1; !data; ++line_number) {
@@ -225,6 +226,17 @@ Expected<PcdHeader> parsePcdHeader(const std::string& name, std::string_view tex
     };
 
     if (key == "VERSION") continue;
+    // PCL sizes its point buffer when it reads POINTS, from the fields it has read by then, and
+    // takes the last of repeated lines: a field line after POINTS would make it write past the
+    // buffer. So every line comes once, and POINTS after the field lines.
+    const std::string_view kind = key == "COLUMNS" ? "FIELDS" : key;
+    if (std::find(seen.begin(), seen.end(), kind) != seen.end()) {
+      return unparseable(std::string(kind) + " appears twice (line " + std::to_string(line_number) + ")");
+    }
+    seen.push_back(kind);
+    if (points && (kind == "FIELDS" || kind == "SIZE" || kind == "TYPE" || kind == "COUNT")) {
+      return unparseable(std::string(kind) + " comes after POINTS (the fields must come first)");
+    }
     if (key == "FIELDS" || key == "COLUMNS") {
       names = values;
     } else if (key == "SIZE") {
@@ -269,7 +281,9 @@ Expected<PcdHeader> parsePcdHeader(const std::string& name, std::string_view tex
     return unparseable("FIELDS, SIZE and TYPE must list the same number of entries (" + std::to_string(names.size()) +
                        ", " + std::to_string(sizes.size()) + ", " + std::to_string(types.size()) + ")");
   }
-  if (!counts.empty() && counts.size() != names.size()) {
+  // Without a COUNT line every field holds one value; with one, it lists a count per field.
+  const bool has_counts = std::find(seen.begin(), seen.end(), "COUNT") != seen.end();
+  if (has_counts && counts.size() != names.size()) {
     return unparseable("COUNT lists " + std::to_string(counts.size()) + " entries for " +
                        std::to_string(names.size()) + " fields");
   }
@@ -277,14 +291,14 @@ Expected<PcdHeader> parsePcdHeader(const std::string& name, std::string_view tex
     PcdField field;
     field.name = std::string(names[i]);
     const std::optional<std::uint64_t> size = parseUnsigned(sizes[i]);
-    const std::optional<std::uint64_t> count = counts.empty() ? std::optional<std::uint64_t>{1} : parseUnsigned(counts[i]);
+    const std::optional<std::uint64_t> count = has_counts ? parseUnsigned(counts[i]) : std::optional<std::uint64_t>{1};
     if (!size || types[i].size() != 1 || !isValidFieldType(types[i].front(), *size)) {
       return unparseable("field '" + printable(names[i]) + "' has an invalid SIZE/TYPE '" + printable(sizes[i]) +
                          "'/'" + printable(types[i]) + "'");
     }
     if (!count || *count == 0 || *count > 1'000'000) {
       return unparseable("field '" + printable(names[i]) + "' has an invalid COUNT '" +
-                         printable(counts.empty() ? "" : counts[i]) + "'");
+                         printable(has_counts ? counts[i] : "") + "'");
     }
     field.size = static_cast<std::size_t>(*size);
     field.type = types[i].front();
@@ -297,7 +311,8 @@ Expected<PcdHeader> parsePcdHeader(const std::string& name, std::string_view tex
   if (width || height) {
     const std::uint64_t w = width.value_or(0);
     const std::uint64_t h = height.value_or(1);
-    if (w * h != header.points) {
+    const bool overflows = h != 0 && w > std::numeric_limits<std::uint64_t>::max() / h;
+    if (overflows || w * h != header.points) {
       return badFile(name, "PCD header count mismatch: WIDTH x HEIGHT = " + std::to_string(w) + " x " +
                                std::to_string(h) + " but POINTS = " + std::to_string(header.points));
     }
@@ -348,6 +363,11 @@ Expected<std::size_t> checkPcdData(const std::string& name, const PcdHeader& hea
       return checkBinaryDataSize(name, bytes, header.data_offset, header.points * step, header.points, "point data");
 
     case PcdData::kBinaryCompressed: {
+      // PCL 1.13 unpacks such files into a buffer without the padding but reads them with it.
+      if (header.hasField("_")) {
+        return badFile(name, "binary_compressed PCD files with padding ('_') fields are not supported; "
+                             "save the cloud as binary or ascii");
+      }
       // Layout: uint32 compressed size, uint32 uncompressed size, LZF block.
       if (body.size() < 8) {
         return badFile(name, "PCD data is truncated: binary_compressed data needs an 8-byte size prefix but the file "
@@ -425,6 +445,41 @@ float fieldValue(const std::uint8_t* at, std::uint8_t datatype) {
   }
 }
 
+// PCL's datatype for a field fogmap's header check accepted (isValidFieldType).
+std::uint8_t pclDatatype(const PcdField& field) {
+  switch (field.type) {
+    case 'F': return field.size == 4 ? pcl::PCLPointField::FLOAT32 : pcl::PCLPointField::FLOAT64;
+    case 'I':
+      return field.size == 1 ? pcl::PCLPointField::INT8
+             : field.size == 2 ? pcl::PCLPointField::INT16
+             : field.size == 4 ? pcl::PCLPointField::INT32
+                               : pcl::PCLPointField::INT64;
+    default:
+      return field.size == 1 ? pcl::PCLPointField::UINT8
+             : field.size == 2 ? pcl::PCLPointField::UINT16
+             : field.size == 4 ? pcl::PCLPointField::UINT32
+                               : pcl::PCLPointField::UINT64;
+  }
+}
+
+// PCL fills the buffer it sized from its own reading of the header: it may decode only when that
+// reading is fogmap's (fields, their layout, the point count), or it could write past the buffer.
+bool sameLayout(const PcdHeader& header, const pcl::PCLPointCloud2& cloud) {
+  if (cloud.fields.size() != header.fields.size() || cloud.point_step != header.pointStep()) return false;
+  std::size_t offset = 0;
+  for (std::size_t i = 0; i < header.fields.size(); ++i) {
+    const PcdField& field = header.fields[i];
+    const pcl::PCLPointField& decoded = cloud.fields[i];
+    if (decoded.name != field.name || decoded.offset != offset || decoded.count != field.count ||
+        decoded.datatype != pclDatatype(field)) {
+      return false;
+    }
+    offset += field.size * field.count;
+  }
+  return std::uint64_t{cloud.width} * cloud.height == header.points &&
+         cloud.data.size() == header.points * header.pointStep();
+}
+
 const pcl::PCLPointField* findField(const pcl::PCLPointCloud2& cloud, std::string_view name) {
   for (const pcl::PCLPointField& f : cloud.fields) {
     if (f.name == name) return &f;
@@ -478,16 +533,14 @@ Expected<LoadedCloud> parsePcd(std::string_view bytes, const std::string& name, 
     std::istringstream header_text(std::string(bytes.substr(0, header->data_offset)), std::ios::binary);
     result = reader.readHeader(header_text, cloud, origin, orientation, version, data_type, data_idx);
     const int expected_type = header->data == PcdData::kAscii ? 0 : header->data == PcdData::kBinary ? 1 : 2;
-    if (result >= 0 && (data_idx != header->data_offset || data_type != expected_type)) {
+    if (result >= 0 && (data_idx != header->data_offset || data_type != expected_type || !sameLayout(*header, cloud))) {
       return badFile(name, "PCL read the PCD header differently from fogmap");
     }
     if (result >= 0 && data_type == 0) {
       std::istringstream body(std::string(bytes.substr(data_idx)));
       result = reader.readBodyASCII(body, cloud, version);
     } else if (result >= 0) {
-      // PCL copies the data size its own header reading computed; it must lie within the bytes.
-      const std::uint64_t needed = data_type == 1 ? cloud.data.size() : 8;
-      if (needed > bytes.size() - data_idx) return badFile(name, "PCL read the PCD header differently from fogmap");
+      // Within the bytes: checkPcdData measured the data against the layout PCL now shares.
       result = reader.readBodyBinary(reinterpret_cast<const unsigned char*>(bytes.data()), cloud, version,
                                      data_type == 2, data_idx);
     }
@@ -495,6 +548,9 @@ Expected<LoadedCloud> parsePcd(std::string_view bytes, const std::string& name, 
     return badFile(name, std::string("PCL could not read the PCD file: ") + e.what());
   } catch (...) {
     return badFile(name, "PCL could not read the PCD file");
+  }
+  if (result < 0 && header->data == PcdData::kBinaryCompressed) {
+    return badFile(name, "the binary_compressed data does not decompress (a corrupt LZF block)");
   }
   if (result < 0) return badFile(name, "PCL could not read the PCD file");
 
