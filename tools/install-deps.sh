@@ -10,6 +10,7 @@ packages=(
   prometheus-cpp-dev libyaml-cpp-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   prometheus
+  clang libclang-rt-14-dev  # tools/fuzz.sh: libFuzzer, AddressSanitizer and UBSan runtimes
 )
 
 missing=()
