@@ -3,6 +3,7 @@
 #include <arpa/inet.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <fstream>
 #include <functional>
@@ -111,6 +112,23 @@ Expected<Eigen::Vector3d> vec3(const YAML::Node& node, const std::string& key, c
   }
   if (!out.allFinite()) return bad(where + "." + key, "values must be finite");
   return out;
+}
+
+// A topology's and its nodes' names become file names (the state directory, logs, pid files),
+// command-line words and metric labels: letters, digits, '.', '_' and '-', not starting with '.'.
+Status checkName(const std::string& name, const std::string& where) {
+  constexpr std::size_t kMaxChars = 64;
+  const bool valid = !name.empty() && name.size() <= kMaxChars && name.front() != '.' &&
+                     std::all_of(name.begin(), name.end(), [](char c) {
+                       return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' ||
+                              c == '_' || c == '-';
+                     });
+  if (valid) return {};
+  std::string shown;
+  for (const char c : name.substr(0, kMaxChars)) shown += std::isprint(static_cast<unsigned char>(c)) ? c : '?';
+  return bad(where, "'" + shown + (name.size() > kMaxChars ? "...'" : "'") + " is not a name: use 1 to " +
+                        std::to_string(kMaxChars) + " letters, digits, '.', '_' or '-', not starting with '.' "
+                        "(names become file names and metric labels)");
 }
 
 Expected<Mode> parseMode(const std::string& s) {
@@ -259,6 +277,7 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
   TopologyConfig t;
   const auto name = scalar<std::string>(root, "name", "", "topology");
   if (!name) return name.error();
+  if (const Status s = checkName(*name, "name"); !s) return s.error();
   t.name = *name;
   const auto mode = scalar<std::string>(root, "mode", "", "madc");
   if (!mode) return mode.error();
@@ -390,6 +409,7 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
     const auto node_name = scalar<std::string>(n, "name", where, "");
     if (!node_name) return node_name.error();
     if (node_name->empty()) return bad(where + ".name", "is required");
+    if (const Status s = checkName(*node_name, where + ".name"); !s) return s.error();
     node.name = *node_name;
     const auto id = scalar<long long>(n, "id", where, -1);
     if (!id) return id.error();

@@ -74,8 +74,9 @@ struct TopologyConfig {
   std::vector<std::uint32_t> sensorsBelow(const std::string& name) const;
 };
 
-// Parses and validates (unique names, ids and ports; exactly one root; parents exist and are
-// aggregators; no cycles; edges have sensors). Relative sensor paths resolve against `base_dir`.
+// Parses and validates (names of letters, digits, '.', '_', '-'; unique names, ids and ports;
+// exactly one root; parents exist and are aggregators; no cycles; edges have sensors). Relative
+// sensor paths resolve against `base_dir`.
 // Hosts must be IPv4 addresses; madc and admission values are checked by common/admission.hpp.
 Expected<TopologyConfig> parseTopology(const std::string& yaml_text, const std::filesystem::path& base_dir);
 Expected<TopologyConfig> loadTopology(const std::filesystem::path& path);

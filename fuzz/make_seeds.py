@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """Writes the seed corpus under fuzz/corpus/<target>/ (the files are committed; run this only to
-change them). Real points are cut from data/kitti_raw_seq_a/0000000000.bin (see corpus/README.md).
+change them). Files named found_* are reproducers of findings, copied in by hand, and kept. Real
+points are cut from data/kitti_raw_seq_a/0000000000.bin (see corpus/README.md).
 Usage: fuzz/make_seeds.py  (from anywhere; plain Python 3, no packages)."""
 import pathlib
 import shutil
@@ -448,9 +449,10 @@ nodes:
 def main():
     for target in ("fuzz_kitti", "fuzz_nuscenes", "fuzz_pcd", "fuzz_upload", "fuzz_topology"):
         directory = CORPUS / target
-        if directory.exists():
-            shutil.rmtree(directory)
-        directory.mkdir(parents=True)
+        directory.mkdir(parents=True, exist_ok=True)
+        for seed in directory.iterdir():
+            if not seed.name.startswith("found_"):  # reproducers of findings are kept as they are
+                seed.unlink()
     float_record_seeds("fuzz_kitti", kitti, 16)
     float_record_seeds("fuzz_nuscenes", nuscenes, 20)
     pcd_seeds()
