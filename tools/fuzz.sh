@@ -85,9 +85,13 @@ for target in "${targets[@]}"; do
     -max_len="${max_len[$target]}" -rss_limit_mb=2048 -malloc_limit_mb=2048 -timeout=10 \
     -artifact_prefix="$findings/" -print_final_stats=1 "${parallel[@]}" >"$log" 2>&1 || status=$?
 
-  runs="$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1)"
-  if [ -z "$runs" ]; then runs="$(grep -oE '^#[0-9]+' "$log" | tail -1 | tr -d '#')"; fi
-  per_second="$(grep -o 'stat::average_exec_per_sec: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1)"
+  # Final stats, or (fork mode prints none) the last status line's count.
+  runs="$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1 || true)"
+  per_second="$(grep -o 'stat::average_exec_per_sec: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1 || true)"
+  if [ -z "$runs" ]; then
+    runs="$(grep -oE '^#[0-9]+' "$log" | tail -1 | tr -d '#' || true)"
+    [ -n "$runs" ] && per_second=$((runs / seconds))
+  fi
   inputs="$(find "$corpus" "fuzz/corpus/$target" -type f | wc -l)"
   new=()
   while IFS= read -r file; do new+=("$file"); done < <(find "$findings" -type f -newer "$marker" | sort)
@@ -99,7 +103,8 @@ for target in "${targets[@]}"; do
     found=1
     verdict="FINDING (exit $status)"
     echo "fuzz.sh: $target found something:"
-    grep -E 'ERROR: |SUMMARY: |runtime error|property violated|out-of-memory|Timeout|deadly signal' "$log" | head -8 | sed 's/^/    /'
+    grep -E 'ERROR: |SUMMARY: |runtime error|property violated|out-of-memory|Timeout|deadly signal' "$log" |
+      head -8 | sed 's/^/    /' || true
     for file in "${new[@]}"; do echo "    reproduce: $build/bin/$target $file"; done
     [ ${#new[@]} -gt 0 ] || echo "    no reproducer was written; see $log"
   fi
