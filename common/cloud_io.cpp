@@ -10,6 +10,7 @@
 #include <fstream>
 #include <limits>
 #include <optional>
+#include <sstream>
 #include <string>
 #include <string_view>
 #include <system_error>
@@ -33,9 +34,8 @@ static_assert(sizeof(Point) == 4 * sizeof(float), "Point must be four packed flo
 constexpr std::size_t kKittiRecordBytes = 16;     // x y z reflectance
 constexpr std::size_t kNuscenesRecordBytes = 20;  // x y z intensity ring
 
-Error badFile(const fs::path& path, const std::string& problem) {
-  return invalidArgument(path.string() + ": " + problem);
-}
+// `name` is the file's path, or whatever the caller named the bytes by.
+Error badFile(const std::string& name, const std::string& problem) { return invalidArgument(name + ": " + problem); }
 
 // Appends a decoded point, or counts it as non-finite and drops it unless the caller keeps them.
 void addPoint(LoadedCloud& loaded, const Point& p, const ReadLimits& limits) {
@@ -49,18 +49,20 @@ void addPoint(LoadedCloud& loaded, const Point& p, const ReadLimits& limits) {
   }
 }
 
+Error tooLarge(const std::string& name, std::uintmax_t size, const ReadLimits& limits) {
+  return badFile(name, "the file has " + std::to_string(size) + " bytes, more than the scan size bound of " +
+                           std::to_string(limits.max_bytes) + " bytes (topology max_scan_bytes)");
+}
+
 Expected<std::string> readWholeFile(const fs::path& path, const ReadLimits& limits) {
   std::error_code ec;
   const fs::file_status status = fs::status(path, ec);
   if (status.type() == fs::file_type::not_found) return notFound(path.string() + ": no such file");
   if (ec) return ioError(path.string() + ": cannot access the file: " + ec.message());
-  if (!fs::is_regular_file(status)) return badFile(path, "not a regular file");
+  if (!fs::is_regular_file(status)) return badFile(path.string(), "not a regular file");
   const std::uintmax_t size = fs::file_size(path, ec);
   if (ec) return ioError(path.string() + ": cannot get the file size: " + ec.message());
-  if (size > limits.max_bytes) {
-    return badFile(path, "the file has " + std::to_string(size) + " bytes, more than the scan size bound of " +
-                             std::to_string(limits.max_bytes) + " bytes (topology max_scan_bytes)");
-  }
+  if (size > limits.max_bytes) return tooLarge(path.string(), size, limits);
 
   std::ifstream in(path, std::ios::binary);
   if (!in) return ioError(path.string() + ": cannot open the file for reading");
@@ -74,22 +76,21 @@ Expected<std::string> readWholeFile(const fs::path& path, const ReadLimits& limi
 }
 
 // Headerless float32 records whose first four floats are x, y, z, intensity (KITTI, nuScenes).
-Expected<LoadedCloud> readFloatRecords(const fs::path& path, std::size_t record_bytes, const char* format_name,
-                                       const ReadLimits& limits) {
-  Expected<std::string> bytes = readWholeFile(path, limits);
-  if (!bytes) return bytes.error();
-  if (bytes->empty()) return badFile(path, "the file is empty (0 bytes)");
-  if (bytes->size() % record_bytes != 0) {
-    return badFile(path, "size " + std::to_string(bytes->size()) + " bytes is not a multiple of the " +
+Expected<LoadedCloud> parseFloatRecords(std::string_view bytes, const std::string& name, std::size_t record_bytes,
+                                        const char* format_name, const ReadLimits& limits) {
+  if (bytes.size() > limits.max_bytes) return tooLarge(name, bytes.size(), limits);
+  if (bytes.empty()) return badFile(name, "the file is empty (0 bytes)");
+  if (bytes.size() % record_bytes != 0) {
+    return badFile(name, "size " + std::to_string(bytes.size()) + " bytes is not a multiple of the " +
                              std::to_string(record_bytes) + "-byte " + format_name + " point record (" +
-                             std::to_string(bytes->size() % record_bytes) +
+                             std::to_string(bytes.size() % record_bytes) +
                              " bytes left over): the file is truncated or has trailing data");
   }
 
-  const std::size_t count = bytes->size() / record_bytes;
+  const std::size_t count = bytes.size() / record_bytes;
   LoadedCloud loaded;
   loaded.points.reserve(count);
-  const char* record = bytes->data();
+  const char* record = bytes.data();
   for (std::size_t i = 0; i < count; ++i, record += record_bytes) {
     Point p;
     std::memcpy(&p, record, sizeof(Point));
@@ -183,8 +184,8 @@ bool isValidFieldType(char type, std::size_t size) {
   }
 }
 
-Expected<PcdHeader> parsePcdHeader(const fs::path& path, std::string_view text) {
-  const auto unparseable = [&](const std::string& why) { return badFile(path, "unparseable PCD header: " + why); };
+Expected<PcdHeader> parsePcdHeader(const std::string& name, std::string_view text) {
+  const auto unparseable = [&](const std::string& why) { return badFile(name, "unparseable PCD header: " + why); };
 
   PcdHeader header;
   std::vector<std::string_view> names;
@@ -195,6 +196,7 @@ Expected<PcdHeader> parsePcdHeader(const fs::path& path, std::string_view text) 
   std::optional<std::uint64_t> height;
   std::optional<std::uint64_t> points;
   std::optional<std::string_view> data;
+  std::vector<std::string_view> seen;  // header lines read so far (COLUMNS counts as FIELDS)
 
   std::size_t pos = 0;
   for (int line_number = 1; !data; ++line_number) {
@@ -222,6 +224,17 @@ Expected<PcdHeader> parsePcdHeader(const fs::path& path, std::string_view text) 
     };
 
     if (key == "VERSION") continue;
+    // PCL sizes its point buffer when it reads POINTS, from the fields it has read by then, and
+    // takes the last of repeated lines: a field line after POINTS would make it write past the
+    // buffer. So every line comes once, and POINTS after the field lines.
+    const std::string_view kind = key == "COLUMNS" ? "FIELDS" : key;
+    if (std::find(seen.begin(), seen.end(), kind) != seen.end()) {
+      return unparseable(std::string(kind) + " appears twice (line " + std::to_string(line_number) + ")");
+    }
+    seen.push_back(kind);
+    if (points && (kind == "FIELDS" || kind == "SIZE" || kind == "TYPE" || kind == "COUNT")) {
+      return unparseable(std::string(kind) + " comes after POINTS (the fields must come first)");
+    }
     if (key == "FIELDS" || key == "COLUMNS") {
       names = values;
     } else if (key == "SIZE") {
@@ -266,7 +279,9 @@ Expected<PcdHeader> parsePcdHeader(const fs::path& path, std::string_view text) 
     return unparseable("FIELDS, SIZE and TYPE must list the same number of entries (" + std::to_string(names.size()) +
                        ", " + std::to_string(sizes.size()) + ", " + std::to_string(types.size()) + ")");
   }
-  if (!counts.empty() && counts.size() != names.size()) {
+  // Without a COUNT line every field holds one value; with one, it lists a count per field.
+  const bool has_counts = std::find(seen.begin(), seen.end(), "COUNT") != seen.end();
+  if (has_counts && counts.size() != names.size()) {
     return unparseable("COUNT lists " + std::to_string(counts.size()) + " entries for " +
                        std::to_string(names.size()) + " fields");
   }
@@ -274,14 +289,14 @@ Expected<PcdHeader> parsePcdHeader(const fs::path& path, std::string_view text) 
     PcdField field;
     field.name = std::string(names[i]);
     const std::optional<std::uint64_t> size = parseUnsigned(sizes[i]);
-    const std::optional<std::uint64_t> count = counts.empty() ? std::optional<std::uint64_t>{1} : parseUnsigned(counts[i]);
+    const std::optional<std::uint64_t> count = has_counts ? parseUnsigned(counts[i]) : std::optional<std::uint64_t>{1};
     if (!size || types[i].size() != 1 || !isValidFieldType(types[i].front(), *size)) {
       return unparseable("field '" + printable(names[i]) + "' has an invalid SIZE/TYPE '" + printable(sizes[i]) +
                          "'/'" + printable(types[i]) + "'");
     }
     if (!count || *count == 0 || *count > 1'000'000) {
       return unparseable("field '" + printable(names[i]) + "' has an invalid COUNT '" +
-                         printable(counts.empty() ? "" : counts[i]) + "'");
+                         printable(has_counts ? counts[i] : "") + "'");
     }
     field.size = static_cast<std::size_t>(*size);
     field.type = types[i].front();
@@ -294,14 +309,15 @@ Expected<PcdHeader> parsePcdHeader(const fs::path& path, std::string_view text) 
   if (width || height) {
     const std::uint64_t w = width.value_or(0);
     const std::uint64_t h = height.value_or(1);
-    if (w * h != header.points) {
-      return badFile(path, "PCD header count mismatch: WIDTH x HEIGHT = " + std::to_string(w) + " x " +
+    const bool overflows = h != 0 && w > std::numeric_limits<std::uint64_t>::max() / h;
+    if (overflows || w * h != header.points) {
+      return badFile(name, "PCD header count mismatch: WIDTH x HEIGHT = " + std::to_string(w) + " x " +
                                std::to_string(h) + " but POINTS = " + std::to_string(header.points));
     }
   }
   for (const char* axis : {"x", "y", "z"}) {
     if (!header.hasField(axis)) {
-      return badFile(path, std::string("PCD file has no '") + axis + "' field (x, y and z are required)");
+      return badFile(name, std::string("PCD file has no '") + axis + "' field (x, y and z are required)");
     }
   }
   return header;
@@ -309,45 +325,50 @@ Expected<PcdHeader> parsePcdHeader(const fs::path& path, std::string_view text) 
 
 // Bytes after a PCD's declared data: zero padding (an export artefact PCL ignores) is counted and
 // accepted; any other byte is an error.
-Expected<std::size_t> trailingZeroBytes(const fs::path& path, std::string_view bytes, std::size_t data_end,
+Expected<std::size_t> trailingZeroBytes(const std::string& name, std::string_view bytes, std::size_t data_end,
                                         std::uint64_t points) {
   const std::string_view tail = bytes.substr(data_end);
   const std::size_t non_zero = tail.find_first_not_of('\0');
   if (non_zero == std::string_view::npos) return tail.size();
-  return badFile(path, "PCD file has " + std::to_string(tail.size()) + " bytes of trailing data after the " +
+  return badFile(name, "PCD file has " + std::to_string(tail.size()) + " bytes of trailing data after the " +
                            std::to_string(points) + " points the header declares, and byte " +
                            std::to_string(data_end + non_zero) + " of the file is not zero (only zero padding is accepted)");
 }
 
 // Compares the bytes from `data_start` on with the `expected` bytes the header declares; returns the
 // number of trailing zero bytes.
-Expected<std::size_t> checkBinaryDataSize(const fs::path& path, std::string_view bytes, std::size_t data_start,
+Expected<std::size_t> checkBinaryDataSize(const std::string& name, std::string_view bytes, std::size_t data_start,
                                           std::uint64_t expected, std::uint64_t points, const char* what) {
   const std::uint64_t available = bytes.size() - data_start;
   if (available < expected) {
-    return badFile(path, "PCD data is truncated: the header declares " + std::to_string(points) + " points (" +
+    return badFile(name, "PCD data is truncated: the header declares " + std::to_string(points) + " points (" +
                              std::to_string(expected) + " bytes of " + what + ") but the file holds only " +
                              std::to_string(available) + " bytes");
   }
-  return trailingZeroBytes(path, bytes, data_start + static_cast<std::size_t>(expected), points);
+  return trailingZeroBytes(name, bytes, data_start + static_cast<std::size_t>(expected), points);
 }
 
 // Checks the data against the header; returns the number of trailing zero bytes.
-Expected<std::size_t> checkPcdData(const fs::path& path, const PcdHeader& header, std::string_view bytes) {
+Expected<std::size_t> checkPcdData(const std::string& name, const PcdHeader& header, std::string_view bytes) {
   const std::string_view body = bytes.substr(header.data_offset);
   const std::uint64_t step = header.pointStep();
   if (header.points > std::numeric_limits<std::uint64_t>::max() / std::max<std::uint64_t>(step, 1)) {
-    return badFile(path, "PCD header declares an impossible number of points (" + std::to_string(header.points) + ")");
+    return badFile(name, "PCD header declares an impossible number of points (" + std::to_string(header.points) + ")");
   }
 
   switch (header.data) {
     case PcdData::kBinary:
-      return checkBinaryDataSize(path, bytes, header.data_offset, header.points * step, header.points, "point data");
+      return checkBinaryDataSize(name, bytes, header.data_offset, header.points * step, header.points, "point data");
 
     case PcdData::kBinaryCompressed: {
+      // PCL 1.13 unpacks such files into a buffer without the padding but reads them with it.
+      if (header.hasField("_")) {
+        return badFile(name, "binary_compressed PCD files with padding ('_') fields are not supported; "
+                             "save the cloud as binary or ascii");
+      }
       // Layout: uint32 compressed size, uint32 uncompressed size, LZF block.
       if (body.size() < 8) {
-        return badFile(path, "PCD data is truncated: binary_compressed data needs an 8-byte size prefix but the file "
+        return badFile(name, "PCD data is truncated: binary_compressed data needs an 8-byte size prefix but the file "
                              "holds only " + std::to_string(body.size()) + " bytes after the header");
       }
       std::uint32_t compressed = 0;
@@ -356,12 +377,12 @@ Expected<std::size_t> checkPcdData(const fs::path& path, const PcdHeader& header
       std::memcpy(&uncompressed, body.data() + 4, 4);
       const std::uint64_t expected_uncompressed = header.points * header.pointStep(false);
       if (uncompressed != expected_uncompressed) {
-        return badFile(path, "PCD header count mismatch: the header declares " + std::to_string(header.points) +
+        return badFile(name, "PCD header count mismatch: the header declares " + std::to_string(header.points) +
                                  " points (" + std::to_string(expected_uncompressed) +
                                  " bytes) but the compressed block unpacks to " + std::to_string(uncompressed) +
                                  " bytes");
       }
-      return checkBinaryDataSize(path, bytes, header.data_offset + 8, compressed, header.points, "compressed data");
+      return checkBinaryDataSize(name, bytes, header.data_offset + 8, compressed, header.points, "compressed data");
     }
 
     case PcdData::kAscii: {
@@ -381,24 +402,24 @@ Expected<std::size_t> checkPcdData(const fs::path& path, const PcdHeader& header
         if (words.empty()) continue;
         ++lines;
         if (words.size() != values_per_point) {
-          return badFile(path, "PCD data line " + std::to_string(lines) + " has " + std::to_string(words.size()) +
+          return badFile(name, "PCD data line " + std::to_string(lines) + " has " + std::to_string(words.size()) +
                                    " values, expected " + std::to_string(values_per_point));
         }
         for (const std::string_view word : words) {
           if (!isNumber(word)) {
-            return badFile(path, "PCD data line " + std::to_string(lines) + " has a value that is not a number: '" +
+            return badFile(name, "PCD data line " + std::to_string(lines) + " has a value that is not a number: '" +
                                      printable(word) + "'");
           }
         }
       }
       if (lines != header.points) {
-        return badFile(path, "PCD header count mismatch: POINTS says " + std::to_string(header.points) +
+        return badFile(name, "PCD header count mismatch: POINTS says " + std::to_string(header.points) +
                                  " but the data has " + std::to_string(lines) + " points");
       }
       return bytes.size() - data_end;
     }
   }
-  return Error{ErrorCode::kInternal, path.string() + ": unhandled PCD data kind"};
+  return Error{ErrorCode::kInternal, name + ": unhandled PCD data kind"};
 }
 
 float fieldValue(const std::uint8_t* at, std::uint8_t datatype) {
@@ -422,6 +443,41 @@ float fieldValue(const std::uint8_t* at, std::uint8_t datatype) {
   }
 }
 
+// PCL's datatype for a field fogmap's header check accepted (isValidFieldType).
+std::uint8_t pclDatatype(const PcdField& field) {
+  switch (field.type) {
+    case 'F': return field.size == 4 ? pcl::PCLPointField::FLOAT32 : pcl::PCLPointField::FLOAT64;
+    case 'I':
+      return field.size == 1 ? pcl::PCLPointField::INT8
+             : field.size == 2 ? pcl::PCLPointField::INT16
+             : field.size == 4 ? pcl::PCLPointField::INT32
+                               : pcl::PCLPointField::INT64;
+    default:
+      return field.size == 1 ? pcl::PCLPointField::UINT8
+             : field.size == 2 ? pcl::PCLPointField::UINT16
+             : field.size == 4 ? pcl::PCLPointField::UINT32
+                               : pcl::PCLPointField::UINT64;
+  }
+}
+
+// PCL fills the buffer it sized from its own reading of the header: it may decode only when that
+// reading is fogmap's (fields, their layout, the point count), or it could write past the buffer.
+bool sameLayout(const PcdHeader& header, const pcl::PCLPointCloud2& cloud) {
+  if (cloud.fields.size() != header.fields.size() || cloud.point_step != header.pointStep()) return false;
+  std::size_t offset = 0;
+  for (std::size_t i = 0; i < header.fields.size(); ++i) {
+    const PcdField& field = header.fields[i];
+    const pcl::PCLPointField& decoded = cloud.fields[i];
+    if (decoded.name != field.name || decoded.offset != offset || decoded.count != field.count ||
+        decoded.datatype != pclDatatype(field)) {
+      return false;
+    }
+    offset += field.size * field.count;
+  }
+  return std::uint64_t{cloud.width} * cloud.height == header.points &&
+         cloud.data.size() == header.points * header.pointStep();
+}
+
 const pcl::PCLPointField* findField(const pcl::PCLPointCloud2& cloud, std::string_view name) {
   for (const pcl::PCLPointField& f : cloud.fields) {
     if (f.name == name) return &f;
@@ -437,43 +493,64 @@ Expected<CloudFormat> cloudFormatFromPath(const fs::path& path) {
   if (name.ends_with(".pcd.bin")) return CloudFormat::kNuscenesBin;
   if (name.ends_with(".bin")) return CloudFormat::kKittiBin;
   if (name.ends_with(".pcd")) return CloudFormat::kPcd;
-  return badFile(path, "unknown point cloud format (expected a .bin, .pcd.bin or .pcd file name)");
+  return badFile(path.string(), "unknown point cloud format (expected a .bin, .pcd.bin or .pcd file name)");
 }
 
-Expected<LoadedCloud> readKittiBin(const fs::path& path, const ReadLimits& limits) {
-  return readFloatRecords(path, kKittiRecordBytes, "KITTI", limits);
+Expected<LoadedCloud> parseKittiBin(std::string_view bytes, const std::string& name, const ReadLimits& limits) {
+  return parseFloatRecords(bytes, name, kKittiRecordBytes, "KITTI", limits);
 }
 
-Expected<LoadedCloud> readNuscenesBin(const fs::path& path, const ReadLimits& limits) {
-  return readFloatRecords(path, kNuscenesRecordBytes, "nuScenes", limits);
+Expected<LoadedCloud> parseNuscenesBin(std::string_view bytes, const std::string& name, const ReadLimits& limits) {
+  return parseFloatRecords(bytes, name, kNuscenesRecordBytes, "nuScenes", limits);
 }
 
-Expected<LoadedCloud> readPcd(const fs::path& path, const ReadLimits& limits) {
-  Expected<std::string> bytes = readWholeFile(path, limits);
-  if (!bytes) return bytes.error();
-  if (bytes->empty()) return badFile(path, "the file is empty (0 bytes)");
+Expected<LoadedCloud> parsePcd(std::string_view bytes, const std::string& name, const ReadLimits& limits) {
+  if (bytes.size() > limits.max_bytes) return tooLarge(name, bytes.size(), limits);
+  if (bytes.empty()) return badFile(name, "the file is empty (0 bytes)");
 
-  Expected<PcdHeader> header = parsePcdHeader(path, *bytes);
+  Expected<PcdHeader> header = parsePcdHeader(name, bytes);
   if (!header) return header.error();
-  const Expected<std::size_t> trailing_zero_bytes = checkPcdData(path, *header, *bytes);
+  const Expected<std::size_t> trailing_zero_bytes = checkPcdData(name, *header, bytes);
   if (!trailing_zero_bytes) return trailing_zero_bytes.error();
   LoadedCloud loaded;
   loaded.trailing_zero_bytes = *trailing_zero_bytes;
   if (header->points == 0) return loaded;
 
-  // PCL prints its warnings to stderr; the checks above already turned every problem we know into an error.
-  pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);
+  // PCL decodes what the checks above accepted, from these same bytes (a file is read once). It
+  // gets the header alone first, so it cannot take data for header lines.
+  pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);  // the checks above report every problem we know
   pcl::PCLPointCloud2 cloud;
   int result = -1;
   try {
     pcl::PCDReader reader;
-    result = reader.read(path.string(), cloud);
+    Eigen::Vector4f origin;
+    Eigen::Quaternionf orientation;
+    int version = 0;
+    int data_type = 0;
+    unsigned int data_idx = 0;
+    std::istringstream header_text(std::string(bytes.substr(0, header->data_offset)), std::ios::binary);
+    result = reader.readHeader(header_text, cloud, origin, orientation, version, data_type, data_idx);
+    const int expected_type = header->data == PcdData::kAscii ? 0 : header->data == PcdData::kBinary ? 1 : 2;
+    if (result >= 0 && (data_idx != header->data_offset || data_type != expected_type || !sameLayout(*header, cloud))) {
+      return badFile(name, "PCL read the PCD header differently from fogmap");
+    }
+    if (result >= 0 && data_type == 0) {
+      std::istringstream body(std::string(bytes.substr(data_idx)));
+      result = reader.readBodyASCII(body, cloud, version);
+    } else if (result >= 0) {
+      // Within the bytes: checkPcdData measured the data against the layout PCL now shares.
+      result = reader.readBodyBinary(reinterpret_cast<const unsigned char*>(bytes.data()), cloud, version,
+                                     data_type == 2, data_idx);
+    }
   } catch (const std::exception& e) {
-    return badFile(path, std::string("PCL could not read the PCD file: ") + e.what());
+    return badFile(name, std::string("PCL could not read the PCD file: ") + e.what());
   } catch (...) {
-    return badFile(path, "PCL could not read the PCD file");
+    return badFile(name, "PCL could not read the PCD file");
   }
-  if (result < 0) return badFile(path, "PCL could not read the PCD file");
+  if (result < 0 && header->data == PcdData::kBinaryCompressed) {
+    return badFile(name, "the binary_compressed data does not decompress (a corrupt LZF block)");
+  }
+  if (result < 0) return badFile(name, "PCL could not read the PCD file");
 
   const std::size_t count = static_cast<std::size_t>(cloud.width) * cloud.height;
   const pcl::PCLPointField* x = findField(cloud, "x");
@@ -481,7 +558,7 @@ Expected<LoadedCloud> readPcd(const fs::path& path, const ReadLimits& limits) {
   const pcl::PCLPointField* z = findField(cloud, "z");
   const pcl::PCLPointField* intensity = findField(cloud, "intensity");
   if (count != header->points || cloud.data.size() < count * cloud.point_step || !x || !y || !z) {
-    return badFile(path, "PCL decoded the PCD file differently from its header");
+    return badFile(name, "PCL decoded the PCD file differently from its header");
   }
 
   loaded.points.reserve(count);
@@ -495,6 +572,24 @@ Expected<LoadedCloud> readPcd(const fs::path& path, const ReadLimits& limits) {
     addPoint(loaded, p, limits);
   }
   return loaded;
+}
+
+Expected<LoadedCloud> readKittiBin(const fs::path& path, const ReadLimits& limits) {
+  const Expected<std::string> bytes = readWholeFile(path, limits);
+  if (!bytes) return bytes.error();
+  return parseKittiBin(*bytes, path.string(), limits);
+}
+
+Expected<LoadedCloud> readNuscenesBin(const fs::path& path, const ReadLimits& limits) {
+  const Expected<std::string> bytes = readWholeFile(path, limits);
+  if (!bytes) return bytes.error();
+  return parseNuscenesBin(*bytes, path.string(), limits);
+}
+
+Expected<LoadedCloud> readPcd(const fs::path& path, const ReadLimits& limits) {
+  const Expected<std::string> bytes = readWholeFile(path, limits);
+  if (!bytes) return bytes.error();
+  return parsePcd(*bytes, path.string(), limits);
 }
 
 Expected<LoadedCloud> readCloud(const fs::path& path, const ReadLimits& limits) {

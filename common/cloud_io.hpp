@@ -6,6 +6,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <string>
+#include <string_view>
 
 #include "common/cloud.hpp"
 #include "common/status.hpp"
@@ -44,6 +46,11 @@ Expected<LoadedCloud> readNuscenesBin(const std::filesystem::path& path, const R
 // Reads a PCD file with at least fields x, y, z (intensity optional). Zero bytes after the declared
 // data are accepted and counted in trailing_zero_bytes; any other trailing byte is an error.
 Expected<LoadedCloud> readPcd(const std::filesystem::path& path, const ReadLimits& limits = {});
+// The same readers over bytes already in memory (the file readers read the file and call these).
+// `name`, the file's path or whatever the bytes came from, starts every error message.
+Expected<LoadedCloud> parseKittiBin(std::string_view bytes, const std::string& name, const ReadLimits& limits = {});
+Expected<LoadedCloud> parseNuscenesBin(std::string_view bytes, const std::string& name, const ReadLimits& limits = {});
+Expected<LoadedCloud> parsePcd(std::string_view bytes, const std::string& name, const ReadLimits& limits = {});
 // Reads any supported format, chosen by cloudFormatFromPath.
 Expected<LoadedCloud> readCloud(const std::filesystem::path& path, const ReadLimits& limits = {});
 

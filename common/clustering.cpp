@@ -256,7 +256,13 @@ std::optional<SortedGrid> sortIntoGrid(std::span<const Point> points, double eps
 void joinCloseCells(const SortedGrid& g, std::span<const std::int32_t> known, float eps2, std::size_t first,
                     std::size_t last, DisjointSets& sets, std::vector<std::pair<std::uint32_t, std::uint32_t>>* joined) {
   const float gap_limit = eps2 * 1.0001F;  // slack so that rounding never drops a true pair
-  const auto& [lx, ly, lz, hx, hy, hz] = g.box;
+  // Plain references, not a structured binding: the lambdas below capture them (clang < 16).
+  const std::vector<float>& lx = g.box[0];
+  const std::vector<float>& ly = g.box[1];
+  const std::vector<float>& lz = g.box[2];
+  const std::vector<float>& hx = g.box[3];
+  const std::vector<float>& hy = g.box[4];
+  const std::vector<float>& hz = g.box[5];
 
   auto closeCells = [&](std::size_t a, std::size_t b) {
     for (auto i = g.cell_begin[a]; i < g.cell_begin[a + 1]; ++i) {

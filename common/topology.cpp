@@ -3,6 +3,7 @@
 #include <arpa/inet.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <fstream>
 #include <functional>
@@ -75,12 +76,19 @@ std::optional<TlsIdentity> TopologyConfig::tlsIdentity(const std::string& name) 
   return TlsIdentity{tls->ca, tls->cert_dir / (name + ".crt"), tls->cert_dir / (name + ".key")};
 }
 
-bool isCertificateName(const std::string& name) {
-  if (name.empty() || name.front() == '.' || name == "ca") return false;
-  return std::all_of(name.begin(), name.end(), [](char c) {
-    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' || c == '_' || c == '-';
-  });
+namespace {
+constexpr std::size_t kMaxNameChars = 64;
+}  // namespace
+
+bool isName(const std::string& name) {
+  return !name.empty() && name.size() <= kMaxNameChars && name.front() != '.' &&
+         std::all_of(name.begin(), name.end(), [](char c) {
+           return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' || c == '_' ||
+                  c == '-';
+         });
 }
+
+bool isCertificateName(const std::string& name) { return isName(name) && name != "ca"; }
 
 namespace {
 
@@ -125,6 +133,18 @@ Expected<Eigen::Vector3d> vec3(const YAML::Node& node, const std::string& key, c
   }
   if (!out.allFinite()) return bad(where + "." + key, "values must be finite");
   return out;
+}
+
+// A topology's and its nodes' names become file names (the state directory, logs, pid files),
+// command-line words and metric labels: letters, digits, '.', '_' and '-', not starting with '.'.
+Status checkName(const std::string& name, const std::string& where) {
+  constexpr std::size_t kMaxChars = kMaxNameChars;
+  if (isName(name)) return {};
+  std::string shown;
+  for (const char c : name.substr(0, kMaxChars)) shown += std::isprint(static_cast<unsigned char>(c)) ? c : '?';
+  return bad(where, "'" + shown + (name.size() > kMaxChars ? "...'" : "'") + " is not a name: use 1 to " +
+                        std::to_string(kMaxChars) + " letters, digits, '.', '_' or '-', not starting with '.' "
+                        "(names become file names and metric labels)");
 }
 
 Expected<Mode> parseMode(const std::string& s) {
@@ -335,6 +355,7 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
   TopologyConfig t;
   const auto name = scalar<std::string>(root, "name", "", "topology");
   if (!name) return name.error();
+  if (const Status s = checkName(*name, "name"); !s) return s.error();
   t.name = *name;
   const auto mode = scalar<std::string>(root, "mode", "", "madc");
   if (!mode) return mode.error();
@@ -474,6 +495,7 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
     const auto node_name = scalar<std::string>(n, "name", where, "");
     if (!node_name) return node_name.error();
     if (node_name->empty()) return bad(where + ".name", "is required");
+    if (const Status s = checkName(*node_name, where + ".name"); !s) return s.error();
     node.name = *node_name;
     const auto id = scalar<long long>(n, "id", where, -1);
     if (!id) return id.error();

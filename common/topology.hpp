@@ -102,12 +102,16 @@ struct TopologyConfig {
   std::optional<TlsIdentity> tlsIdentity(const std::string& name) const;
 };
 
+// A topology's or node's name: 1 to 64 letters, digits, '.', '_' and '-', not starting with '.'
+// (names become file names, command-line words and metric labels).
+bool isName(const std::string& name);
 // With TLS a name is also a file name (<cert_dir>/<name>.crt): letters, digits, '.', '_' and '-',
 // not starting with '.', and not "ca" (the CA's own files).
 bool isCertificateName(const std::string& name);
 
-// Parses and validates (unique names, ids and ports; exactly one root; parents exist and are
-// aggregators; no cycles; edges have sensors). Relative sensor paths resolve against `base_dir`.
+// Parses and validates (names of letters, digits, '.', '_', '-'; unique names, ids and ports;
+// exactly one root; parents exist and are aggregators; no cycles; edges have sensors). Relative
+// sensor paths resolve against `base_dir`.
 // Hosts must be IPv4 addresses; madc and admission values are checked by common/admission.hpp.
 // The optional tls section: `ca` is required, `cert_dir` and `geofence_clients` optional; a node's
 // `tls: {cert, key}` needs both keys and the top-level section. TLS files are read when a service

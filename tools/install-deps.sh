@@ -11,6 +11,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   prometheus
   iproute2 iptables
+  clang libclang-rt-14-dev  # tools/fuzz.sh: libFuzzer, AddressSanitizer and UBSan runtimes
 )
 
 missing=()

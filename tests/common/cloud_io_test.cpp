@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <initializer_list>
+#include <iterator>
 #include <limits>
 #include <random>
 #include <string>
@@ -364,6 +365,94 @@ TEST_F(CloudIo, RejectsPcdWithGarbageHeader) {
   // PCL would stop its header at this line and read zero points.
   const fs::path blank = writeBytes("blank.pcd", "VERSION 0.7\n \t\n" + kXyzFields + "POINTS 1\nDATA ascii\n1 2 3\n");
   expectRejected(readPcd(blank), blank, {"unparseable PCD header", "line 2 holds only whitespace"});
+}
+
+// Found by fuzzing: PCL sizes its point buffer when it reads POINTS, from the fields read by then,
+// so a COUNT line after POINTS made it write 200 values per point into room for 3.
+TEST_F(CloudIo, RejectsPcdWithFieldLinesAfterPoints) {
+  std::string data;
+  for (int point = 0; point < 8; ++point) {
+    for (int value = 0; value < 202; ++value) data += "1 ";
+    data += "\n";
+  }
+  const fs::path count = writeBytes("count_after_points.pcd",
+                                    "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 8\nCOUNT 1 1 200\nDATA ascii\n" + data);
+  expectRejected(readPcd(count), count, {"unparseable PCD header", "COUNT comes after POINTS"});
+
+  const fs::path size = writeBytes("size_after_points.pcd", "FIELDS x y z\nPOINTS 1\nSIZE 8 8 8\nTYPE F F F\nDATA ascii\n1 2 3\n");
+  expectRejected(readPcd(size), size, {"unparseable PCD header", "SIZE comes after POINTS"});
+}
+
+TEST_F(CloudIo, RejectsPcdWithARepeatedHeaderLine) {
+  const fs::path fields = writeBytes("fields_twice.pcd", "FIELDS a b\nCOLUMNS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\n"
+                                                         "DATA ascii\n1 2 3\n");
+  expectRejected(readPcd(fields), fields, {"unparseable PCD header", "FIELDS appears twice (line 2)"});
+  const fs::path points = writeBytes("points_twice.pcd", asciiPcd(kXyzFields + "POINTS 1\n", 2, "1 2 3\n4 5 6\n"));
+  expectRejected(readPcd(points), points, {"unparseable PCD header", "POINTS appears twice"});
+}
+
+// Found by fuzzing: WIDTH x HEIGHT wrapped around 2^64 and matched POINTS.
+TEST_F(CloudIo, RejectsPcdWhoseWidthTimesHeightOverflows) {
+  const fs::path zero = writeBytes("wraps_to_zero.pcd", "VERSION 0.7\n" + kXyzFields +
+                                                         "WIDTH 4294967296\nHEIGHT 4294967296\nPOINTS 0\nDATA ascii\n");
+  expectRejected(readPcd(zero), zero, {"count mismatch", "4294967296 x 4294967296", "POINTS = 0"});
+  const fs::path one = writeBytes("wraps_to_one.pcd", "VERSION 0.7\n" + kXyzFields +
+                                                       "WIDTH 3\nHEIGHT 12297829382473034411\nPOINTS 1\nDATA ascii\n1 2 3\n");
+  expectRejected(readPcd(one), one, {"count mismatch", "3 x 12297829382473034411", "POINTS = 1"});
+}
+
+TEST_F(CloudIo, RejectsPcdWithAnEmptyCountLine) {
+  const fs::path path = writeBytes("empty_count.pcd", asciiPcd("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT\n", 1, "1 2 3\n"));
+  expectRejected(readPcd(path), path, {"unparseable PCD header", "COUNT lists 0 entries for 3 fields"});
+}
+
+TEST_F(CloudIo, RejectsBinaryCompressedPcdWithPaddingFields) {
+  const std::string header = "VERSION 0.7\nFIELDS x _ y z\nSIZE 4 4 4 4\nTYPE F F F F\nWIDTH 1\nHEIGHT 1\nPOINTS 1\n"
+                             "DATA binary_compressed\n";
+  const fs::path path = writeBytes("padded.pcd", header + floatBytes({0, 0, 0, 0, 0}));
+  expectRejected(readPcd(path), path, {"binary_compressed", "padding ('_') fields are not supported"});
+}
+
+TEST_F(CloudIo, RejectsBinaryCompressedPcdWithACorruptBlock) {
+  const fs::path path = file("corrupt.pcd");
+  ASSERT_EQ(pcl::PCDWriter().writeBinaryCompressed(path.string(), toPcl(sampleCloud())), 0);
+  std::string bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  const std::size_t data = bytes.find("DATA binary_compressed\n");
+  ASSERT_NE(data, std::string::npos);
+  // The block's first control byte becomes a back reference to before the start of the output.
+  bytes[data + std::string("DATA binary_compressed\n").size() + 8] = static_cast<char>(0xFF);
+  const fs::path corrupt = writeBytes("corrupt_block.pcd", bytes);
+  expectRejected(readPcd(corrupt), corrupt, {"binary_compressed data does not decompress"});
+}
+
+TEST_F(CloudIo, ParsesBytesInMemoryAsTheFileReadersDo) {
+  const fs::path kitti = file("scan.bin");
+  const fs::path pcd = file("scan.pcd");
+  ASSERT_TRUE(writeKittiBin(kitti, sampleCloud()).ok());
+  ASSERT_TRUE(writePcd(pcd, sampleCloud()).ok());
+  const auto bytesOf = [](const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  };
+  const Expected<LoadedCloud> from_kitti = parseKittiBin(bytesOf(kitti), "memory");
+  ASSERT_TRUE(from_kitti.ok()) << from_kitti.error().message;
+  expectSamePoints(from_kitti->points, sampleCloud());
+  const Expected<LoadedCloud> from_pcd = parsePcd(bytesOf(pcd), "memory");
+  ASSERT_TRUE(from_pcd.ok()) << from_pcd.error().message;
+  expectSamePoints(from_pcd->points, sampleCloud());
+
+  // Errors start with the name given; the size bound holds as for files.
+  const Expected<LoadedCloud> empty = parseNuscenesBin("", "sweep 7");
+  ASSERT_FALSE(empty.ok());
+  EXPECT_EQ(empty.error().message, "sweep 7: the file is empty (0 bytes)");
+  const Expected<LoadedCloud> large = parseKittiBin(bytesOf(kitti), "memory", ReadLimits{.max_bytes = 16});
+  ASSERT_FALSE(large.ok());
+  EXPECT_NE(large.error().message.find("more than the scan size bound of 16 bytes"), std::string::npos)
+      << large.error().message;
 }
 
 TEST_F(CloudIo, ReadsAsciiPcdWithCrlfLineEndings) {

@@ -251,6 +251,26 @@ TEST(Topology, BadParentsAndDuplicateNamesAreRejected) {
                  "duplicate node name");
 }
 
+// Found by fuzzing: a node name with bytes that are not UTF-8 came back from toYaml as another
+// name. Names also become file names, pid-file words and metric labels.
+TEST(Topology, NamesAreLettersDigitsDotsUnderscoresAndDashes) {
+  const auto withEdge = [](const std::string& name) {
+    return topologyYaml("", "", kNodes + "  - name: " + name + "\n    id: 2\n    role: edge\n    parent: sink\n"
+                                         "    metrics_port: 50102\n    sensor: {source: scans}\n");
+  };
+  for (const std::string& name : {std::string("e\xff\xff\tdge-7"), std::string("'edge 2'"), std::string("../escape"),
+                                 std::string(".hidden"), std::string(65, 'a')}) {
+    SCOPED_TRACE(name);
+    expectRejectedWith(withEdge(name), {"nodes[2].name", "is not a name", "letters, digits"});
+  }
+  expectRejectedWith("name: ../t\nnodes:\n" + kNodes, {"topology: name:", "is not a name"});
+  for (const std::string& name : {std::string("Edge_2.b-3"), std::string(64, 'z')}) {
+    const Expected<TopologyConfig> parsed = parseTopology(withEdge(name), "");
+    ASSERT_TRUE(parsed.ok()) << name << ": " << parsed.error().message;
+    EXPECT_EQ(parsed->nodes.back().name, name);
+  }
+}
+
 TEST(Topology, MalformedYamlIsRejected) {
   expectRejected("name: t\nnodes: [unclosed\n", "not valid YAML");
   expectRejected("name: t\n  period_ms: : 3\n\t- x\n", "not valid YAML");

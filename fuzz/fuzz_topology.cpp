@@ -1,0 +1,44 @@
+// libFuzzer target: parseTopology over arbitrary text. A document it accepts must describe a
+// tree every service can start from: one root, every node's subtree answerable, every aggregator's
+// core created from it, and the document it writes back (toYaml) accepted again.
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include "common/topology.hpp"
+#include "fuzz/fuzz_check.hpp"
+#include "services/merge_aggregator/aggregator_core.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  using namespace fogmap;
+  const std::string text(reinterpret_cast<const char*>(data), size);
+  const Expected<TopologyConfig> topology = parseTopology(text, "scans");
+  if (!topology) {
+    fuzz::checkRejection(topology.error(), "topology: ");
+    return 0;
+  }
+  fuzz::check(topology->root() != nullptr, "a valid topology has a root");
+  for (const NodeConfig& node : topology->nodes) {
+    fuzz::check(topology->find(node.id) == &node && topology->find(node.name) == &node, "ids and names are unique");
+    if (node.role == Role::kEdge) {
+      fuzz::check(node.sensor.has_value() && topology->children(node.name).empty(), "an edge is a leaf with a sensor");
+      continue;
+    }
+    fuzz::check(topology->aggregatorLevels(node.name) >= 1, "an aggregator is at least one level");
+    const Expected<AggregatorConfig> config = aggregatorConfigFor(*topology, node.name);
+    fuzz::check(config.ok(), "every aggregator of a valid topology has a configuration");
+    fuzz::check(MergeAggregator::create(*config).ok(), "every aggregator of a valid topology starts");
+  }
+  const Expected<TopologyConfig> again = parseTopology(toYaml(*topology), "scans");
+  fuzz::check(again.ok(), "a valid topology written back as YAML is valid");
+  fuzz::check(again->nodes.size() == topology->nodes.size() && again->mode == topology->mode,
+              "a topology written back as YAML has the same mode and nodes");
+  for (std::size_t i = 0; i < topology->nodes.size(); ++i) {
+    const NodeConfig& a = topology->nodes[i];
+    const NodeConfig& b = again->nodes[i];
+    fuzz::check(a.name == b.name && a.id == b.id && a.role == b.role && a.parent == b.parent && a.host == b.host &&
+                    a.port == b.port && a.metrics_port == b.metrics_port,
+                "a node written back as YAML reads the same");
+  }
+  return 0;
+}
