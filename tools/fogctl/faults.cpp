@@ -64,7 +64,7 @@ struct Publication {
 // The latest revision of an epoch, as judged.
 struct EpochVerdict {
   std::uint32_t revision = 0;
-  bool complete = false;  // every sensor contributed
+  std::set<std::uint32_t> contributing;
   bool equal = false;     // equal to the oracle (or no oracle)
 };
 
@@ -157,8 +157,7 @@ class Oracle {
 // runs the oracle so that a slow check never makes the root drop maps for this subscriber.
 class Observer {
  public:
-  Observer(const TopologyConfig& topology, Oracle* oracle, std::vector<std::uint32_t> sensors)
-      : topology_(topology), oracle_(oracle), sensors_(std::move(sensors)) {}
+  Observer(const TopologyConfig& topology, Oracle* oracle) : topology_(topology), oracle_(oracle) {}
 
   void start(const std::string& target, std::shared_ptr<grpc::ChannelCredentials> credentials) {
     subscriber_ = std::thread([this, target, credentials] { subscribe(target, credentials); });
@@ -276,11 +275,6 @@ class Observer {
         equal = ok && *ok;
         if (!ok) problem = "oracle: " + ok.error().message;
       }
-      bool complete = true;
-      for (std::uint32_t s : sensors_) {
-        complete = complete && std::binary_search(global.header.contributing_nodes.begin(),
-                                                  global.header.contributing_nodes.end(), s);
-      }
       std::lock_guard lock(mu_);
       ++checked_;
       if (!equal) {
@@ -292,13 +286,14 @@ class Observer {
         }
       }
       EpochVerdict& v = verdicts_[global.header.epoch];
-      if (global.revision >= v.revision) v = {global.revision, complete, equal};
+      if (global.revision >= v.revision) {
+        v = {global.revision, {global.header.contributing_nodes.begin(), global.header.contributing_nodes.end()}, equal};
+      }
     }
   }
 
   const TopologyConfig& topology_;
   Oracle* oracle_;
-  std::vector<std::uint32_t> sensors_;
   grpc::ClientContext context_;
   std::thread subscriber_;
   std::thread checker_;
@@ -501,7 +496,7 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
   const auto tls = loadTls(topology, plan.identity, std::chrono::system_clock::now());
   if (!tls) return Error{tls.error().code, "tls: the harness's identity '" + plan.identity + "': " + tls.error().message};
   phase("oracle");
-  Observer observer(topology, oracle ? &*oracle : nullptr, sensors);
+  Observer observer(topology, oracle ? &*oracle : nullptr);
   auto cluster = startCluster(file, topology, state, 30s, options);
   if (!cluster) return cluster.error();
   phase("start");
@@ -636,6 +631,7 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
     report.max_rss_growth_kib =
         std::max(report.max_rss_growth_kib, static_cast<double>(report.memory.back().rss_end_kib - warm->second));
   }
+  report.observer_drops = static_cast<std::uint64_t>(metricOf(*root, "fogmap_subscriber_drops_total"));
   for (const NodeConfig& n : topology.nodes) {
     if (n.role == Role::kAggregator) report.duplicates_recognised += static_cast<std::uint64_t>(metricOf(n, "fogmap_duplicate_uploads_total"));
   }
@@ -656,6 +652,12 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
   // Sent vs applied.
   const std::vector<Publication> pubs = observer.publications();
   std::map<std::uint64_t, std::set<std::uint32_t>> applied;
+  // Epochs the root may have published before the harness's subscription took are not judged.
+  std::optional<std::uint64_t> first_observed;
+  for (const Publication& p : pubs) {
+    if (p.revision == 0) first_observed = std::min(first_observed.value_or(p.epoch), p.epoch);
+  }
+  std::map<std::uint64_t, std::set<std::uint32_t>> acknowledged;  // what the edges' parents acknowledged
   for (const Publication& p : pubs) applied[p.epoch].insert(p.contributing.begin(), p.contributing.end());
   for (const NodeConfig& n : topology.nodes) {
     if (n.role != Role::kEdge) continue;
@@ -665,17 +667,22 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
       auto journal = readJournal(entry.path());
       if (!journal) return journal.error();
       for (const JournalEntry& j : *journal) {
-        if (j.kind != "map") continue;
+        if (j.kind != "map" || !first_observed || j.epoch <= *first_observed) continue;
         ++report.maps_sent;
         if (j.outcome == Outcome::kRefused) ++report.maps_refused;
         if (j.outcome == Outcome::kUnsettled) ++report.maps_unsettled;
         if (j.outcome != Outcome::kApplied && j.outcome != Outcome::kLate) continue;
         ++report.maps_acknowledged;
+        acknowledged[j.epoch].insert(n.id);
         if (applied[j.epoch].contains(n.id)) continue;
         const bool in_fault = std::any_of(windows.begin(), windows.end(), [&](const FaultWindow& w) {
           return w.sensors.contains(n.id) && j.epoch >= w.first_epoch && j.epoch <= w.last_epoch;
         });
         ++(in_fault ? report.maps_lost_in_fault : report.maps_lost);
+        if (!in_fault && report.lost_examples.size() < 10) {
+          report.lost_examples.push_back(n.name + " epoch +" + std::to_string(static_cast<long long>(j.epoch) - static_cast<long long>(schedule->epochAt(start_ns))) + " (" +
+                                         outcomeName(j.outcome) + ")");
+        }
       }
     }
   }
@@ -729,14 +736,23 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
   }
   if (heal_ns) {
     const auto verdicts = observer.verdicts();
-    std::optional<std::uint64_t> recovered;  // first epoch from which every loaded epoch is complete and equal
+    // An epoch is whole when its latest publication holds every map the edges' parents
+    // acknowledged for it and equals the specification: what the fault-free cluster would have
+    // published from what the edges sent (an edge behind its schedule skips epochs; that is not
+    // the fault's doing, and each skip is counted by the edge).
+    const auto whole = [&](std::uint64_t e) {
+      const auto v = verdicts.find(e);
+      if (v == verdicts.end() || !v->second.equal) return false;
+      const auto& sent = acknowledged[e];
+      return std::includes(v->second.contributing.begin(), v->second.contributing.end(), sent.begin(), sent.end());
+    };
+    std::optional<std::uint64_t> recovered;  // first epoch from which every loaded epoch is whole
     for (std::uint64_t e = schedule->epochAt(*heal_ns); e <= last_loaded && report.after_heal.size() < 40; ++e) {
       const auto v = verdicts.find(e);
-      report.after_heal.push_back(v == verdicts.end() ? "-" : std::string(v->second.complete ? "c" : "i") + (v->second.equal ? "" : "!"));
+      report.after_heal.push_back(v == verdicts.end() ? "-" : std::string(whole(e) ? "w" : "i") + (v->second.equal ? "" : "!"));
     }
     for (std::uint64_t e = last_loaded; e >= schedule->epochAt(*heal_ns) && e > 0; --e) {
-      const auto v = verdicts.find(e);
-      if (v == verdicts.end() || !v->second.complete || !v->second.equal) break;
+      if (!whole(e)) break;
       recovered = e;
     }
     if (recovered) {
@@ -804,7 +820,7 @@ std::string toJson(const FaultReport& r) {
     << ",\n  \"maps_acknowledged\": " << r.maps_acknowledged << ",\n  \"maps_refused\": " << r.maps_refused
     << ",\n  \"maps_unsettled\": " << r.maps_unsettled << ",\n  \"maps_lost\": " << r.maps_lost
     << ",\n  \"maps_lost_in_fault\": " << r.maps_lost_in_fault << ",\n  \"applied_twice\": " << r.applied_twice
-    << ",\n  \"duplicates_recognised\": " << r.duplicates_recognised
+    << ",\n  \"duplicates_recognised\": " << r.duplicates_recognised << ",\n  \"observer_drops\": " << r.observer_drops
     << ",\n  \"publications_checked\": " << r.publications_checked
     << ",\n  \"publications_mismatched\": " << r.publications_mismatched << ",\n  \"e2e_p50_ms\": " << r.e2e_p50_ms
     << ",\n  \"e2e_p99_ms\": " << r.e2e_p99_ms << ",\n  \"max_rss_growth_kib\": " << r.max_rss_growth_kib
@@ -846,7 +862,12 @@ std::string summary(const FaultReport& r) {
   o << "  maps: " << r.maps_sent << " sent, " << r.maps_acknowledged << " acknowledged, " << r.maps_refused
     << " refused, " << r.maps_unsettled << " unsettled; " << r.maps_lost << " lost, " << r.maps_lost_in_fault
     << " lost in the faulty subtree during the fault; " << r.applied_twice << " applied twice (" << r.duplicates_recognised
-    << " re-sent copies recognised)\n";
+    << " re-sent copies recognised); the root dropped " << r.observer_drops << " global maps of the harness's subscription\n";
+  if (!r.lost_examples.empty()) {
+    o << "  lost:";
+    for (const std::string& l : r.lost_examples) o << " " << l << ";";
+    o << "\n";
+  }
   o << "  oracle: " << r.publications_mismatched << " of " << r.publications_checked
     << " global maps differ from the specification\n";
   o << "  end-to-end: p50 " << r.e2e_p50_ms << " ms, p99 " << r.e2e_p99_ms << " ms; largest RSS growth after warm-up "
@@ -855,13 +876,13 @@ std::string summary(const FaultReport& r) {
   for (double n : r.rejoin_ms) o << "  restarted edge merged again after " << n << " ms\n";
   if (r.child_notice_ms) o << "  children noticed the stall after " << *r.child_notice_ms << " ms\n";
   if (!r.after_heal.empty()) {
-    o << "  epochs after the heal (c complete, i incomplete, - unpublished, ! differs):";
+    o << "  epochs after the heal (w whole, i an acknowledged map missing, - unpublished, ! differs):";
     for (const std::string& e : r.after_heal) o << " " << e;
     o << "\n";
   }
   if (r.recovery_ms) {
     o << "  recovered " << *r.recovery_ms << " ms after the heal; " << r.epochs_after_recovery
-      << " epochs after it, all complete and equal to the fault-free maps\n";
+      << " epochs after it, each holding every acknowledged map and equal to the specification\n";
   }
   o << "  phases:";
   for (const auto& [name, seconds] : r.phases) o << " " << name << " " << seconds << " s";

@@ -101,8 +101,11 @@ struct FaultReport {
   // Acknowledged in the subtree of a killed or stopped aggregator during the fault: by it before
   // it was killed, or by the aggregators below it, whose uploads waited until too old to admit.
   std::uint64_t maps_lost_in_fault = 0;
+  // The first maps lost: "NODE epoch +K (OUTCOME)", K counted from the first epoch of the load.
+  std::vector<std::string> lost_examples;
   std::uint64_t applied_twice = 0;
   std::uint64_t duplicates_recognised = 0;  // re-sent copies the aggregators recognised (metrics)
+  std::uint64_t observer_drops = 0;  // global maps the root dropped from the harness's subscription
 
   // The oracle.
   std::uint64_t publications_checked = 0;
@@ -116,16 +119,17 @@ struct FaultReport {
   std::vector<FaultEvent> events;
   std::vector<std::string> crashed;  // processes that died without being killed
   // Faults: time from the fault to the first global map marking the node's sensors missing, and
-  // from the restart / SIGCONT to the first epoch from which every epoch is complete again.
+  // from the restart / SIGCONT to the first epoch from which every epoch is whole again.
   std::vector<double> missing_notice_ms;
   std::vector<double> rejoin_ms;       // edge crash: restart to the edge's first merged map
   std::optional<double> recovery_ms;   // aggregator crash, stall
   std::optional<double> child_notice_ms;  // stall: the children's links give the stream up
-  // Epochs from the recovery to the end of the load: every one complete and equal to the
-  // fault-free result (the recovery is the first epoch from which that holds).
+  // Epochs from the recovery to the end of the load: each one whole, i.e. its latest publication
+  // holds every map the edges' parents acknowledged for it and equals the specification (the
+  // fault-free result of what was sent); the recovery is the first epoch from which that holds.
   std::uint64_t epochs_after_recovery = 0;
-  // The first epochs after the heal, as the root left them: "c" complete, "i" incomplete, "-"
-  // never published, with "!" when the map differs from the specification.
+  // The first epochs after the heal, as the root left them: "w" whole, "i" an acknowledged map
+  // missing, "-" never published, with "!" when the map differs from the specification.
   std::vector<std::string> after_heal;
 
   // How long each phase of the harness took (oracle, start, load, stop), in seconds.
