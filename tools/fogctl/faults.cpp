@@ -501,6 +501,15 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
   if (!cluster) return cluster.error();
   phase("start");
   observer.start(root->host + ":" + std::to_string(root->port), channelCredentials(*tls));
+  // Judged are the epochs that begin once the subscription delivers: the root publishes every
+  // epoch, so the first map received says it does (bounded wait).
+  for (int i = 0; i < 500 && observer.publications().empty(); ++i) std::this_thread::sleep_for(kTick);
+  if (observer.publications().empty()) {
+    stopNodes(cluster->nodes, 10s);
+    observer.finish(1s);
+    return Error{ErrorCode::kInternal, "the root published nothing within 10 s; see " + (state / "logs").string()};
+  }
+  const std::uint64_t judged_from = schedule->epochAt(systemNowNs()) + 1;
 
   std::set<std::string> down;  // killed or stopped, not yet back
   std::map<std::string, std::int64_t> stopped_at;
@@ -652,11 +661,6 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
   // Sent vs applied.
   const std::vector<Publication> pubs = observer.publications();
   std::map<std::uint64_t, std::set<std::uint32_t>> applied;
-  // Epochs the root may have published before the harness's subscription took are not judged.
-  std::optional<std::uint64_t> first_observed;
-  for (const Publication& p : pubs) {
-    if (p.revision == 0) first_observed = std::min(first_observed.value_or(p.epoch), p.epoch);
-  }
   std::map<std::uint64_t, std::set<std::uint32_t>> acknowledged;  // what the edges' parents acknowledged
   for (const Publication& p : pubs) applied[p.epoch].insert(p.contributing.begin(), p.contributing.end());
   for (const NodeConfig& n : topology.nodes) {
@@ -667,7 +671,7 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
       auto journal = readJournal(entry.path());
       if (!journal) return journal.error();
       for (const JournalEntry& j : *journal) {
-        if (j.kind != "map" || !first_observed || j.epoch <= *first_observed) continue;
+        if (j.kind != "map" || j.epoch < judged_from) continue;
         ++report.maps_sent;
         if (j.outcome == Outcome::kRefused) ++report.maps_refused;
         if (j.outcome == Outcome::kUnsettled) ++report.maps_unsettled;
