@@ -88,6 +88,7 @@ struct FaultReport {
   // Liveness of the root.
   std::uint64_t epochs_in_window = 0;   // epochs from the first published to the last loaded one
   std::uint64_t epochs_unpublished = 0; // of those, never published
+  std::vector<std::uint64_t> unpublished_examples;  // the first of them, counted from the first epoch
   double max_silence_ms = 0.0;          // longest time without a publication while loaded
   std::uint64_t publications = 0;       // every revision counted
   std::uint64_t late_publications = 0;
