@@ -702,7 +702,9 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
   for (const Publication& p : pubs) {
     report.publications += 1;
     report.late_publications += p.late ? 1 : 0;
-    if (p.revision != 0 || p.epoch > last_loaded || p.published_ns < start_ns) continue;
+    // Only epochs that began once the subscription delivered: a late first publication of an
+    // older epoch would otherwise pull the window back over epochs published before it.
+    if (p.revision != 0 || p.epoch > last_loaded || p.epoch < judged_from || p.published_ns < start_ns) continue;
     first_published = std::min(first_published.value_or(p.epoch), p.epoch);
     first_times.push_back(p.published_ns);
     if (p.contributing.size() == sensors.size()) e2e.push_back(ms(p.published_ns - p.sensor_ns));
