@@ -13,4 +13,15 @@ const char* errorCodeName(ErrorCode code) {
   return "unknown error";
 }
 
+int rpcCode(ErrorCode code) {
+  switch (code) {
+    case ErrorCode::kInvalidArgument: return 3;
+    case ErrorCode::kNotFound: return 5;
+    case ErrorCode::kResourceExhausted: return 8;
+    case ErrorCode::kInternal: return 13;
+    case ErrorCode::kIo: return 14;
+  }
+  return 13;
+}
+
 }  // namespace fogmap

@@ -15,6 +15,11 @@ enum class ErrorCode {
   kResourceExhausted,  // a bound on size or count was reached (the input may be valid, but not here)
 };
 
+// The google.rpc.Code number of an error (what a gRPC status and an Ack's code carry):
+// kInvalidArgument 3, kNotFound 5, kResourceExhausted 8, kInternal 13, kIo 14 (UNAVAILABLE).
+// The one mapping; services/common/grpc_options turns it into grpc::StatusCode.
+int rpcCode(ErrorCode code);
+
 struct Error {
   ErrorCode code = ErrorCode::kInternal;
   std::string message;

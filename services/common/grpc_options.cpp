@@ -80,14 +80,10 @@ void configureServer(grpc::ServerBuilder& builder, std::size_t max_message_bytes
 }
 
 grpc::StatusCode toGrpcCode(ErrorCode code) {
-  switch (code) {
-    case ErrorCode::kInvalidArgument: return grpc::StatusCode::INVALID_ARGUMENT;
-    case ErrorCode::kNotFound: return grpc::StatusCode::NOT_FOUND;
-    case ErrorCode::kIo: return grpc::StatusCode::UNAVAILABLE;
-    case ErrorCode::kInternal: return grpc::StatusCode::INTERNAL;
-    case ErrorCode::kResourceExhausted: return grpc::StatusCode::RESOURCE_EXHAUSTED;
-  }
-  return grpc::StatusCode::INTERNAL;
+  static_assert(grpc::StatusCode::INVALID_ARGUMENT == 3 && grpc::StatusCode::NOT_FOUND == 5 &&
+                grpc::StatusCode::RESOURCE_EXHAUSTED == 8 && grpc::StatusCode::INTERNAL == 13 &&
+                grpc::StatusCode::UNAVAILABLE == 14);
+  return static_cast<grpc::StatusCode>(rpcCode(code));
 }
 
 grpc::Status toGrpcStatus(const Error& error) { return {toGrpcCode(error.code), error.message}; }

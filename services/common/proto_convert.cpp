@@ -13,7 +13,6 @@
 
 #include <Eigen/Cholesky>
 
-#include "services/common/grpc_options.hpp"
 
 namespace fogmap {
 namespace {
@@ -367,7 +366,7 @@ v1::Ack appliedAck(std::uint64_t sequence, bool late) {
   v1::Ack ack;
   ack.set_sequence(sequence);
   ack.set_status(late ? v1::ACK_STATUS_LATE : v1::ACK_STATUS_APPLIED);
-  ack.set_code(static_cast<std::int32_t>(grpc::StatusCode::OK));
+  ack.set_code(0);  // OK
   return ack;
 }
 
@@ -380,7 +379,7 @@ v1::Ack refusedAck(std::uint64_t sequence, const Error& error) {
   ack.set_sequence(sequence);
   ack.set_status(v1::ACK_STATUS_REFUSED);
   ack.set_reason(error.message);
-  ack.set_code(static_cast<std::int32_t>(toGrpcCode(error.code)));
+  ack.set_code(rpcCode(error.code));
   return ack;
 }
 
