@@ -14,7 +14,9 @@
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 #include <pcl/search/kdtree.h>
+// The template's implementation, instantiated here: libpcl_segmentation is not linked.
 #include <pcl/segmentation/extract_clusters.h>
+#include <pcl/segmentation/impl/extract_clusters.hpp>
 
 #include "common/map.hpp"
 

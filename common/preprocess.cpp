@@ -11,15 +11,12 @@
 #include <utility>
 #include <vector>
 
-#include <pcl/ModelCoefficients.h>
-#include <pcl/PointIndices.h>
 #include <pcl/console/print.h>
 #include <pcl/filters/voxel_grid.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
-#include <pcl/sample_consensus/method_types.h>
-#include <pcl/sample_consensus/model_types.h>
-#include <pcl/segmentation/sac_segmentation.h>
+#include <pcl/sample_consensus/ransac.h>
+#include <pcl/sample_consensus/sac_model_perpendicular_plane.h>
 
 namespace fogmap {
 namespace {
@@ -93,25 +90,29 @@ Expected<std::optional<Eigen::Vector4d>> fitPriorPlane(std::span<const Point> po
   }
 
   silencePcl();
-  // PCL seeds its RANSAC generator with a constant (12345) unless asked for randomness, so the same
-  // input always gives the same plane.
-  pcl::SACSegmentation<pcl::PointXYZ> segmentation;
-  segmentation.setModelType(pcl::SACMODEL_PERPENDICULAR_PLANE);
-  segmentation.setMethodType(pcl::SAC_RANSAC);
-  segmentation.setAxis(Eigen::Vector3f::UnitZ());
-  segmentation.setEpsAngle(params.max_tilt_deg * std::numbers::pi / 180.0);
-  segmentation.setDistanceThreshold(params.distance_threshold_m);
-  segmentation.setMaxIterations(params.max_iterations);
-  segmentation.setOptimizeCoefficients(true);
-  segmentation.setInputCloud(cloud);
-  pcl::PointIndices inliers;
-  pcl::ModelCoefficients coefficients;
-  segmentation.segment(inliers, coefficients);
+  // RANSAC over planes within max_tilt_deg of horizontal, then a least-squares refit on the
+  // inliers (what pcl::SACSegmentation does, without linking pcl_segmentation and pcl_features:
+  // 55 MB the services do not otherwise need). PCL seeds its generator with a constant (12345)
+  // unless asked for randomness, so the same input always gives the same plane.
+  pcl::SampleConsensusModelPerpendicularPlane<pcl::PointXYZ>::Ptr model(
+      new pcl::SampleConsensusModelPerpendicularPlane<pcl::PointXYZ>(cloud));
+  model->setAxis(Eigen::Vector3f::UnitZ());
+  model->setEpsAngle(params.max_tilt_deg * std::numbers::pi / 180.0);
+  pcl::RandomSampleConsensus<pcl::PointXYZ> ransac(model, params.distance_threshold_m);
+  ransac.setMaxIterations(params.max_iterations);
   // A view of walls only (a virtual LiDAR facing a building) has no ground to remove.
-  if (inliers.indices.empty() || coefficients.values.size() != 4) return std::optional<Eigen::Vector4d>{};
+  if (!ransac.computeModel(0)) return std::optional<Eigen::Vector4d>{};
+  pcl::Indices inliers;
+  ransac.getInliers(inliers);
+  if (inliers.empty()) return std::optional<Eigen::Vector4d>{};
+  Eigen::VectorXf found(4);
+  ransac.getModelCoefficients(found);
+  Eigen::VectorXf refined(4);
+  model->optimizeModelCoefficients(inliers, found, refined);
+  model->selectWithinDistance(refined, params.distance_threshold_m, inliers);
+  if (refined.size() != 4 || inliers.empty()) return std::optional<Eigen::Vector4d>{};
 
-  Eigen::Vector4d plane(coefficients.values[0], coefficients.values[1], coefficients.values[2],
-                        coefficients.values[3]);
+  Eigen::Vector4d plane = refined.cast<double>();
   const double normal_length = plane.head<3>().norm();
   if (!(normal_length > 0.0) || !plane.allFinite()) {
     return invalidArgument("the ground plane fit is degenerate (" + std::to_string(points.size()) + " points)");
@@ -372,6 +373,19 @@ Expected<Cloud> preprocess(std::span<const Point> points, const PreprocessConfig
     cloud = std::move(ground->non_ground);
   }
   return cloud;
+}
+
+Expected<Cloud> preprocessScan(std::span<const Point> scan, const PreprocessConfig& config) {
+  // Ground removal runs apart from preprocess(): a scan with fewer than 3 points left (all cropped
+  // away, or a narrow virtual sensor) has no ground to establish and keeps nothing.
+  PreprocessConfig without_ground = config;
+  without_ground.ground.reset();
+  Expected<Cloud> cloud = preprocess(scan, without_ground);
+  if (!cloud || !config.ground) return cloud;
+  if (cloud->size() < 3) return Cloud{};
+  Expected<GroundRemoval> ground = removeGround(*cloud, *config.ground);
+  if (!ground) return ground.error();
+  return std::move(ground->non_ground);
 }
 
 }  // namespace fogmap

@@ -63,5 +63,9 @@ struct PreprocessConfig {
 };
 // transform -> crop -> voxel -> ground, in this order.
 Expected<Cloud> preprocess(std::span<const Point> points, const PreprocessConfig& config);
+// preprocess() as a scan is prepared for clustering (at an edge, or at a baseline root that gets
+// the scans whole): with fewer than 3 points left before ground removal nothing above a ground can
+// be established, and the scan is a legitimate empty frame rather than an error.
+Expected<Cloud> preprocessScan(std::span<const Point> scan, const PreprocessConfig& config);
 
 }  // namespace fogmap

@@ -14,6 +14,8 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "common/yaml_fields.hpp"
+
 namespace fogmap {
 
 const NodeConfig* TopologyConfig::find(const std::string& node_name) const {
@@ -93,46 +95,22 @@ bool isCertificateName(const std::string& name) { return isName(name) && name !=
 namespace {
 
 // Errors name the place in the file: "topology: nodes[3].sensor.rate_hz: must be positive".
-Error bad(const std::string& where, const std::string& what) { return invalidArgument("topology: " + where + ": " + what); }
+const YamlFields kFields("topology");
+
+Error bad(const std::string& where, const std::string& what) { return kFields.bad(where, what); }
 
 template <class T>
 Expected<T> scalar(const YAML::Node& node, const std::string& key, const std::string& where, T fallback) {
-  const YAML::Node v = node[key];
-  if (!v) return fallback;
-  try {
-    return v.as<T>();
-  } catch (const YAML::Exception&) {
-    return bad(where.empty() ? key : where + "." + key, "cannot read '" + YAML::Dump(v) + "' as the expected type");
-  }
+  return kFields.scalar<T>(node, key, where, fallback);
 }
 
-// A section must be a mapping of known keys: a misspelt key is an error, not a silent default.
 Status checkSection(const YAML::Node& node, const std::string& where, std::initializer_list<std::string_view> keys) {
-  if (!node.IsMap()) return bad(where.empty() ? "the document" : where, "must be a mapping");
-  for (const auto& entry : node) {
-    const std::string key = entry.first.IsScalar() ? entry.first.Scalar() : std::string("?");
-    if (std::find(keys.begin(), keys.end(), key) == keys.end()) {
-      return bad(where.empty() ? key : where + "." + key, "unknown key");
-    }
-  }
-  return {};
+  return kFields.checkSection(node, where, keys);
 }
 
 Expected<Eigen::Vector3d> vec3(const YAML::Node& node, const std::string& key, const std::string& where,
                                const Eigen::Vector3d& fallback) {
-  const YAML::Node v = node[key];
-  if (!v) return fallback;
-  if (!v.IsSequence() || v.size() != 3) return bad(where + "." + key, "expected a list of 3 numbers");
-  Eigen::Vector3d out;
-  for (std::size_t i = 0; i < 3; ++i) {
-    try {
-      out[static_cast<Eigen::Index>(i)] = v[i].as<double>();
-    } catch (const YAML::Exception&) {
-      return bad(where + "." + key, "expected a list of 3 numbers");
-    }
-  }
-  if (!out.allFinite()) return bad(where + "." + key, "values must be finite");
-  return out;
+  return kFields.vec3(node, key, where, fallback);
 }
 
 // A topology's and its nodes' names become file names (the state directory, logs, pid files),
@@ -154,31 +132,37 @@ Expected<Mode> parseMode(const std::string& s) {
   return bad("mode", "must be madc, baseline or ext, got '" + s + "'");
 }
 
-Expected<Eigen::Isometry3d> parsePose(const YAML::Node& node, const std::string& where) {
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  if (!node) return pose;
-  if (const Status s = checkSection(node, where, {"translation_m", "rpy_deg"}); !s) return s.error();
-  const auto t = vec3(node, "translation_m", where, Eigen::Vector3d::Zero());
-  if (!t) return t.error();
-  const auto rpy = vec3(node, "rpy_deg", where, Eigen::Vector3d::Zero());
-  if (!rpy) return rpy.error();
-  const Eigen::Vector3d r = *rpy * (M_PI / 180.0);
-  pose.linear() = (Eigen::AngleAxisd(r.z(), Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(r.y(), Eigen::Vector3d::UnitY()) *
-                   Eigen::AngleAxisd(r.x(), Eigen::Vector3d::UnitX()))
-                      .toRotationMatrix();
-  pose.translation() = *t;
-  return pose;
-}
+Expected<Eigen::Isometry3d> parsePose(const YAML::Node& node, const std::string& where) { return kFields.pose(node, where); }
 
 Expected<SensorConfig> parseSensor(const YAML::Node& node, const std::string& where, const std::filesystem::path& base_dir) {
-  if (const Status st = checkSection(node, where, {"source", "rate_hz", "loop", "frames", "split", "pose"}); !st) {
+  if (const Status st = checkSection(node, where, {"source", "scene", "lidar", "rate_hz", "loop", "frames", "split", "pose"});
+      !st) {
     return st.error();
   }
   SensorConfig s;
   const auto source = scalar<std::string>(node, "source", where, "");
   if (!source) return source.error();
-  if (source->empty()) return bad(where + ".source", "is required (a directory of scans or one scan file)");
-  s.source = std::filesystem::path(*source).is_absolute() ? std::filesystem::path(*source) : base_dir / *source;
+  if (source->empty()) {
+    return bad(where + ".source", "is required (a directory of scans, one scan file, or sim for a simulated LiDAR)");
+  }
+  const auto scene = scalar<std::string>(node, "scene", where, "");
+  if (!scene) return scene.error();
+  const auto lidar = scalar<std::string>(node, "lidar", where, "");
+  if (!lidar) return lidar.error();
+  if (*source == kSimSource) {
+    s.source = kSimSource;
+    if (scene->empty()) return bad(where + ".scene", "is required with source sim (the scene file, common/sim)");
+    if (lidar->empty()) return bad(where + ".lidar", "is required with source sim (the name of one of the scene's LiDARs)");
+    if (node["split"]) {
+      return bad(where + ".split", "a simulated LiDAR is not split; give each virtual LiDAR its own LiDAR in the scene");
+    }
+    s.scene = std::filesystem::path(*scene).is_absolute() ? std::filesystem::path(*scene) : base_dir / *scene;
+    s.lidar = *lidar;
+  } else {
+    if (node["scene"]) return bad(where + ".scene", "goes with source sim only (source is '" + *source + "')");
+    if (node["lidar"]) return bad(where + ".lidar", "goes with source sim only (source is '" + *source + "')");
+    s.source = std::filesystem::path(*source).is_absolute() ? std::filesystem::path(*source) : base_dir / *source;
+  }
   const auto rate = scalar<double>(node, "rate_hz", where, s.rate_hz);
   if (!rate) return rate.error();
   if (!(*rate > 0.0 && *rate <= 1000.0)) return bad(where + ".rate_hz", "must be in (0, 1000]");
@@ -347,7 +331,7 @@ Status validate(const TopologyConfig& t) {
 
 Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesystem::path& base_dir) {
   if (!root.IsMap()) return invalidArgument("topology: the document must be a mapping with 'nodes'");
-  if (const Status s = checkSection(root, "", {"name", "mode", "deadline_ms", "period_ms", "max_message_bytes",
+  if (const Status s = checkSection(root, "", {"name", "mode", "baseline_ships", "deadline_ms", "period_ms", "max_message_bytes",
                                                "max_scan_bytes", "admission", "madc", "preprocess", "tls", "nodes"});
       !s) {
     return s.error();
@@ -362,6 +346,12 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
   const auto parsed_mode = parseMode(*mode);
   if (!parsed_mode) return parsed_mode.error();
   t.mode = *parsed_mode;
+  const auto ships = scalar<std::string>(root, "baseline_ships", "", "processed");
+  if (!ships) return ships.error();
+  if (*ships != "processed" && *ships != "raw") {
+    return bad("baseline_ships", "must be processed or raw, got '" + *ships + "'");
+  }
+  t.baseline_ships_raw = *ships == "raw";
   const auto deadline = scalar<double>(root, "deadline_ms", "", t.deadline_ms);
   if (!deadline) return deadline.error();
   if (!(*deadline > 0.0 && *deadline <= 60000.0)) return bad("deadline_ms", "must be in (0, 60000]");
@@ -560,6 +550,16 @@ Expected<TopologyConfig> loadTopology(const std::filesystem::path& path) {
   return t;
 }
 
+const char* serviceName(Role role) {
+  switch (role) {
+    case Role::kEdge:
+      return "edge-cluster";
+    case Role::kAggregator:
+      return "merge-aggregator";
+  }
+  return "unknown";
+}
+
 namespace {
 
 TopologyConfig baseTopology(const std::string& name) {
@@ -607,10 +607,13 @@ TopologyConfig makeStarTopology(int edges, const std::filesystem::path& source, 
   return t;
 }
 
-TopologyConfig makeTreeTopology(int edges, const std::filesystem::path& source, int base_port) {
-  TopologyConfig t = baseTopology("tree-" + std::to_string(edges));
+TopologyConfig makeTreeTopology(int edges, const std::filesystem::path& source, int base_port, int fanout) {
+  fanout = std::max(fanout, 2);
+  if (edges <= 1) return makeStarTopology(1, source, base_port);  // a lone edge still needs a sink
+  TopologyConfig t = baseTopology("tree-" + std::to_string(edges) + (fanout == 2 ? "" : "-f" + std::to_string(fanout)));
   int aggregators = 0;
-  // A balanced binary tree: an aggregator over at most two subtrees; a subtree of one edge is the edge.
+  // A balanced tree: an aggregator over at most `fanout` subtrees of sizes that differ by at most
+  // one (the larger first); a subtree of one edge is the edge itself.
   std::function<void(int, int, const std::string&)> build = [&](int first, int count, const std::string& parent) {
     if (count == 1) {
       t.nodes.push_back(edgeNode(first, edges, source, parent, base_port));
@@ -619,15 +622,18 @@ TopologyConfig makeTreeTopology(int edges, const std::filesystem::path& source, 
     const int index = aggregators++;
     const std::string name = index == 0 ? "sink" : "agg-" + std::to_string(index);
     t.nodes.push_back(aggregatorNode(index, name, parent, base_port));
-    const int left = (count + 1) / 2;
-    build(first, left, name);
-    build(first + left, count - left, name);
+    // As few levels as `fanout` allows (capacity = fanout^levels >= count); here as many subtrees
+    // as the level below needs, at most `fanout`: tree-7 with fanout 4 is a sink over 4 + 3 edges.
+    int below = 1;  // edges a subtree one level down can hold
+    while (below * fanout < count) below *= fanout;
+    const int parts = std::min(fanout, (count + below - 1) / below);
+    for (int part = 0, start = first; part < parts; ++part) {
+      const int size = count / parts + (part < count % parts ? 1 : 0);
+      build(start, size, name);
+      start += size;
+    }
   };
-  build(0, std::max(edges, 1), "");
-  if (edges == 1) {  // a lone edge still needs a sink
-    t.nodes.clear();
-    return makeStarTopology(1, source, base_port);
-  }
+  build(0, edges, "");
   return t;
 }
 
@@ -637,6 +643,7 @@ std::string toYaml(const TopologyConfig& t) {
   out << YAML::BeginMap;
   out << YAML::Key << "name" << YAML::Value << t.name;
   out << YAML::Key << "mode" << YAML::Value << modeName(t.mode);
+  if (t.baseline_ships_raw) out << YAML::Key << "baseline_ships" << YAML::Value << "raw";
   out << YAML::Key << "deadline_ms" << YAML::Value << t.deadline_ms;
   out << YAML::Key << "period_ms" << YAML::Value << t.period_ms;
   out << YAML::Key << "max_message_bytes" << YAML::Value << t.max_message_bytes;
@@ -695,6 +702,10 @@ std::string toYaml(const TopologyConfig& t) {
       const auto& s = *n.sensor;
       out << YAML::Key << "sensor" << YAML::Value << YAML::BeginMap;
       out << YAML::Key << "source" << YAML::Value << s.source.string();
+      if (s.simulated()) {
+        out << YAML::Key << "scene" << YAML::Value << s.scene.string();
+        out << YAML::Key << "lidar" << YAML::Value << s.lidar;
+      }
       out << YAML::Key << "rate_hz" << YAML::Value << s.rate_hz;
       out << YAML::Key << "loop" << YAML::Value << s.loop;
       if (s.frames) out << YAML::Key << "frames" << YAML::Value << *s.frames;
@@ -704,11 +715,10 @@ std::string toYaml(const TopologyConfig& t) {
             << YAML::Value << s.split->overlap_deg << YAML::EndMap;
       }
       if (!s.pose.isApprox(Eigen::Isometry3d::Identity())) {
-        const Eigen::Vector3d ypr = s.pose.rotation().eulerAngles(2, 1, 0) * (180.0 / M_PI);
         out << YAML::Key << "pose" << YAML::Value << YAML::BeginMap << YAML::Key << "translation_m" << YAML::Value;
         list3(s.pose.translation());
         out << YAML::Key << "rpy_deg" << YAML::Value;
-        list3(Eigen::Vector3d(ypr[2], ypr[1], ypr[0]));
+        list3(rpyDegrees(s.pose.rotation()));
         out << YAML::EndMap;
       }
       out << YAML::EndMap;

@@ -19,6 +19,8 @@
 namespace fogmap {
 
 enum class Role { kEdge, kAggregator };
+// The service (and binary) that runs a node of this role: "edge-cluster", "merge-aggregator".
+const char* serviceName(Role role);
 
 // A virtual LiDAR cut from a real scan: azimuth sector `index` of `views`, widened by overlap.
 struct SectorSplit {
@@ -27,15 +29,25 @@ struct SectorSplit {
   double overlap_deg = 10.0;
 };
 
+// The `source` of a simulated LiDAR (a directory named so is written ./sim).
+inline constexpr const char* kSimSource = "sim";
+
 struct SensorConfig {
-  std::filesystem::path source;         // a directory of scans (replayed in name order) or one file
+  std::filesystem::path source;         // a directory of scans (replayed in name order), one file, or "sim"
+  // source sim: LiDAR `lidar` of the scene file `scene` (common/sim), cast at the scene time of
+  // each scan number (sim::sceneTime); no split, and `pose` must be the LiDAR's pose in the scene.
+  std::filesystem::path scene;
+  std::string lidar;
   double rate_hz = 10.0;                // replay rate
-  bool loop = true;                     // start again after the last scan
+  bool loop = true;                     // start again after the last scan (sim: after the scene's duration)
   std::optional<std::uint64_t> frames;  // stop after this many frames (default: endless when looping)
   std::optional<SectorSplit> split;     // virtual LiDAR; its pose is the sector's rotation
   // The scan's frame -> common frame. With a split, the points of a view are in the sector's frame
   // and the edge applies pose * sectorPose(split).
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+
+  // True for a simulated LiDAR (source: sim).
+  bool simulated() const { return source == kSimSource; }
 };
 
 // A node's own certificate and private key (PEM files), when they are not <cert_dir>/<name>.crt
@@ -77,6 +89,10 @@ struct NodeConfig {
 struct TopologyConfig {
   std::string name;
   Mode mode = Mode::kMadc;
+  // Baseline mode: the edges ship their scans whole (only moved into the common frame) and the
+  // root crops, downsamples and removes the ground of each before clustering them together (the
+  // MAD-C paper's baseline; YAML `baseline_ships: raw`); else they ship pre-processed points.
+  bool baseline_ships_raw = false;
   MadcParams madc;                     // eps, min points, alpha
   PreprocessConfig preprocess;         // crop and ground (the pose comes from each sensor)
   // An aggregator with L levels of aggregators below it emits epoch k at k period_ms + L deadline_ms
@@ -111,7 +127,10 @@ bool isCertificateName(const std::string& name);
 
 // Parses and validates (names of letters, digits, '.', '_', '-'; unique names, ids and ports;
 // exactly one root; parents exist and are aggregators; no cycles; edges have sensors). Relative
-// sensor paths resolve against `base_dir`.
+// sensor paths (source, scene) resolve against `base_dir`. A sensor is recorded scans
+// (`source: DIR|FILE`, optionally `split`) or a simulated LiDAR (`source: sim, scene: FILE, lidar:
+// NAME`): `scene` and `lidar` are required with source sim and refused otherwise, `split` is refused
+// with it.
 // Hosts must be IPv4 addresses; madc and admission values are checked by common/admission.hpp.
 // The optional tls section: `ca` is required, `cert_dir` and `geofence_clients` optional; a node's
 // `tls: {cert, key}` needs both keys and the top-level section. TLS files are read when a service
@@ -120,9 +139,11 @@ Expected<TopologyConfig> parseTopology(const std::string& yaml_text, const std::
 Expected<TopologyConfig> loadTopology(const std::filesystem::path& path);
 
 // Ready-made topologies (the repository's topologies/ files are generated from these).
-// Star: one sink, `edges` edges. Tree: a balanced binary tree of aggregators over the edges.
+// Star: one sink, `edges` edges. Tree: a balanced tree of aggregators over the edges, each over at
+// most `fanout` subtrees (binary by default; tree-7 with fanout 4 is a sink over two aggregators of
+// four and three edges).
 TopologyConfig makeStarTopology(int edges, const std::filesystem::path& source, int base_port);
-TopologyConfig makeTreeTopology(int edges, const std::filesystem::path& source, int base_port);
+TopologyConfig makeTreeTopology(int edges, const std::filesystem::path& source, int base_port, int fanout = 2);
 std::string toYaml(const TopologyConfig& topology);
 
 }  // namespace fogmap

@@ -1,18 +1,40 @@
 #!/usr/bin/env bash
 # Installs what fogmap needs from Debian bookworm, only if something is missing.
-# Runs apt-get as root directly, or through sudo.
+# Runs apt-get as root directly, or through sudo. The one list of fogmap's packages:
+#   tools/install-deps.sh            building and testing (the README's commands)
+#   tools/install-deps.sh --build    building the services only (docker/Dockerfile's build stage)
+#   tools/install-deps.sh --deploy   the container deployment on this host (Docker, docker-compose,
+#                                    debootstrap for base images without a registry)
 set -euo pipefail
 
-packages=(
+build=(
   build-essential cmake pkg-config
   libeigen3-dev libpcl-dev libopencv-dev
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   prometheus-cpp-dev libyaml-cpp-dev libssl-dev
+  libembree-dev  # common/sim: ray casting
+)
+test=(
   libgtest-dev libgmock-dev libbenchmark-dev
-  prometheus
+  prometheus  # a real Prometheus server and promtool for the monitoring tests
   iproute2 iptables
   clang libclang-rt-14-dev  # tools/fuzz.sh: libFuzzer, AddressSanitizer and UBSan runtimes
 )
+deploy=(docker.io docker-compose debootstrap curl jq)
+
+case "${1:-}" in
+  "") packages=("${build[@]}" "${test[@]}") ;;
+  --build) packages=("${build[@]}") ;;
+  --deploy) packages=("${deploy[@]}") ;;
+  -h | --help)
+    sed -n '2,7p' "$0" | sed 's/^# \{0,1\}//'
+    exit 0
+    ;;
+  *)
+    echo "install-deps: unknown option '$1' (--build, --deploy, or none)" >&2
+    exit 2
+    ;;
+esac
 
 missing=()
 for p in "${packages[@]}"; do

@@ -13,8 +13,13 @@
 #include <thread>
 #include <utility>
 
+#include "common/admission.hpp"
+
 namespace fogmap {
 namespace {
+
+// What an edge reports as malformed (EdgeRunner): scan files, frames, scans with non-finite points.
+constexpr const char* kMalformedKinds[] = {"scan", "non_finite_points", "frame"};
 
 using prometheus::Histogram;
 using prometheus::Labels;
@@ -127,6 +132,26 @@ Metrics::Metrics(const std::string& bind_address, const std::string& service, co
                                   c);
   padded_scans_ = &counter(r, "fogmap_padded_scans_total",
                            "Scan files accepted with zero padding after their declared points.", c);
+  period_seconds_ = &gauge(r, "fogmap_period_seconds", "The sensor period of the topology (one epoch).", c);
+  // Root-only series appear with the root's first live global map, not on every service.
+  global_objects_ = &prometheus::BuildGauge()
+                         .Name("fogmap_global_objects")
+                         .Help("Root: objects in the latest live global map.")
+                         .Labels(c)
+                         .Register(r);
+  sensor_missing_ = &prometheus::BuildGauge()
+                         .Name("fogmap_sensor_missing")
+                         .Help("Root: 1 when the sensor is missing from the latest live global map, 0 when it is in it.")
+                         .Labels(c)
+                         .Register(r);
+  baseline_bytes_ = &counter(r, "fogmap_baseline_equivalent_bytes_total",
+                             "Edge: bytes the frames' points would have cost on the wire in baseline mode.", c);
+  // Labelled series exist from the start at 0, so rates and alerts over them have data before the
+  // first rejection (Prometheus's advice: initialise the label values you know).
+  for (int reason = 0; reason <= static_cast<int>(Refusal::kUnknownPeer); ++reason) {
+    refused_->Add({{"reason", refusalName(static_cast<Refusal>(reason))}});
+  }
+  for (const char* what : kMalformedKinds) malformed_->Add({{"what", what}});
 
   if (!bind_address.empty()) {
     host_ = bind_address.substr(0, bind_address.rfind(':'));
@@ -206,6 +231,13 @@ void Metrics::droppedEpochs(std::uint64_t n) { dropped_epochs_->Increment(static
 void Metrics::subscriberDrops(std::uint64_t n) { subscriber_drops_->Increment(static_cast<double>(n)); }
 void Metrics::lateEmits(std::uint64_t n) { late_emits_->Increment(static_cast<double>(n)); }
 void Metrics::geofencesDenied() { geofences_denied_->Increment(); }
+
+void Metrics::periodSeconds(double s) { period_seconds_->Set(s); }
+void Metrics::globalObjects(double n) { global_objects_->Add({}).Set(n); }
+void Metrics::sensorMissing(const std::string& sensor, bool missing) {
+  sensor_missing_->Add({{"sensor", sensor}}).Set(missing ? 1.0 : 0.0);
+}
+void Metrics::baselineBytes(std::size_t bytes) { baseline_bytes_->Increment(static_cast<double>(bytes)); }
 
 void Metrics::uploadsRefused() { uploads_refused_->Increment(); }
 void Metrics::failedFrames() { failed_frames_->Increment(); }

@@ -72,6 +72,15 @@ class Metrics {
   void duplicateUploads(std::uint64_t n = 1);
   void droppedUploads();
   void framesProcessed();
+  // The topology's sensor period (one epoch), so alert rules compare latencies with it.
+  void periodSeconds(double s);
+  // Root: objects in the latest live global map.
+  void globalObjects(double n);
+  // Root: whether `sensor` (a node name) is missing from the latest live global map.
+  void sensorMissing(const std::string& sensor, bool missing);
+  // Edge (madc and ext modes): bytes the same frame's points would have cost on the wire in
+  // baseline mode, so MAD-C's savings can be read beside what it sent.
+  void baselineBytes(std::size_t bytes);
 
   prometheus::Registry& registry() { return *registry_; }
 
@@ -108,6 +117,10 @@ class Metrics {
   prometheus::Counter* failed_frames_;
   prometheus::Family<prometheus::Counter>* dropped_points_;
   prometheus::Counter* padded_scans_;
+  prometheus::Gauge* period_seconds_;
+  prometheus::Family<prometheus::Gauge>* global_objects_;
+  prometheus::Family<prometheus::Gauge>* sensor_missing_;
+  prometheus::Counter* baseline_bytes_;
 };
 
 }  // namespace fogmap

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include <Eigen/Cholesky>
+#include <google/protobuf/io/coded_stream.h>
 
 
 namespace fogmap {
@@ -390,6 +391,31 @@ Expected<Containment> fromProto(v1::Containment containment) {
     case v1::CONTAINMENT_INSIDE: return Containment::kInside;
     default: return invalidArgument("containment: unknown value " + std::to_string(static_cast<int>(containment)));
   }
+}
+
+std::size_t baselineUploadBytes(const MapHeader& header, std::size_t points, std::size_t max_points_per_chunk,
+                                std::uint64_t first_sequence) {
+  using google::protobuf::io::CodedOutputStream;
+  const std::size_t per_chunk = std::max<std::size_t>(1, max_points_per_chunk);
+  const std::size_t count = std::max<std::size_t>(1, (points + per_chunk - 1) / per_chunk);
+  PointChunk chunk;  // no points: their bytes are added below
+  chunk.header = header;
+  chunk.chunk_count = static_cast<std::uint32_t>(count);
+  chunk.total_points = static_cast<std::uint32_t>(points);
+  std::size_t total = 0;
+  for (std::size_t c = 0; c < count; ++c) {
+    chunk.chunk = static_cast<std::uint32_t>(c);
+    chunk.first_point = static_cast<std::uint32_t>(c * per_chunk);
+    const std::size_t xyz = 12 * (std::min(points, (c + 1) * per_chunk) - c * per_chunk);
+    // bytes xyz = 6: one tag byte, the length, the bytes (absent when empty, as proto3 does).
+    const std::size_t inner = toProto(chunk).ByteSizeLong() +
+                              (xyz == 0 ? 0 : 1 + CodedOutputStream::VarintSize64(xyz) + xyz);
+    // Upload: sequence = 1 (absent when 0), points = 3 (one tag byte, the length, the chunk).
+    const std::uint64_t sequence = first_sequence + c;
+    total += (sequence == 0 ? 0 : 1 + CodedOutputStream::VarintSize64(sequence)) + 1 +
+             CodedOutputStream::VarintSize64(inner) + inner;
+  }
+  return total;
 }
 
 }  // namespace fogmap

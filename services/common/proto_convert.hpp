@@ -19,6 +19,14 @@ v1::GlobalMap toProto(const GlobalMapMessage& message);
 v1::Geofence toProto(const Geofence& fence);
 v1::Containment toProto(Containment containment);
 
+// The serialised size of the uploads (v1::Upload, as ParentLink counts them) that would carry
+// `points` pre-processed points of a frame with `header` in baseline mode, cut into chunks of at
+// most `max_points_per_chunk` points, as if numbered from `first_sequence`. Computed from the
+// encoding rules without building the points, so an edge in madc mode can report what baseline
+// would have cost.
+std::size_t baselineUploadBytes(const MapHeader& header, std::size_t points, std::size_t max_points_per_chunk,
+                                std::uint64_t first_sequence);
+
 // The answer to upload `sequence` (docs/design.md "Delivery"). Applied and late answers carry
 // code 0 (OK); a refusal carries its message as the reason and the gRPC code of its error kind
 // (refusalCode, then toGrpcCode): INVALID_ARGUMENT, or RESOURCE_EXHAUSTED for too_large.

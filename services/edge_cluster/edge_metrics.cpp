@@ -1,5 +1,7 @@
 #include "services/edge_cluster/edge_metrics.hpp"
 
+#include "services/common/proto_convert.hpp"
+
 namespace fogmap {
 
 void MetricsObserver::scanProcessed(const EdgeOutput& output) {
@@ -11,6 +13,11 @@ void MetricsObserver::scanProcessed(const EdgeOutput& output) {
 
 void MetricsObserver::shipped(const EdgeOutput& output) {
   if (output.map) metrics_.mapsOut();
+  const MapHeader* header = output.map ? &output.map->header
+                                       : (output.chunks.empty() ? nullptr : &output.chunks.front().header);
+  if (header != nullptr) {
+    metrics_.baselineBytes(baselineUploadBytes(*header, output.points_out, max_points_per_chunk_, header->epoch));
+  }
 }
 
 void MetricsObserver::failedFrame() { metrics_.failedFrames(); }

@@ -1,6 +1,7 @@
 #pragma once
 // The edge runner's observations as Prometheus metrics (the edge's one Metrics object): frames,
-// points, clustering time, failed frames, malformed inputs, padded scans and dropped points.
+// points, clustering time, failed frames, malformed inputs, padded scans, dropped points, and the
+// bytes each shipped frame would have cost in baseline mode.
 #include <cstddef>
 #include <string>
 
@@ -11,8 +12,10 @@ namespace fogmap {
 
 class MetricsObserver final : public EdgeObserver {
  public:
-  // `metrics` must outlive the observer.
-  explicit MetricsObserver(Metrics& metrics) : metrics_(metrics) {}
+  // `metrics` must outlive the observer; `max_points_per_chunk` is the edge's (EdgeConfig), for
+  // what its frames would cost in baseline mode.
+  MetricsObserver(Metrics& metrics, std::size_t max_points_per_chunk)
+      : metrics_(metrics), max_points_per_chunk_(max_points_per_chunk) {}
   void scanProcessed(const EdgeOutput& output) override;
   void shipped(const EdgeOutput& output) override;
   void failedFrame() override;
@@ -22,6 +25,7 @@ class MetricsObserver final : public EdgeObserver {
 
  private:
   Metrics& metrics_;
+  std::size_t max_points_per_chunk_;
 };
 
 }  // namespace fogmap

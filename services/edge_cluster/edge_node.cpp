@@ -61,6 +61,7 @@ EdgeConfig edgeConfigFor(const TopologyConfig& topology, const NodeConfig& node)
   config.madc = topology.madc;
   config.preprocess = topology.preprocess;
   if (node.sensor) config.preprocess.sensor_to_common = sensorToCommon(*node.sensor);
+  config.ship_raw = topology.baseline_ships_raw;
   // Half the limit leaves room for the header and protobuf framing whatever the limit is.
   const std::size_t by_limit = topology.max_message_bytes / 2 / kMaxBytesPerPoint;
   config.max_points_per_chunk = std::clamp<std::size_t>(by_limit, 1, kDefaultMaxPointsPerChunk);
@@ -72,19 +73,7 @@ EdgeNode::EdgeNode(EdgeConfig config) : config_(std::move(config)) {
   config_.max_points_per_chunk = std::max<std::size_t>(config_.max_points_per_chunk, 1);
 }
 
-Expected<Cloud> EdgeNode::preprocessScan(const Cloud& scan) const {
-  // Ground removal is run here rather than inside preprocess() because a scan with fewer than 3
-  // points left (all cropped away, or a narrow virtual sensor) is a legitimate empty frame, not
-  // an error: nothing above a ground can be established, so nothing is kept.
-  PreprocessConfig without_ground = config_.preprocess;
-  without_ground.ground.reset();
-  Expected<Cloud> cloud = preprocess(scan, without_ground);
-  if (!cloud || !config_.preprocess.ground) return cloud;
-  if (cloud->size() < 3) return Cloud{};
-  Expected<GroundRemoval> ground = removeGround(*cloud, *config_.preprocess.ground);
-  if (!ground) return ground.error();
-  return std::move(ground->non_ground);
-}
+Expected<Cloud> EdgeNode::preprocessScan(const Cloud& scan) const { return fogmap::preprocessScan(scan, config_.preprocess); }
 
 Expected<EdgeOutput> EdgeNode::processFrame(const Cloud& scan_in_sensor_frame, std::uint64_t frame,
                                             std::int64_t sensor_time_ns) const {
@@ -92,7 +81,11 @@ Expected<EdgeOutput> EdgeNode::processFrame(const Cloud& scan_in_sensor_frame, s
   output.points_in = scan_in_sensor_frame.size();
 
   const SteadyClock::time_point preprocess_start = SteadyClock::now();
-  Expected<Cloud> preprocessed = preprocessScan(scan_in_sensor_frame);
+  // A baseline that ships its scans whole only moves them into the common frame.
+  PreprocessConfig move_only;
+  move_only.sensor_to_common = config_.preprocess.sensor_to_common;
+  const bool whole = config_.mode == Mode::kBaseline && config_.ship_raw;
+  Expected<Cloud> preprocessed = whole ? preprocess(scan_in_sensor_frame, move_only) : preprocessScan(scan_in_sensor_frame);
   if (!preprocessed) return preprocessed.error();
   const Cloud& points = *preprocessed;
   output.preprocess_seconds = secondsSince(preprocess_start);

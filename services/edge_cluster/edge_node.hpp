@@ -27,6 +27,7 @@ struct EdgeConfig {
   MadcParams madc;
   PreprocessConfig preprocess;  // sensor_to_common = sensorToCommon(sensor)
   std::size_t max_points_per_chunk = kDefaultMaxPointsPerChunk;
+  bool ship_raw = false;        // baseline: ship the scan moved to the common frame, nothing cut
 };
 
 // What one frame produced, and what it cost.

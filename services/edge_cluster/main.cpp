@@ -10,6 +10,7 @@
 #include <exception>
 #include <filesystem>
 #include <iostream>
+#include <memory>
 #include <optional>
 #include <string>
 #include <thread>
@@ -28,6 +29,7 @@
 #include "services/edge_cluster/edge_node.hpp"
 #include "services/edge_cluster/edge_runner.hpp"
 #include "services/edge_cluster/scan_source.hpp"
+#include "services/edge_cluster/sim_scan_source.hpp"
 
 namespace {
 
@@ -133,9 +135,13 @@ int run(const Flags& flags) {
       fogmap::EpochSchedule::create(topology->period_ms, topology->deadline_ms);
   if (!schedule) return badConfig(flags.topology.string() + ": " + schedule.error().message);
 
-  fogmap::Expected<fogmap::ScanSource> source =
-      fogmap::ScanSource::open(sensor, fogmap::ReadLimits{topology->max_scan_bytes});
+  fogmap::Expected<std::unique_ptr<fogmap::ScanProvider>> source =
+      fogmap::openScanProvider(sensor, fogmap::ReadLimits{topology->max_scan_bytes});
   if (!source) return badConfig(source.error().message);
+  fogmap::ScanProvider& scans = **source;
+  if (const fogmap::Status pose = fogmap::checkSensorPose(sensor); !pose) {
+    return badConfig("node '" + node->name + "': " + pose.error().message);
+  }
 
   std::optional<fogmap::DeliveryJournal> journal;
   if (!flags.journal.empty()) {
@@ -148,7 +154,8 @@ int run(const Flags& flags) {
   if (!tls) return badConfig("tls: " + tls.error().message);
 
   const std::string host = node->host.empty() ? "127.0.0.1" : node->host;
-  fogmap::Metrics metrics(host + ":" + std::to_string(node->metrics_port), "edge-cluster", node->name);
+  fogmap::Metrics metrics(host + ":" + std::to_string(node->metrics_port), fogmap::serviceName(fogmap::Role::kEdge), node->name);
+  metrics.periodSeconds(topology->period_ms / 1000.0);
   const std::string prefix = "edge-cluster " + node->name + ": ";
 
   fogmap::ParentLinkConfig link_config;
@@ -177,7 +184,8 @@ int run(const Flags& flags) {
   // Declared after `metrics`, so destroyed (and its thread stopped) before the hooks' target goes.
   fogmap::ParentLink link(link_config, std::move(hooks));
 
-  fogmap::MetricsObserver observer(metrics);
+  const fogmap::EdgeConfig edge_config = fogmap::edgeConfigFor(*topology, *node);
+  fogmap::MetricsObserver observer(metrics, edge_config.max_points_per_chunk);
   fogmap::EdgeRunnerHooks runner_hooks;
   runner_hooks.now = fogmap::systemNowNs;
   runner_hooks.wait_until = waitUntil;
@@ -191,10 +199,10 @@ int run(const Flags& flags) {
            std::to_string(link.unacknowledged()) + " unacknowledged";
   };
   runner_hooks.observer = &observer;
-  fogmap::EdgeRunner runner(fogmap::EdgeNode(fogmap::edgeConfigFor(*topology, *node)), *source, *schedule,
+  fogmap::EdgeRunner runner(fogmap::EdgeNode(edge_config), scans, *schedule,
                             sensor.rate_hz, std::move(runner_hooks));
 
-  std::cerr << prefix << source->files().size() << " scan(s) from " << sensor.source.string() << " at "
+  std::cerr << prefix << scans.describe() << " at "
             << sensor.rate_hz << " Hz, epochs of " << topology->period_ms << " ms, mode "
             << fogmap::modeName(topology->mode) << ", sending to " << parent->name << " (" << link_config.target
             << (*tls ? ", mutual TLS" : "") << ")\n";
@@ -210,8 +218,8 @@ int run(const Flags& flags) {
               << (flushed ? "" : "; " + std::to_string(link.unacknowledged()) + " upload(s) unacknowledged") << "\n";
     return 0;
   }
-  if (source->emitted() == 0) {
-    std::cerr << prefix << "no readable scan in " << sensor.source.string() << "\n";
+  if (scans.emitted() == 0) {
+    std::cerr << prefix << "no readable scan (" << scans.describe() << ")\n";
     return kExitRuntimeError;
   }
   const bool flushed = link.flush(kDoneFlush);

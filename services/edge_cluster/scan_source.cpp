@@ -55,6 +55,10 @@ Expected<ScanSource> ScanSource::open(const SensorConfig& sensor, ReadLimits lim
   return ScanSource(sensor, limits, std::move(files));
 }
 
+std::string ScanSource::describe() const {
+  return std::to_string(files_.size()) + " scan(s) from " + sensor_.source.string();
+}
+
 bool ScanSource::done() const {
   if (sensor_.frames && emitted_ >= *sensor_.frames) return true;
   return exhausted_ || failures_in_a_row_ >= files_.size();

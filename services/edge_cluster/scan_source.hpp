@@ -6,7 +6,9 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "common/cloud.hpp"
@@ -34,6 +36,10 @@ class ScanProvider {
   // Reads scan number `n` of the recording (which file is the provider's choice; ScanSource: file
   // n mod N); sequence = n. Must not be called when done().
   virtual Expected<ScanFrame> at(std::uint64_t n) = 0;
+  // Scans read so far (the service reports a source that gave none); 0 unless counted.
+  virtual std::uint64_t emitted() const { return 0; }
+  // What is replayed, for the service's start-up line.
+  virtual std::string describe() const { return "scans"; }
 };
 
 class ScanSource : public ScanProvider {
@@ -58,7 +64,9 @@ class ScanSource : public ScanProvider {
   // naming it.
   Expected<ScanFrame> at(std::uint64_t n) override;
   const std::vector<std::filesystem::path>& files() const { return files_; }
-  std::uint64_t emitted() const { return emitted_; }
+  std::uint64_t emitted() const override { return emitted_; }
+  // "N scan(s) from SOURCE".
+  std::string describe() const override;
 
  private:
   ScanSource(SensorConfig sensor, ReadLimits limits, std::vector<std::filesystem::path> files);
@@ -73,5 +81,10 @@ class ScanSource : public ScanProvider {
   std::size_t failures_in_a_row_ = 0;  // consecutive unreadable files
   bool exhausted_ = false;            // passed the last scan without looping
 };
+
+// The scans of `sensor`, as the edge replays them: a SimScanSource for a simulated LiDAR (source
+// sim; services/edge_cluster/sim_scan_source.hpp), else a ScanSource bounded by `limits`. Errors as
+// theirs (a missing recording or scene, an unknown LiDAR).
+Expected<std::unique_ptr<ScanProvider>> openScanProvider(const SensorConfig& sensor, ReadLimits limits = {});
 
 }  // namespace fogmap

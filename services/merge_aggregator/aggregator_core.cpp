@@ -64,6 +64,10 @@ Expected<AggregatorConfig> aggregatorConfigFor(const TopologyConfig& topology, c
   config.deadline_ms = topology.deadline_ms;
   config.admission = topology.admission;
   config.madc = topology.madc;
+  if (topology.mode == Mode::kBaseline && topology.baseline_ships_raw && config.is_root) {
+    config.preprocess = topology.preprocess;
+    config.preprocess->sensor_to_common = Eigen::Isometry3d::Identity();
+  }
   for (const NodeConfig* child : topology.children(self->name)) {
     config.children.push_back({child->id, topology.sensorsBelow(child->name), child->name});
   }
@@ -72,9 +76,17 @@ Expected<AggregatorConfig> aggregatorConfigFor(const TopologyConfig& topology, c
 
 GlobalMapMessage clusterCentrally(BaselineJob job) {
   GlobalMapMessage global = std::move(job.message);
+  const auto start = std::chrono::steady_clock::now();
+  if (job.preprocess) {
+    for (auto& [sensor, cloud] : job.scans) {
+      // A scan that cannot be pre-processed (a degenerate ground fit) contributes no points, as
+      // its edge would have failed the frame.
+      Expected<Cloud> prepared = preprocessScan(cloud, *job.preprocess);
+      cloud = prepared ? std::move(*prepared) : Cloud{};
+    }
+  }
   Cloud all;
   for (const auto& [sensor, cloud] : job.scans) all.insert(all.end(), cloud.begin(), cloud.end());
-  const auto start = std::chrono::steady_clock::now();
   const Clustering clustering = euclideanClusters(all, job.madc.clustering);
   const auto summaries = summarizeClusters(all, clustering);
   std::vector<Ellipsoid> ellipsoids;
@@ -652,6 +664,7 @@ EpochOutput MergeAggregator::emit(std::uint64_t epoch_id, Epoch& epoch, bool com
     BaselineJob job;
     job.node = config_.node;
     job.madc = config_.madc;
+    job.preprocess = config_.preprocess;
     std::set<std::uint32_t> contributing;
     for (const auto& [sensor, points] : epoch.points) {
       // A partial scan would be clustered wrongly near the gaps; a failed one has no data.

@@ -21,6 +21,7 @@
 #include "common/madc.hpp"
 #include "common/map.hpp"
 #include "common/messages.hpp"
+#include "common/preprocess.hpp"
 #include "common/status.hpp"
 #include "common/topology.hpp"
 
@@ -43,6 +44,9 @@ struct AggregatorConfig {
   double deadline_ms = 80.0;          // per level: epoch k is emitted at k period + levels deadline
   AdmissionLimits admission;
   MadcParams madc;                      // baseline root: the central clustering and ellipsoids
+  // Baseline root whose edges ship whole scans: each is pre-processed here (no transform: the
+  // edges moved them into the common frame), as an edge would, before the central clustering.
+  std::optional<PreprocessConfig> preprocess;
   std::size_t max_pending_epochs = 64;  // beyond this the oldest open epoch is dropped (counted)
 };
 
@@ -77,9 +81,12 @@ struct BaselineJob {
   std::uint32_t node = 0;  // the root, for the ellipsoid ids
   MadcParams madc;
   std::vector<std::pair<std::uint32_t, Cloud>> scans;  // (sensor, its scan), sensor order
+  std::optional<PreprocessConfig> preprocess;          // whole scans: pre-process each first
   GlobalMapMessage message;  // header and flags set; map and labels filled by clusterCentrally
 };
-// Clusters the union of the scans and fills the job's global map (objects, point labels, time).
+// Clusters the union of the scans (each pre-processed first when the job says so; the point
+// labels are then those of the pre-processed points) and fills the job's global map (objects,
+// point labels, the time it took, pre-processing included).
 GlobalMapMessage clusterCentrally(BaselineJob job);
 
 // One emitted epoch. `message` is a MapMessage for the parent at an intermediate, a

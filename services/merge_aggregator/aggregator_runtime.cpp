@@ -61,6 +61,18 @@ void Emitter::exportCounters(const AggregatorCounters& now) {
   exported_ = now;
 }
 
+void Emitter::exportPublished(const GlobalMapMessage& global) {
+  // Revisions and late maps are not the live picture.
+  if (metrics_ == nullptr || global.late || global.revision != 0) return;
+  metrics_->globalObjects(static_cast<double>(global.map.objects.size()));
+  const auto name = [this](std::uint32_t id) {
+    const auto it = sensor_names_.find(id);
+    return it == sensor_names_.end() ? std::to_string(id) : it->second;
+  };
+  for (const std::uint32_t id : global.header.contributing_nodes) metrics_->sensorMissing(name(id), false);
+  for (const std::uint32_t id : global.header.missing_nodes) metrics_->sensorMissing(name(id), true);
+}
+
 std::size_t Emitter::pollOnce() {
   std::vector<EpochOutput> outputs;
   std::size_t live = 0;
@@ -125,6 +137,7 @@ std::size_t Emitter::dispatch(std::vector<EpochOutput> outputs) {
                                     1e-9);
         }
       }
+      exportPublished(*global);
       if (sinks_.publish) sinks_.publish(std::move(*global));
     }
   }

@@ -6,6 +6,8 @@
 #include <condition_variable>
 #include <cstdint>
 #include <functional>
+#include <map>
+#include <string>
 #include <mutex>
 #include <thread>
 #include <utility>
@@ -59,18 +61,24 @@ class Emitter {
   std::size_t pollOnce();
   // Emits every open epoch, due or not (shutdown, after the ingest stopped); returns how many.
   std::size_t drain();
+  // Root: the names of the sensor nodes, for the per-sensor metrics of published maps (call
+  // before start()). An id without a name is reported by its number.
+  void sensorNames(std::map<std::uint32_t, std::string> names) { sensor_names_ = std::move(names); }
 
  private:
   void run();
   std::size_t dispatch(std::vector<EpochOutput> outputs);
   // Exports what the core counted since the last call (the core's counters are the one set).
   void exportCounters(const AggregatorCounters& now);
+  // Root: objects and missing sensors of a live global map.
+  void exportPublished(const GlobalMapMessage& global);
 
   SharedAggregator& aggregator_;
   EmitterSinks sinks_;
   Metrics* metrics_;
   NowNs now_ns_;
   std::chrono::milliseconds period_;
+  std::map<std::uint32_t, std::string> sensor_names_;
   AggregatorCounters exported_;  // what exportCounters has reported so far (emitter thread only)
   std::mutex mutex_;
   std::condition_variable wake_;

@@ -107,7 +107,8 @@ int run(const Args& args, const sigset_t& stop_signals) {
   const bool is_root = core->config().is_root;
   SharedAggregator aggregator(std::move(*core));
 
-  Metrics metrics(self->host + ":" + std::to_string(self->metrics_port), "merge-aggregator", self->name);
+  Metrics metrics(self->host + ":" + std::to_string(self->metrics_port), serviceName(Role::kAggregator), self->name);
+  metrics.periodSeconds(topology->period_ms / 1000.0);
 
   std::unique_ptr<ParentLink> parent_link;
   if (!is_root) {
@@ -161,6 +162,13 @@ int run(const Args& args, const sigset_t& stop_signals) {
     sinks.link_drops = [&parent_link] { return parent_link->dropped(); };
   }
   Emitter emitter(aggregator, std::move(sinks), &metrics);
+  if (is_root) {
+    std::map<std::uint32_t, std::string> sensor_names;
+    for (const NodeConfig& node : topology->nodes) {
+      if (node.role == Role::kEdge) sensor_names[node.id] = node.name;
+    }
+    emitter.sensorNames(std::move(sensor_names));
+  }
   ingest.onArrival([&emitter] { emitter.wake(); });
   std::map<std::uint32_t, std::string> peer_names;
   for (const NodeConfig* child : topology->children(self->name)) peer_names[child->id] = child->name;

@@ -22,6 +22,7 @@ const fs::path kSourceDir = FOGMAP_SOURCE_DIR;
 void expectSameTopology(const TopologyConfig& a, const TopologyConfig& b) {
   EXPECT_EQ(a.name, b.name);
   EXPECT_EQ(a.mode, b.mode);
+  EXPECT_EQ(a.baseline_ships_raw, b.baseline_ships_raw);
   EXPECT_DOUBLE_EQ(a.deadline_ms, b.deadline_ms);
   EXPECT_DOUBLE_EQ(a.period_ms, b.period_ms);
   EXPECT_EQ(a.max_message_bytes, b.max_message_bytes);
@@ -69,6 +70,8 @@ void expectSameTopology(const TopologyConfig& a, const TopologyConfig& b) {
     ASSERT_EQ(x.sensor.has_value(), y.sensor.has_value());
     if (!x.sensor) continue;
     EXPECT_EQ(x.sensor->source.lexically_normal(), y.sensor->source.lexically_normal());
+    EXPECT_EQ(x.sensor->scene.lexically_normal(), y.sensor->scene.lexically_normal());
+    EXPECT_EQ(x.sensor->lidar, y.sensor->lidar);
     EXPECT_DOUBLE_EQ(x.sensor->rate_hz, y.sensor->rate_hz);
     EXPECT_EQ(x.sensor->loop, y.sensor->loop);
     EXPECT_EQ(x.sensor->frames, y.sensor->frames);
@@ -123,6 +126,25 @@ TEST(Topology, StarRoundTripsThroughYaml) {
   EXPECT_EQ(parsed->sensorsBelow("sink"), (std::vector<std::uint32_t>{1, 2, 3, 4}));
 }
 
+TEST(Topology, ABaselineThatShipsWholeScansRoundTripsAndOnlyProcessedOrRawIsAccepted) {
+  TopologyConfig star = makeStarTopology(2, "scans", 51000);
+  star.mode = Mode::kBaseline;
+  star.baseline_ships_raw = true;
+  const Expected<TopologyConfig> parsed = parseTopology(toYaml(star), "");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  expectSameTopology(*parsed, star);
+  star.baseline_ships_raw = false;
+  EXPECT_EQ(toYaml(star).find("baseline_ships"), std::string::npos) << "the default is not written";
+  const std::string text = toYaml(makeStarTopology(2, "scans", 51000));
+  const auto wrong = parseTopology("baseline_ships: everything\n" + text, "");
+  ASSERT_FALSE(wrong.ok());
+  EXPECT_NE(wrong.error().message.find("baseline_ships: must be processed or raw, got 'everything'"), std::string::npos)
+      << wrong.error().message;
+  const auto processed = parseTopology("baseline_ships: processed\n" + text, "");
+  ASSERT_TRUE(processed.ok()) << processed.error().message;
+  EXPECT_FALSE(processed->baseline_ships_raw);
+}
+
 TEST(Topology, TreeRoundTripsThroughYaml) {
   TopologyConfig tree = makeTreeTopology(7, "scans", 52000);
   customize(tree);
@@ -132,6 +154,42 @@ TEST(Topology, TreeRoundTripsThroughYaml) {
   EXPECT_EQ(parsed->nodes.size(), 13U);  // 7 edges under 6 binary aggregators
   EXPECT_EQ(parsed->aggregatorLevels("sink"), 3);
   EXPECT_EQ(parsed->sensorsBelow("sink"), (std::vector<std::uint32_t>{1, 2, 3, 4, 5, 6, 7}));
+}
+
+// A tree with fanout F: as few levels as F allows, no aggregator over more than F children, and
+// subtrees that differ by at most one edge. Checked against the shape by brute force over sizes.
+TEST(Topology, TreeWithFanoutHasTheFewestLevelsAndBalancedChildren) {
+  const TopologyConfig tree7 = makeTreeTopology(7, "scans", 52000, 4);
+  EXPECT_EQ(tree7.children("sink").size(), 2U);
+  EXPECT_EQ(tree7.sensorsBelow("agg-1").size(), 4U);
+  EXPECT_EQ(tree7.sensorsBelow("agg-2").size(), 3U);
+  for (int fanout = 2; fanout <= 5; ++fanout) {
+    for (int edges = 2; edges <= 32; ++edges) {  // 10 degrees of overlap fit up to 35 views
+      const TopologyConfig t = makeTreeTopology(edges, "scans", 52000, fanout);
+      SCOPED_TRACE(std::to_string(edges) + " edges, fanout " + std::to_string(fanout));
+      const Expected<TopologyConfig> parsed = parseTopology(toYaml(t), "");
+      ASSERT_TRUE(parsed.ok()) << (parsed.ok() ? "" : parsed.error().message);
+      EXPECT_EQ(parsed->sensorsBelow("sink").size(), static_cast<std::size_t>(edges));
+      int levels = 1;  // the fewest levels that hold the edges
+      for (int capacity = fanout; capacity < edges; capacity *= fanout) ++levels;
+      EXPECT_EQ(parsed->aggregatorLevels("sink"), levels);
+      for (const NodeConfig& n : parsed->nodes) {
+        if (n.role != Role::kAggregator) continue;
+        const auto children = parsed->children(n.name);
+        EXPECT_LE(children.size(), static_cast<std::size_t>(fanout)) << n.name;
+        EXPECT_GE(children.size(), 2U) << n.name;
+        std::size_t smallest = SIZE_MAX, largest = 0;
+        for (const NodeConfig* c : children) {
+          const std::size_t below = parsed->sensorsBelow(c->name).size();
+          smallest = std::min(smallest, below);
+          largest = std::max(largest, below);
+        }
+        EXPECT_LE(largest - smallest, 1U) << n.name;
+      }
+    }
+  }
+  // Fanout 2 is the binary tree the bundled topologies were made with.
+  EXPECT_EQ(toYaml(makeTreeTopology(7, "scans", 52000, 2)), toYaml(makeTreeTopology(7, "scans", 52000)));
 }
 
 TEST(Topology, RelativeSensorSourceResolvesAgainstBaseDir) {
@@ -530,6 +588,69 @@ TEST(Topology, TlsErrorsNameTheirField) {
   expectRejectedWith(topologyYaml("tls: {ca: c.crt}\n", "", sink + ca_edge + "}\n"), {"nodes[1] (ca).name", "file name"});
   EXPECT_TRUE(parseTopology(topologyYaml("", "", sink + ca_edge + "}\n"), "").ok()) << "without tls any name goes";
   EXPECT_TRUE(parseTopology(topologyYaml("tls: {ca: c.crt}\n", "", sink + ca_edge + ", tls: {cert: e.crt, key: e.key}}\n"), "").ok());
+}
+
+// A simulated LiDAR: `source: sim` is the switch, the scene resolves like a source, the LiDAR is a
+// name in the scene.
+std::string simEdge(const std::string& sensor) {
+  return "  - {name: sink, id: 100, role: aggregator, port: 50000, metrics_port: 50200}\n"
+         "  - {name: edge-1, id: 1, role: edge, parent: sink, metrics_port: 50101, sensor: {source: scans}}\n"
+         "  - {name: edge-2, id: 2, role: edge, parent: sink, metrics_port: 50102, sensor: " + sensor + "}\n";
+}
+
+TEST(Topology, SimulatedSensorRoundTripsThroughYaml) {
+  TopologyConfig star = makeStarTopology(3, "scans", 54000);
+  customize(star);
+  SensorConfig& sim = *star.nodes.back().sensor;
+  sim.source = kSimSource;
+  sim.split.reset();
+  sim.scene = "scenes/yard.yaml";
+  sim.lidar = "lidar 3: north-east";  // any name the scene gives its LiDAR, quoted by toYaml as needed
+  const std::string yaml = toYaml(star);
+  const Expected<TopologyConfig> parsed = parseTopology(yaml, "");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message << "\n" << yaml;
+  expectSameTopology(*parsed, star);
+  const SensorConfig& back = *parsed->nodes.back().sensor;
+  EXPECT_TRUE(back.simulated());
+  EXPECT_EQ(back.source, fs::path("sim")) << "sim is not a path: it does not resolve against the base directory";
+  EXPECT_FALSE(parsed->nodes[1].sensor->simulated());
+  EXPECT_TRUE(parsed->nodes[1].sensor->scene.empty());
+  EXPECT_TRUE(parsed->nodes[1].sensor->lidar.empty());
+
+  const Expected<TopologyConfig> based = parseTopology(yaml, "topologies");
+  ASSERT_TRUE(based.ok()) << based.error().message;
+  EXPECT_EQ(based->nodes.back().sensor->scene, fs::path("topologies") / "scenes" / "yard.yaml");
+  EXPECT_EQ(based->nodes.back().sensor->source, fs::path("sim"));
+  const Expected<TopologyConfig> absolute =
+      parseTopology(topologyYaml("", "", simEdge("{source: sim, scene: /data/s.yaml, lidar: l1}")), "topologies");
+  ASSERT_TRUE(absolute.ok()) << absolute.error().message;
+  EXPECT_EQ(absolute->nodes.back().sensor->scene, fs::path("/data/s.yaml"));
+  EXPECT_EQ(absolute->nodes.back().sensor->lidar, "l1");
+  EXPECT_DOUBLE_EQ(absolute->nodes.back().sensor->rate_hz, 10.0);
+}
+
+TEST(Topology, SimulatedSensorNeedsASceneAndALidarAndIsNotSplit) {
+  expectRejectedWith(topologyYaml("", "", simEdge("{source: sim, scene: s.yaml}")),
+                     {"topology: nodes[2].sensor.lidar: ", "required with source sim"});
+  expectRejectedWith(topologyYaml("", "", simEdge("{source: sim, scene: s.yaml, lidar: \"\"}")),
+                     {"topology: nodes[2].sensor.lidar: ", "required with source sim"});
+  expectRejectedWith(topologyYaml("", "", simEdge("{source: sim, lidar: l1}")),
+                     {"topology: nodes[2].sensor.scene: ", "required with source sim"});
+  expectRejectedWith(topologyYaml("", "", simEdge("{source: scans, lidar: l1}")),
+                     {"topology: nodes[2].sensor.lidar: ", "source sim only", "'scans'"});
+  expectRejectedWith(topologyYaml("", "", simEdge("{source: scans, scene: s.yaml}")),
+                     {"topology: nodes[2].sensor.scene: ", "source sim only"});
+  expectRejectedWith(topologyYaml("", "", simEdge("{source: sim, scene: s.yaml, lidar: l1, split: {views: 2, index: 0}}")),
+                     {"topology: nodes[2].sensor.split: ", "not split"});
+  expectRejectedWith(topologyYaml("", "", simEdge("{source: sim, scene: s.yaml, lidar: [a, b]}")),
+                     {"topology: nodes[2].sensor.lidar"});
+  expectRejectedWith(topologyYaml("", "", simEdge("{source: sim, scene: s.yaml, lidar: l1, lidars: l2}")),
+                     {"nodes[2].sensor.lidars", "unknown key"});
+  // A directory that happens to be called sim is written as a path.
+  const Expected<TopologyConfig> dir = parseTopology(topologyYaml("", "", simEdge("{source: ./sim}")), "base");
+  ASSERT_TRUE(dir.ok()) << dir.error().message;
+  EXPECT_FALSE(dir->nodes.back().sensor->simulated());
+  EXPECT_EQ(dir->nodes.back().sensor->source, fs::path("base") / "./sim");
 }
 
 }  // namespace

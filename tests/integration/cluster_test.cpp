@@ -49,14 +49,6 @@ TopologyConfig topology(const std::string& shape, int edges, Mode mode, std::uin
   return t;
 }
 
-std::vector<std::uint64_t> completeEpochs(const RunResult& run) {
-  std::vector<std::uint64_t> out;
-  for (const auto& [e, g] : run.epochs) {
-    if (g.header.missing_nodes.empty()) out.push_back(e);
-  }
-  return out;
-}
-
 // The same map with every ellipsoid's frame replaced: maps of different epochs that replayed the
 // same scan are then comparable.
 Map withFrame(const Map& map, std::uint64_t frame) {
@@ -99,8 +91,18 @@ TEST(Cluster, StarOfThreeGlobalMapEqualsInProcessMerge) {
 }
 
 TEST(Cluster, StarAndTreeOfSevenGiveTheSameGlobalMap) {
-  const auto tree = runAndCheckAgainstInProcessMerge(topology("tree", 7, Mode::kMadc, 30), "tree7");
-  const auto star = runAndCheckAgainstInProcessMerge(topology("star", 7, Mode::kMadc, 30), "star7");
+  // Seven edges pre-processing a KITTI scan each at 10 Hz need about all of 2 cores: an edge that
+  // misses its period skips an epoch (by design), and with seven of them few epochs stay complete.
+  // At 5 Hz the same scans leave room (epoch e still replays scan e mod 5).
+  const auto halfRate = [](TopologyConfig t) {
+    t.period_ms = 200.0;
+    for (auto& n : t.nodes) {
+      if (n.sensor) n.sensor->rate_hz = 5.0;
+    }
+    return t;
+  };
+  const auto tree = runAndCheckAgainstInProcessMerge(halfRate(topology("tree", 7, Mode::kMadc, 30)), "tree7");
+  const auto star = runAndCheckAgainstInProcessMerge(halfRate(topology("star", 7, Mode::kMadc, 30)), "star7");
   std::size_t compared = 0;
   for (const auto& [scan, map] : tree) {
     const auto it = star.find(scan);
@@ -247,69 +249,6 @@ TEST(Cluster, FogctlGeofenceReportsTheIntrusionsOfThePublishedGlobalMap) {
   EXPECT_EQ(run(fogctl + "set --target " + target + " --name x --box 1,2,3").first, 2);
   EXPECT_EQ(run(fogctl + "set --target " + target + " --name x --box 1,2,3,0,5,6").first, 2);
   EXPECT_EQ(run(fogctl + "set --target " + target + " --name x --box 1,2,3,4,5,six").first, 2);
-}
-
-TEST(Cluster, PrometheusScrapesEveryServiceAndPromtoolFindsNoProblems) {
-  if (run("prometheus --version").first != 0) {
-    GTEST_SKIP() << "SKIPPED: no Prometheus server here (the Debian package prometheus, installed by "
-                    "tools/install-deps.sh); the other tests run without it";
-  }
-  const TopologyConfig t = topology("star", 3, Mode::kMadc, 100);
-  const auto dir = scratchDir("prometheus");
-  RunOptions options;
-  options.frames = 1;  // the checks run while the cluster is up
-  options.timeout = 30s;
-  const auto result = cli::runCluster(dir, t, options, [&](const cli::Cluster&) {
-    for (const auto& n : t.nodes) {
-      const auto text = cli::httpGet(n.host, n.metrics_port, "/metrics", 2000ms);
-      ASSERT_TRUE(text.ok()) << n.name;
-      std::ofstream(dir / (n.name + ".prom")) << *text;
-      const auto [code, problems] = run("promtool check metrics < " + (dir / (n.name + ".prom")).string());
-      EXPECT_EQ(code, 0) << n.name << ": " << problems;
-      EXPECT_EQ(problems, "") << n.name;
-    }
-    std::ofstream config(dir / "prometheus.yml");
-    config << "global:\n  scrape_interval: 1s\nscrape_configs:\n  - job_name: fogmap\n    static_configs:\n      - targets: [";
-    for (std::size_t i = 0; i < t.nodes.size(); ++i) {
-      config << (i ? ", " : "") << "'" << t.nodes[i].host << ":" << t.nodes[i].metrics_port << "'";
-    }
-    config << "]\n";
-    config.close();
-    const std::uint16_t web_port = test_support::freePorts(1).at(0);
-    const pid_t pid = ::fork();
-    if (pid == 0) {
-      const std::string cfg = "--config.file=" + (dir / "prometheus.yml").string();
-      const std::string storage = "--storage.tsdb.path=" + (dir / "tsdb").string();
-      const std::string web = "--web.listen-address=127.0.0.1:" + std::to_string(web_port);
-      std::freopen((dir / "prometheus.log").c_str(), "w", stderr);
-      ::execlp("prometheus", "prometheus", cfg.c_str(), storage.c_str(), web.c_str(), static_cast<char*>(nullptr));
-      ::_exit(127);
-    }
-    ASSERT_GT(pid, 0);
-    // Poll the query API until every service's samples are there (bounded: 40 s).
-    std::string answer;
-    std::size_t series = 0;
-    for (int attempt = 0; attempt < 80; ++attempt) {
-      std::this_thread::sleep_for(500ms);
-      const auto body = cli::httpGet("127.0.0.1", web_port, "/api/v1/query?query=count(up==1)", 1000ms);
-      const auto bytes = cli::httpGet("127.0.0.1", web_port, "/api/v1/query?query=fogmap_bytes_sent_total", 1000ms);
-      if (!body.ok() || !bytes.ok()) continue;
-      answer = *bytes;
-      const auto value = body->rfind("\"");
-      series = 0;
-      if (body->find("\"result\":[{") != std::string::npos && value != std::string::npos) {
-        const auto open = body->rfind("\"", value - 1);
-        series = static_cast<std::size_t>(std::atoi(body->substr(open + 1, value - open - 1).c_str()));
-      }
-      if (series == t.nodes.size() && answer.find("fogmap_bytes_sent_total") != std::string::npos) break;
-    }
-    ::kill(pid, SIGTERM);
-    ::waitpid(pid, nullptr, 0);
-    EXPECT_EQ(series, t.nodes.size()) << "targets up in Prometheus";
-    EXPECT_NE(answer.find("\"result\":[{"), std::string::npos) << answer;
-    EXPECT_NE(answer.find("fogmap_bytes_sent_total"), std::string::npos) << answer;
-  });
-  ASSERT_TRUE(result.ok()) << result.error().message;
 }
 
 }  // namespace

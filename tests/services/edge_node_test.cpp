@@ -144,6 +144,28 @@ TEST(EdgeNode, BaselineChunksReassembleToThePreprocessedScan) {
   for (const PointChunk& chunk : output.chunks) EXPECT_LE(chunk.points.size(), config.max_points_per_chunk);
 }
 
+TEST(EdgeNode, ABaselineThatShipsWholeScansOnlyMovesThemIntoTheCommonFrame) {
+  EdgeConfig config = edgeConfig(Mode::kBaseline);
+  config.ship_raw = true;
+  config.preprocess.sensor_to_common = Eigen::Translation3d(1.0, -2.0, 0.5) * Eigen::Isometry3d::Identity();
+  const Cloud& scan = realScan();
+  ASSERT_TRUE(config.preprocess.ground.has_value()) << "the test config removes the ground, whole scans keep it";
+  const EdgeOutput output = process(EdgeNode(config), scan);
+  EXPECT_FALSE(output.map.has_value());
+  const Reassembled all = reassemble(output.chunks);
+  ASSERT_EQ(all.points.size(), scan.size()) << "nothing cropped, downsampled or removed";
+  EXPECT_EQ(output.points_out, scan.size());
+  for (std::size_t i = 0; i < scan.size(); i += 997) {
+    const Eigen::Vector3d expected = config.preprocess.sensor_to_common * Eigen::Vector3d(scan[i].x, scan[i].y, scan[i].z);
+    EXPECT_NEAR(all.points[i].x, expected.x(), 1e-5);
+    EXPECT_NEAR(all.points[i].y, expected.y(), 1e-5);
+    EXPECT_NEAR(all.points[i].z, expected.z(), 1e-5);
+  }
+  // The same node in the other modes pre-processes as ever.
+  config.mode = Mode::kExt;
+  EXPECT_LT(process(EdgeNode(config), scan).points_out, scan.size());
+}
+
 TEST(EdgeNode, DefaultChunksStayWellUnderTheMessageLimit) {
   // A dense synthetic scan well above one chunk, without ground to remove.
   std::mt19937 rng(7);

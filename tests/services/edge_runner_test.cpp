@@ -736,7 +736,7 @@ TEST(EdgeRunner, OnePercentNonFinitePointsOverTenThousandFramesAreDroppedAndCoun
   InMemoryScans memory(scans, kFramesEach);
 
   Metrics metrics("", "edge-cluster", "hostile");  // the edge's one Metrics, nothing served
-  MetricsObserver observer(metrics);
+  MetricsObserver observer(metrics, kDefaultMaxPointsPerChunk);
   const HostileReplay from_files = replayToTheEnd(*files, scans, observer);
   const HostileReplay from_memory = replayToTheEnd(memory, scans, observer);
   std::filesystem::remove_all(dir);

@@ -128,6 +128,12 @@ TEST(Metrics, ServesExpositionTextWithLabelsAndValues) {
   metrics.droppedPoints("non_finite", 7);
   metrics.droppedPoints("non_finite", 5);
   metrics.geofencesDenied();
+  metrics.periodSeconds(0.1);
+  metrics.globalObjects(12);
+  metrics.sensorMissing("edge-1", false);
+  metrics.sensorMissing("edge-2", true);
+  metrics.baselineBytes(1000);
+  metrics.baselineBytes(24);
 
   const std::string response = httpGet(port, "/metrics");
   ASSERT_NE(response.find(" 200 "), std::string::npos) << response.substr(0, 200);
@@ -161,6 +167,15 @@ TEST(Metrics, ServesExpositionTextWithLabelsAndValues) {
   EXPECT_EQ(sample(text, "fogmap_frames_total", withBase()), 2.0);
   EXPECT_EQ(sample(text, "fogmap_dropped_points_total", withBase({{"reason", "non_finite"}})), 12.0);
   EXPECT_EQ(sample(text, "fogmap_geofence_denied_total", withBase()), 1.0);
+  EXPECT_EQ(sample(text, "fogmap_period_seconds", withBase()), 0.1);
+  EXPECT_EQ(sample(text, "fogmap_global_objects", withBase()), 12.0);
+  EXPECT_EQ(sample(text, "fogmap_sensor_missing", withBase({{"sensor", "edge-1"}})), 0.0);
+  EXPECT_EQ(sample(text, "fogmap_sensor_missing", withBase({{"sensor", "edge-2"}})), 1.0);
+  EXPECT_EQ(sample(text, "fogmap_baseline_equivalent_bytes_total", withBase()), 1024.0);
+  // Labelled counters exist at 0 before the first event, so rates and alerts have data.
+  EXPECT_EQ(sample(text, "fogmap_refused_uploads_total", withBase({{"reason", "clock_skew"}})), 0.0);
+  EXPECT_EQ(sample(text, "fogmap_refused_uploads_total", withBase({{"reason", "unknown_peer"}})), 0.0);
+  EXPECT_EQ(sample(text, "fogmap_malformed_inputs_total", withBase({{"what", "scan"}})), 0.0);
 
   // Every family is documented and typed.
   for (const std::string name :
@@ -168,14 +183,16 @@ TEST(Metrics, ServesExpositionTextWithLabelsAndValues) {
         "fogmap_points_in_total", "fogmap_points_out_total", "fogmap_merge_pairs_tested_total",
         "fogmap_merge_pairs_pruned_total", "fogmap_malformed_inputs_total", "fogmap_late_maps_total",
         "fogmap_reconnects_total", "fogmap_dropped_uploads_total", "fogmap_frames_total",
-        "fogmap_dropped_points_total", "fogmap_geofence_denied_total"}) {
+        "fogmap_dropped_points_total", "fogmap_geofence_denied_total", "fogmap_baseline_equivalent_bytes_total",
+        "fogmap_refused_uploads_total"}) {
     EXPECT_NE(text.find("# HELP " + name + " "), std::string::npos) << name;
     EXPECT_NE(text.find("# TYPE " + name + " counter"), std::string::npos) << name;
   }
   for (const std::string name : {"fogmap_clustering_seconds", "fogmap_merge_seconds", "fogmap_end_to_end_seconds"}) {
     EXPECT_NE(text.find("# TYPE " + name + " histogram"), std::string::npos) << name;
   }
-  for (const std::string name : {"fogmap_children_live", "fogmap_children_stale"}) {
+  for (const std::string name : {"fogmap_children_live", "fogmap_children_stale", "fogmap_period_seconds",
+                                 "fogmap_global_objects", "fogmap_sensor_missing"}) {
     EXPECT_NE(text.find("# TYPE " + name + " gauge"), std::string::npos) << name;
   }
 }

@@ -362,6 +362,47 @@ TEST(ProtoConvert, PointChunkRoundTripIsExact) {
   EXPECT_TRUE(samePoints(back->points, c.points));
 }
 
+// The oracle: the uploads themselves, cut by hand into chunks and serialised.
+std::size_t serialisedBaselineBytes(const MapHeader& header, std::size_t points, std::size_t per_chunk,
+                                    std::uint64_t first_sequence) {
+  const std::size_t count = std::max<std::size_t>(1, (points + per_chunk - 1) / per_chunk);
+  std::size_t total = 0;
+  for (std::size_t c = 0; c < count; ++c) {
+    PointChunk chunk;
+    chunk.header = header;
+    chunk.chunk = static_cast<std::uint32_t>(c);
+    chunk.chunk_count = static_cast<std::uint32_t>(count);
+    chunk.first_point = static_cast<std::uint32_t>(c * per_chunk);
+    chunk.total_points = static_cast<std::uint32_t>(points);
+    for (std::size_t i = c * per_chunk; i < std::min(points, (c + 1) * per_chunk); ++i) {
+      chunk.points.push_back({0.5F * static_cast<float>(i), -1.0F, 2.0F, 0.0F});
+    }
+    v1::Upload upload;
+    upload.set_sequence(first_sequence + c);
+    *upload.mutable_points() = toProto(chunk);
+    total += upload.ByteSizeLong();
+  }
+  return total;
+}
+
+TEST(ProtoConvert, BaselineUploadBytesEqualTheSerialisedUploads) {
+  MapHeader header;
+  header.node = 7;
+  header.epoch = 17'000'000'123ULL;
+  header.sensor_time_ns = 1'700'000'000'123'456'789LL;
+  header.contributing_nodes = {7};
+  for (const std::size_t points : {0UL, 1UL, 10UL, 127UL, 1000UL, 65'535UL, 65'536UL, 65'537UL, 150'000UL}) {
+    for (const std::size_t per_chunk : {1000UL, 65'536UL}) {
+      for (const std::uint64_t sequence : {0ULL, 1ULL, 127ULL, 128ULL, 1ULL << 35}) {
+        if (points / per_chunk > 100) continue;  // keep the oracle quick
+        EXPECT_EQ(baselineUploadBytes(header, points, per_chunk, sequence),
+                  serialisedBaselineBytes(header, points, per_chunk, sequence))
+            << points << " points, " << per_chunk << " a chunk, from sequence " << sequence;
+      }
+    }
+  }
+}
+
 TEST(ProtoConvert, PointsArePackedLittleEndianFloat32) {
   PointChunk c;
   c.total_points = 1;

@@ -30,10 +30,16 @@
 #include <gtest/gtest.h>
 
 #include "common/certs.hpp"
+#include "common/sim/generators.hpp"
+#include "common/sim/scene.hpp"
+#include "common/sim/scene_topology.hpp"
 #include "common/topology.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "services/common/proto_convert.hpp"
 #include "tests/support/free_ports.hpp"
+#include "tests/support/scratch_dir.hpp"
+#include "tools/fogctl/cluster_run.hpp"
+#include "tools/fogctl/compose.hpp"
 #include "tools/fogctl/launcher.hpp"
 
 namespace fogmap {
@@ -44,25 +50,8 @@ namespace fs = std::filesystem;
 
 fs::path fogctlBinary() { return cli::binaryDir() / "fogctl"; }
 
-// A fresh directory under the system temp dir, removed with everything in it at the end.
-class ScratchDir {
- public:
-  explicit ScratchDir(const std::string& name)
-      : path_(fs::temp_directory_path() / ("fogctl-test-" + std::to_string(::getpid()) + "-" + name)) {
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~ScratchDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  ScratchDir(const ScratchDir&) = delete;
-  ScratchDir& operator=(const ScratchDir&) = delete;
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
+using test_support::readFile;
+using test_support::ScratchDir;
 
 struct Outcome {
   int code = -1;  // exit code; 128 + signal when killed; -1 when it had to be killed at the limit
@@ -588,11 +577,6 @@ bool ownerOnly(const fs::path& file) {
   return (fs::status(file).permissions() & fs::perms::all) == (fs::perms::owner_read | fs::perms::owner_write);
 }
 
-std::string readText(const fs::path& file) {
-  std::ifstream in(file);
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
-
 TEST(FogctlCerts, WritesACaAndACertificatePerNodeAndClientKeysReadableByTheirOwnerOnly) {
   ScratchDir dir("certs");
   const fs::path topology = writeTopology(dir.path(), "certs-star");
@@ -601,12 +585,12 @@ TEST(FogctlCerts, WritesACaAndACertificatePerNodeAndClientKeysReadableByTheirOwn
   const Outcome made = fogctl({"certs", topology.string(), "--out", out.string(), "--days", "2", "--clients", "operator,ci"});
   ASSERT_EQ(made.code, 0) << describe(made);
   EXPECT_TRUE(contains(made.out, "tls: {ca: pki/ca.crt")) << describe(made);
-  const std::string ca = readText(out / "ca.crt");
+  const std::string ca = readFile(out / "ca.crt");
   const auto now = std::chrono::system_clock::now();
   for (const std::string name : {"sink", "edge-1", "operator", "ci"}) {
     SCOPED_TRACE(name);
     EXPECT_TRUE(ownerOnly(out / (name + ".key")));
-    const std::string cert = readText(out / (name + ".crt"));
+    const std::string cert = readFile(out / (name + ".crt"));
     const Status verified = verifyCertificate(cert, ca, now);
     EXPECT_TRUE(verified.ok()) << verified.error().message;
     EXPECT_FALSE(verifyCertificate(cert, ca, now + std::chrono::hours(24 * 3)).ok()) << "valid beyond --days";
@@ -620,10 +604,10 @@ TEST(FogctlCerts, WritesACaAndACertificatePerNodeAndClientKeysReadableByTheirOwn
   const Outcome again = fogctl({"certs", topology.string(), "--out", out.string()});
   EXPECT_EQ(again.code, 2) << describe(again);
   EXPECT_TRUE(contains(again.err, "--force")) << describe(again);
-  EXPECT_EQ(readText(out / "ca.crt"), ca);
+  EXPECT_EQ(readFile(out / "ca.crt"), ca);
   const Outcome forced = fogctl({"certs", topology.string(), "--out", out.string(), "--force"});
   EXPECT_EQ(forced.code, 0) << describe(forced);
-  EXPECT_NE(readText(out / "ca.crt"), ca);
+  EXPECT_NE(readFile(out / "ca.crt"), ca);
 
   for (const auto& bad : {std::vector<std::string>{"--clients", "../x"}, {"--clients", "sink"},
                          {"--days", "0"}}) {
@@ -754,6 +738,83 @@ TEST(ServicesListen, OnTheTopologysAddressOnly) {
   EXPECT_TRUE(accepts("127.0.0.2", sink.metrics_port));
   EXPECT_FALSE(accepts("127.0.0.1", sink.port));
   EXPECT_FALSE(accepts("127.0.0.1", sink.metrics_port));
+}
+
+// ---------------------------------------------------------------------------------------------
+// topology --scene: a cluster of simulated LiDARs
+
+// A random scene of 3 LiDARs through the commands a user types (fogctl scene, fogctl topology
+// --scene), then the topology run as real processes on loopback: every edge simulates its LiDAR at
+// the scene's pose and the root publishes epochs to which all three contributed.
+TEST(FogctlTopologyScene, ARandomScenesTopologyRunsAsAClusterOfSimulatedLidars) {
+  ScratchDir dir("scene");
+  const Outcome scene_made = fogctl({"scene", "random", "--objects", "30", "--lidars", "3", "--seed", "4", "--out", "s.yaml"},
+                                    dir.path());
+  ASSERT_EQ(scene_made.code, 0) << describe(scene_made);
+  fs::create_directories(dir.path() / "topologies");
+  const Outcome written =
+      fogctl({"topology", "--scene", "s.yaml", "--frames", "20", "--out", "topologies/sim.yaml"}, dir.path());
+  ASSERT_EQ(written.code, 0) << describe(written);
+  EXPECT_TRUE(contains(readFile(dir.path() / "topologies" / "sim.yaml"), "scene: ../s.yaml"))
+      << "the scene is named relative to the topology file";
+
+  const auto scene = sim::loadScene(dir.path() / "s.yaml");
+  ASSERT_TRUE(scene.ok()) << scene.error().message;
+  ASSERT_EQ(scene->lidars.size(), 3U);
+  auto topology = loadTopology(dir.path() / "topologies" / "sim.yaml");
+  ASSERT_TRUE(topology.ok()) << topology.error().message;
+  std::vector<const NodeConfig*> edges;
+  for (const NodeConfig& n : topology->nodes) {
+    if (n.role == Role::kEdge) edges.push_back(&n);
+  }
+  ASSERT_EQ(edges.size(), 3U);
+  for (std::size_t i = 0; i < edges.size(); ++i) {
+    const sim::LidarConfig& lidar = scene->lidars[i];
+    SCOPED_TRACE(lidar.name);
+    EXPECT_EQ(edges[i]->name, "edge-" + lidar.name);
+    EXPECT_EQ(edges[i]->id, i + 1);
+    ASSERT_TRUE(edges[i]->sensor && edges[i]->sensor->simulated());
+    EXPECT_EQ(edges[i]->sensor->lidar, lidar.name);
+    EXPECT_EQ(fs::weakly_canonical(edges[i]->sensor->scene), fs::weakly_canonical(dir.path() / "s.yaml"));
+    EXPECT_LT((edges[i]->sensor->pose.translation() - lidar.pose.translation()).norm(), 1e-9);
+    EXPECT_LT((edges[i]->sensor->pose.linear() - lidar.pose.linear()).cwiseAbs().maxCoeff(), 1e-9);
+  }
+
+  test_support::useFreePorts(*topology);
+  topology->deadline_ms = 500.0;  // a loaded 2-core machine must not turn slow epochs into partial ones
+  cli::RunOptions options;
+  options.frames = 1000;  // everything the edges produce (20 scans each)
+  options.timeout = 25s;
+  fs::create_directories(dir.path() / "run");
+  const auto run = cli::runCluster(dir.path() / "run", *topology, options);
+  ASSERT_TRUE(run.ok()) << run.error().message;
+  std::size_t complete = 0;
+  for (const auto& [epoch, global] : run->epochs) {
+    if (!global.header.missing_nodes.empty() || !global.header.failed_nodes.empty()) continue;
+    ++complete;
+    EXPECT_EQ(global.header.contributing_nodes, (std::vector<std::uint32_t>{1, 2, 3})) << "epoch " << epoch;
+    EXPECT_GE(global.map.objects.size(), 10U) << "epoch " << epoch << ": the scene's 30 objects, seen from three sides";
+  }
+  EXPECT_GE(complete, 5U) << run->epochs.size() << " epochs published";
+}
+
+// The compose file mounts its directory into every container: a simulated LiDAR's scene must lie
+// inside it like any other file the topology names ("sim" itself is no file).
+TEST(FogctlTopologyScene, ComposeWantsTheSceneFileInsideTheMountedDirectory) {
+  ScratchDir dir("scene-compose");
+  const fs::path project = dir.path() / "project";
+  fs::create_directories(project);
+  cli::ComposeOptions options;
+  options.topology_file = project / "sim.yaml";
+  options.project_dir = project;
+  options.prometheus_config = "prometheus.yml";
+  const sim::Scene scene = sim::randomScene(2, 2, 1);
+  const auto inside = cli::composeFile(sim::sceneTopology(scene, project / "scenes" / "s.yaml"), options);
+  EXPECT_TRUE(inside.ok()) << inside.error().message;
+  const auto outside = cli::composeFile(sim::sceneTopology(scene, dir.path() / "s.yaml"), options);
+  ASSERT_FALSE(outside.ok());
+  EXPECT_TRUE(contains(outside.error().message, "edge-lidar-1's scene " + (dir.path() / "s.yaml").string() + " lies outside"))
+      << outside.error().message;
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <condition_variable>
 #include <fstream>
 #include <mutex>
 #include <optional>
@@ -11,10 +12,14 @@
 #include <grpcpp/grpcpp.h>
 
 #include "common/certs.hpp"
+#include "common/epochs.hpp"
+#include "common/sim/sensor_frames.hpp"
+#include "common/sim/truth.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "services/common/grpc_options.hpp"
 #include "services/common/proto_convert.hpp"
 #include "services/edge_cluster/edge_node.hpp"
+#include "services/edge_cluster/edge_runner.hpp"
 #include "services/edge_cluster/scan_source.hpp"
 #include "tools/fogctl/launcher.hpp"
 
@@ -40,29 +45,55 @@ double sumMetric(const std::string& text, const std::string& name) {
   return total;
 }
 
+// The collector's progress, for runCluster to start the edges only once it is subscribed.
+struct Collection {
+  std::mutex mutex;
+  std::condition_variable changed;
+  bool subscribed = false;
+  bool ended = false;
+  RunResult result;
+};
+
 // Subscribes to the root (retrying until it listens) and keeps global maps until `frames` epochs
 // arrived or the time runs out.
 static void collect(const std::string& target, const std::shared_ptr<grpc::ChannelCredentials>& credentials, bool labels,
-                    std::uint64_t frames, std::chrono::steady_clock::time_point deadline, RunResult& out, std::mutex& mutex,
+                    std::uint64_t frames, std::chrono::steady_clock::time_point deadline, Collection& out,
                     grpc::ClientContext& context) {
-  auto channel = makeChannel(target, credentials, 256U << 20);
-  while (!channel->WaitForConnected(std::chrono::system_clock::now() + std::chrono::milliseconds(200))) {
-    if (std::chrono::steady_clock::now() > deadline || stopRequested()) return;
+  const auto end = [&] {
+    {
+      std::lock_guard lock(out.mutex);
+      out.ended = true;
+    }
+    out.changed.notify_all();
+  };
+  // A new channel per attempt: one channel retried while the root starts backs off (up to 2 s)
+  // and would connect long after the root listens, missing the first epochs.
+  std::shared_ptr<grpc::Channel> channel;
+  for (;;) {
+    channel = makeChannel(target, credentials, 256U << 20);
+    if (channel->WaitForConnected(std::chrono::system_clock::now() + std::chrono::milliseconds(200))) break;
+    if (std::chrono::steady_clock::now() > deadline || stopRequested()) return end();
   }
   auto stub = v1::GlobalMapService::NewStub(channel);
   v1::SubscribeRequest request;
   request.set_include_point_labels(labels);
   request.set_on_time_only(true);  // the live picture, as geofences see it; revisions would overwrite it
   auto reader = stub->Subscribe(&context, request);
+  {
+    std::lock_guard lock(out.mutex);
+    out.subscribed = true;
+  }
+  out.changed.notify_all();
   v1::GlobalMap message;
   while (reader->Read(&message)) {
     auto global = fromProto(message);
     if (!global) continue;
-    std::lock_guard lock(mutex);
-    out.epochs[global->header.epoch] = std::move(*global);
-    if (out.epochs.size() >= frames) break;
+    std::lock_guard lock(out.mutex);
+    out.result.epochs[global->header.epoch] = std::move(*global);
+    if (out.result.epochs.size() >= frames) break;
   }
   context.TryCancel();
+  end();
 }
 
 Expected<RunResult> runCluster(const std::filesystem::path& dir, const TopologyConfig& topology, const RunOptions& options,
@@ -76,14 +107,21 @@ Expected<RunResult> runCluster(const std::filesystem::path& dir, const TopologyC
     out << toYaml(topology);
     if (!out) return ioError("cannot write " + file.string());
   }
-  RunResult result;
-  std::mutex mutex;
+  Collection collection;
   grpc::ClientContext context;
   const auto* root = topology.root();
   const auto deadline = std::chrono::steady_clock::now() + options.timeout;
   std::thread subscriber(collect, root->host + ":" + std::to_string(root->port), channelCredentials(*tls),
-                         options.point_labels, frames, deadline, std::ref(result), std::ref(mutex), std::ref(context));
-  auto cluster = startCluster(file, topology, dir / topology.name, std::chrono::seconds(30));
+                         options.point_labels, frames, deadline, std::ref(collection), std::ref(context));
+  StartOptions start;
+  start.prefixes = options.prefixes;
+  start.aggregators_ready = [&] {
+    // The edges start once the subscription stands (bounded: a root that cannot be reached is
+    // the run's problem to report, not a reason to hang).
+    std::unique_lock lock(collection.mutex);
+    collection.changed.wait_for(lock, std::chrono::seconds(10), [&] { return collection.subscribed || collection.ended; });
+  };
+  auto cluster = startCluster(file, topology, dir / topology.name, std::chrono::seconds(30), start);
   if (!cluster) {
     context.TryCancel();
     subscriber.join();
@@ -96,8 +134,11 @@ Expected<RunResult> runCluster(const std::filesystem::path& dir, const TopologyC
   const auto drain = std::chrono::milliseconds(static_cast<long>(topology.deadline_ms) + 1000);
   while (std::chrono::steady_clock::now() < deadline && !stopRequested()) {
     {
-      std::lock_guard lock(mutex);
-      if (result.epochs.size() >= frames) break;
+      std::lock_guard lock(collection.mutex);
+      if (collection.result.epochs.size() >= frames) break;
+      if (options.complete_frames > 0 && completeEpochs(collection.result).size() >= options.complete_frames) {
+        break;
+      }
     }
     if (!edges_done) {
       bool any_edge = false;
@@ -113,8 +154,10 @@ Expected<RunResult> runCluster(const std::filesystem::path& dir, const TopologyC
   }
   context.TryCancel();
   subscriber.join();
+  RunResult result = std::move(collection.result);
   for (const auto& n : topology.nodes) {
     const auto text = httpGet(n.host, n.metrics_port, "/metrics", std::chrono::milliseconds(2000));
+    if (text) result.metrics[n.name] = *text;
     // Every link ends at an aggregator, which stays up: its received bytes count every link.
     if (!text || n.role != Role::kAggregator) continue;
     result.bytes_moved += sumMetric(*text, "fogmap_bytes_received_total");
@@ -123,35 +166,114 @@ Expected<RunResult> runCluster(const std::filesystem::path& dir, const TopologyC
   return result;
 }
 
+namespace {
+
+// A simulated sensor's frames with their truth, as its edge casts them (SimScanSource).
+class SimulatedFrames {
+ public:
+  static Expected<SimulatedFrames> open(const SensorConfig& sensor) {
+    auto scene = sim::loadScene(sensor.scene);
+    if (!scene) return scene.error();
+    SimulatedFrames frames(std::move(*scene), sensor);
+    if (frames.scene_.lidar(sensor.lidar) == nullptr) {
+      return notFound("scene " + sensor.scene.string() + " has no LiDAR '" + sensor.lidar + "'");
+    }
+    return frames;
+  }
+  Expected<sim::SimFrame> at(std::uint64_t scan_number) {
+    return sim::simulateScan(scene_, *scene_.lidar(lidar_), scan_number, rate_hz_, cache_);
+  }
+
+ private:
+  SimulatedFrames(sim::Scene scene, const SensorConfig& sensor)
+      : scene_(std::move(scene)), lidar_(sensor.lidar), rate_hz_(sensor.rate_hz) {}
+  sim::Scene scene_;
+  std::string lidar_;
+  double rate_hz_;
+  sim::RaycasterCache cache_;
+};
+
+}  // namespace
+
+bool completeEpoch(const GlobalMapMessage& global) {
+  return global.header.missing_nodes.empty() && !global.header.contributing_nodes.empty();
+}
+
+std::vector<std::uint64_t> completeEpochs(const RunResult& run) {
+  std::vector<std::uint64_t> out;
+  for (const auto& [e, g] : run.epochs) {
+    if (completeEpoch(g)) out.push_back(e);
+  }
+  return out;
+}
+
 Expected<std::map<std::uint64_t, EdgeView>> recomputeEdges(const TopologyConfig& topology,
                                                            const std::vector<std::uint64_t>& epochs) {
   std::map<std::uint64_t, EdgeView> views;
+  const auto schedule = EpochSchedule::create(topology.period_ms, topology.deadline_ms);
+  if (!schedule) return schedule.error();
   for (const auto& n : topology.nodes) {
     if (n.role != Role::kEdge) continue;
     SensorConfig sensor = *n.sensor;  // any epoch, however many frames the run was limited to
     sensor.frames.reset();
     sensor.loop = true;
-    auto source = ScanSource::open(sensor);
-    if (!source) return source.error();
+    std::optional<ScanSource> files;
+    std::optional<SimulatedFrames> simulated;
+    if (sensor.simulated()) {
+      auto opened = SimulatedFrames::open(sensor);
+      if (!opened) return opened.error();
+      simulated.emplace(std::move(*opened));
+    } else {
+      auto opened = ScanSource::open(sensor);
+      if (!opened) return opened.error();
+      files.emplace(std::move(*opened));
+    }
     EdgeConfig config = edgeConfigFor(topology, n);
     config.mode = Mode::kExt;
     const EdgeNode edge(config);
     for (const auto e : epochs) {
-      auto frame = source->at(e);
-      if (!frame) return frame.error();
-      auto output = edge.processFrame(frame->points, e, 0);
+      const std::uint64_t scan_number = scanNumberAt(*schedule, sensor.rate_hz, e);
+      Cloud raw;
+      std::optional<sim::SimFrame> frame;
+      if (simulated) {
+        auto cast = simulated->at(scan_number);
+        if (!cast) return cast.error();
+        frame.emplace(std::move(*cast));
+        raw = frame->points;
+      } else {
+        auto read = files->at(scan_number);
+        if (!read) return read.error();
+        raw = std::move(read->points);
+      }
+      auto output = edge.processFrame(raw, e, 0);
       if (!output) return output.error();
       EdgeView& view = views[e];
+      // The scan as the sensor gave it, shipped whole (the paper's baseline), in the same chunks.
+      MapHeader whole;
+      whole.node = n.id;
+      whole.epoch = e;
+      view.raw_bytes += baselineUploadBytes(whole, raw.size(), config.max_points_per_chunk, e);
       Cloud& points = view.points[n.id];
       std::vector<std::int32_t>& labels = view.local_labels[n.id];
       for (auto& chunk : output->chunks) {
         points.insert(points.end(), chunk.points.begin(), chunk.points.end());
         labels.insert(labels.end(), chunk.labels.begin(), chunk.labels.end());
-        PointChunk raw = chunk;
-        raw.labels.clear();  // the baseline ships points only
+        PointChunk raw_chunk = chunk;
+        raw_chunk.labels.clear();  // the baseline ships points only
         v1::Upload upload;
-        *upload.mutable_points() = toProto(raw);
+        *upload.mutable_points() = toProto(raw_chunk);
         view.baseline_bytes += upload.ByteSizeLong();
+      }
+      if (frame) {
+        // The processed points are in the common frame: so are the returns, once moved by the pose.
+        Cloud returns;
+        returns.reserve(frame->points.size());
+        for (const Point& p : frame->points) {
+          const Eigen::Vector3d q = sensor.pose * Eigen::Vector3d(p.x, p.y, p.z);
+          returns.push_back({static_cast<float>(q.x()), static_cast<float>(q.y()), static_cast<float>(q.z()), p.intensity});
+        }
+        const double reach = std::max(0.05, config.preprocess.voxel_leaf_m.value_or(0.0));
+        view.truth[n.id] = sim::truthOfPoints(points, returns, frame->truth, reach);
       }
       v1::Upload upload;
       *upload.mutable_map() = toProto(*output->map);

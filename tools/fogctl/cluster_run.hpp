@@ -25,14 +25,23 @@ double sumMetric(const std::string& text, const std::string& name);
 struct RunResult {
   std::map<std::uint64_t, GlobalMapMessage> epochs;  // by epoch
   double bytes_moved = 0.0;                         // over every link of the cluster
+  std::map<std::string, std::string> metrics;       // node name -> its /metrics page at the end
 };
+
+// An epoch every sensor contributed to.
+bool completeEpoch(const GlobalMapMessage& global);
+// The complete epochs of a run, in order.
+std::vector<std::uint64_t> completeEpochs(const RunResult& run);
 
 struct RunOptions {
   std::uint64_t frames = 20;          // epochs to wait for
+  std::uint64_t complete_frames = 0;  // if > 0: also stop once this many epochs had every sensor
   std::chrono::milliseconds timeout{60000};
   bool point_labels = false;          // ask the root for per-point labels
   // With TLS, the client certificate the subscriber presents: <cert_dir>/<identity>.crt and .key.
   std::string identity = "operator";
+  // Per node, a command prefix that runs it (e.g. inside a network namespace: ShapedLinks).
+  std::map<std::string, std::vector<std::string>> prefixes;
 };
 
 // Writes the topology to dir/<name>.yaml, starts it (logs under dir/<name>/), subscribes to the
@@ -48,8 +57,11 @@ struct EdgeView {
   std::map<std::uint32_t, std::vector<std::int32_t>> local_labels;
   std::map<std::uint32_t, Cloud> points;
   std::vector<Map> local_maps;  // as the parent decodes them
+  // Simulated sensors only: the true object of every point (-1: none, e.g. ground).
+  std::map<std::uint32_t, std::vector<std::int64_t>> truth;
   std::size_t madc_bytes = 0;
-  std::size_t baseline_bytes = 0;
+  std::size_t baseline_bytes = 0;  // the pre-processed points (what fogmap's baseline ships)
+  std::size_t raw_bytes = 0;       // the scans before pre-processing, in the same wire format
 };
 Expected<std::map<std::uint64_t, EdgeView>> recomputeEdges(const TopologyConfig& topology,
                                                            const std::vector<std::uint64_t>& epochs);

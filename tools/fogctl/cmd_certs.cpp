@@ -46,9 +46,17 @@ Status writeFile(const std::filesystem::path& path, const std::string& text, mod
   return {};
 }
 
-Status writePair(const std::filesystem::path& dir, const std::string& name, const PemPair& pair) {
+// `key_owner`: the uid that owns the private key (the user a container runs the service as), or
+// -1 for the invoking user.
+Status writePair(const std::filesystem::path& dir, const std::string& name, const PemPair& pair, long key_owner = -1) {
   if (const Status s = writeFile(dir / (name + ".crt"), pair.cert, 0644); !s) return s;
-  return writeFile(dir / (name + ".key"), pair.key, 0600);  // the private key: its owner only
+  const auto key = dir / (name + ".key");
+  if (const Status s = writeFile(key, pair.key, 0600); !s) return s;  // the private key: its owner only
+  if (key_owner >= 0 && ::chown(key.c_str(), static_cast<uid_t>(key_owner), static_cast<gid_t>(-1)) != 0) {
+    return ioError("cannot give " + key.string() + " to uid " + std::to_string(key_owner) + ": " + std::strerror(errno) +
+                   " (--owner needs root)");
+  }
+  return {};
 }
 
 // "a,b,c" -> {a, b, c}, empty items skipped.
@@ -74,8 +82,9 @@ std::string dateOf(std::chrono::system_clock::time_point t) {
 }  // namespace
 
 int runCerts(int argc, char** argv) {
-  const std::string usage = "usage: fogctl certs TOPOLOGY.yaml --out DIR [--days 365] [--clients operator,...] [--force]";
-  const auto args = Args::parse(argc, argv, 2, {"out", "days", "clients"}, {"force"});
+  const std::string usage =
+      "usage: fogctl certs TOPOLOGY.yaml --out DIR [--days 365] [--clients operator,...] [--owner UID] [--force]";
+  const auto args = Args::parse(argc, argv, 2, {"out", "days", "clients", "owner"}, {"force"});
   if (!args) return fail(args.error(), "fogctl certs");
   if (args->positional().size() != 1 || !args->has("out")) return fail(invalidArgument(usage), "fogctl certs");
   const auto topology = loadTopology(args->positional()[0]);
@@ -83,6 +92,10 @@ int runCerts(int argc, char** argv) {
   const auto days = args->getInt("days", 365);
   if (!days) return fail(days.error(), "fogctl certs");
   if (*days < 1 || *days > kMaxDays) return fail(invalidArgument("--days must be in [1, " + std::to_string(kMaxDays) + "]"), "fogctl certs");
+
+  const auto owner = args->getInt("owner", -1);
+  if (!owner) return fail(owner.error(), "fogctl certs");
+  if (args->has("owner") && (*owner < 0 || *owner > 65534)) return fail(invalidArgument("--owner must be a uid in [0, 65534]"), "fogctl certs");
 
   std::vector<std::string> clients;
   if (args->has("clients")) {
@@ -125,7 +138,7 @@ int runCerts(int argc, char** argv) {
     // The DNS name is the node's name; the IP address is where its peers connect to it.
     const auto pair = issueCertificate(*ca, {node.name, {node.name}, {node.host}, not_before, not_after});
     if (!pair) return fail(pair.error(), "fogctl certs");
-    if (const Status s = writePair(out, node.name, *pair); !s) return fail(s.error(), "fogctl certs");
+    if (const Status s = writePair(out, node.name, *pair, *owner); !s) return fail(s.error(), "fogctl certs");
   }
   for (const auto& client : clients) {
     const auto pair = issueCertificate(*ca, {client, {client}, {}, not_before, not_after});

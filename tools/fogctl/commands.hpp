@@ -13,5 +13,8 @@ int runGeofence(int argc, char** argv);
 int runDemo(int argc, char** argv);
 int runFaults(int argc, char** argv);
 int runCerts(int argc, char** argv);
+int runCompose(int argc, char** argv);
+int runScene(int argc, char** argv);
+int runEval(int argc, char** argv);
 
 }  // namespace fogmap::cli

@@ -122,7 +122,10 @@ struct FaultReport {
   // Faults: time from the fault to the first global map marking the node's sensors missing, and
   // from the restart / SIGCONT to the first epoch from which every epoch is whole again.
   std::vector<double> missing_notice_ms;
-  std::vector<double> rejoin_ms;       // edge crash: restart to the edge's first merged map
+  // Edge crash: from the restarted edge serving /metrics again (its process is up) to its first
+  // merged map; and the start-up before it (restart command to /metrics answering).
+  std::vector<double> rejoin_ms;
+  std::vector<double> restart_startup_ms;
   std::optional<double> recovery_ms;   // aggregator crash, stall
   std::optional<double> child_notice_ms;  // stall: the children's links give the stream up
   // Epochs from the recovery to the end of the load: each one whole, i.e. its latest publication

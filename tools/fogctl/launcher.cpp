@@ -183,7 +183,7 @@ namespace {
 
 // Forks the service for `node` (its log under state_dir/logs, truncated unless `append`).
 Expected<RunningNode> spawnNode(const Cluster& cluster, const NodeConfig& node, const StartOptions& options, bool append) {
-  const auto binary = binaryDir() / (node.role == Role::kEdge ? "edge-cluster" : "merge-aggregator");
+  const auto binary = binaryDir() / serviceName(node.role);
   const auto log = cluster.state_dir / "logs" / (node.name + ".log");
   std::vector<std::string> args{"--topology", cluster.topology_file.string(), "--node", node.name};
   if (node.role == Role::kEdge && !options.journal_dir.empty()) {
@@ -293,26 +293,34 @@ Expected<Cluster> startCluster(const std::filesystem::path& topology_file, const
     if (ec) return ioError("cannot create " + options.journal_dir.string() + ": " + ec.message());
   }
   std::ofstream pids(state_dir / "pids");
-  for (const auto* n : order) {
-    auto started = spawnNode(cluster, *n, options, /*append=*/false);
-    if (!started) {
-      stopCluster(cluster, std::chrono::milliseconds(2000));
-      return started.error();
-    }
-    cluster.nodes.push_back(*started);
-    pids << started->pid << ' ' << n->name << ' ' << started->start_ticks << '\n';
-  }
-  pids.close();
+  // Aggregators first, ready (they listen before /metrics answers), then the edges: an edge then
+  // reaches its parent at once instead of backing off, and whoever watches the root (the
+  // aggregators_ready hook) is subscribed before the first map can come.
   // Ready = every service answers on /metrics (servers listen before metrics start).
   const auto deadline = std::chrono::steady_clock::now() + timeout;
-  for (const auto* n : order) {
-    const auto it = std::find_if(cluster.nodes.begin(), cluster.nodes.end(), [&](const RunningNode& r) { return r.name == n->name; });
-    auto ready = waitReady(*n, *it, deadline);
-    if (!ready) {
-      stopCluster(cluster, std::chrono::milliseconds(2000));
-      return ready.error();
+  const auto first_edge = std::find_if(order.begin(), order.end(), [](const NodeConfig* n) { return n->role == Role::kEdge; });
+  for (const auto& [from, to] : {std::pair{order.begin(), first_edge}, std::pair{first_edge, order.end()}}) {
+    for (auto n = from; n != to; ++n) {
+      auto started = spawnNode(cluster, **n, options, /*append=*/false);
+      if (!started) {
+        stopCluster(cluster, std::chrono::milliseconds(2000));
+        return started.error();
+      }
+      cluster.nodes.push_back(*started);
+      pids << started->pid << ' ' << (*n)->name << ' ' << started->start_ticks << '\n';
+      pids.flush();
     }
+    for (auto n = from; n != to; ++n) {
+      const auto it = std::find_if(cluster.nodes.begin(), cluster.nodes.end(), [&](const RunningNode& r) { return r.name == (*n)->name; });
+      auto ready = waitReady(**n, *it, deadline);
+      if (!ready) {
+        stopCluster(cluster, std::chrono::milliseconds(2000));
+        return ready.error();
+      }
+    }
+    if (to == first_edge && options.aggregators_ready) options.aggregators_ready();
   }
+  pids.close();
   return cluster;
 }
 

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <string>
 #include <vector>
@@ -42,9 +43,11 @@ struct StartOptions {
   std::filesystem::path journal_dir;  // empty: no journals
   // Per node, a command that runs the service (e.g. inside a network namespace: ip netns exec NS).
   std::map<std::string, std::vector<std::string>> prefixes;
+  // Called once every aggregator is ready and before any edge starts (e.g. to subscribe to the root).
+  std::function<void()> aggregators_ready;
 };
 
-// Starts every node of the topology (aggregators first), logs under state_dir/logs, records the
+// Starts every node of the topology (the aggregators, and once they are ready the edges), logs under state_dir/logs, records the
 // pids (with their start times) in state_dir/pids, and waits until every /metrics endpoint answers (bounded by timeout).
 // On failure everything started is stopped again.
 Expected<Cluster> startCluster(const std::filesystem::path& topology_file, const TopologyConfig& topology,

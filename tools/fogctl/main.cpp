@@ -46,12 +46,36 @@ const std::vector<Command>& commands() {
        "both give the same partition; exits 1 when they do not.\n",
        fogmap::cli::runBench},
       {"demo",
-       "[--input DIR] [--nodes 4] [--topology star|tree] [--frames 20] [--report FILE] [--png FILE] [--alpha 1.5]",
+       "[--input DIR | --scene FILE] [--nodes 4] [--topology star|tree] [--frames 20] [--report FILE] [--png FILE]",
        "usage: fogctl demo [--input DIR] [--nodes 4] [--topology star|tree] [--frames 20] [--report FILE] [--png FILE]\n"
        "                   [--alpha 1.5] [--base-port 46000] [--state DIR]\n"
+       "       fogctl demo --scene FILE [--topology star|tree] [--frames 10] [--report FILE] [--png FILE] [--alpha 1.5]\n"
+       "                   [--base-port 46000] [--state DIR]\n"
        "Runs a local MAD-C cluster and the baseline over the same frames and compares them: bytes,\n"
-       "latency, Rand index; writes a JSON report and a bird's-eye PNG (under --state, default .fogmap/demo).\n",
+       "latency, Rand index; writes a JSON report and a bird's-eye PNG (under --state, default .fogmap/demo).\n"
+       "  --input DIR    recorded scans (default: the bundled KITTI frames), cut into --nodes virtual LiDARs\n"
+       "  --scene FILE   a simulated scene (fogctl scene): one edge per LiDAR of the scene, MAD-C-ext and the\n"
+       "                 baseline over its first --frames frames (replayed in a loop, so both see the same\n"
+       "                 frames), both also scored against the scene's truth (Rand index, ARI, objects found\n"
+       "                 whole, split, merged, missed)\n",
        fogmap::cli::runDemo},
+      {"eval",
+       "[--quick] [--out DIR] [--doc FILE] [--seed 1] [--frames N] [--no-links]   the MAD-C paper's evaluation",
+       "usage: fogctl eval [--quick] [--out DIR] [--doc FILE] [--seed 1] [--frames N] [--no-links]\n"
+       "Reproduces the MAD-C paper's evaluation with real clusters on simulated random scenes: ellipsoid\n"
+       "precision/recall against alpha (Fig. 6), Rand index and ARI of MAD-C and MAD-C-ext against the\n"
+       "baseline and the truth for 2, 3, 5, 7 LiDARs and alpha 0.8 .. 2.4 (Figs. 7, 8), ellipsoid comparisons\n"
+       "with and without delimiting boxes for 10, 50, 100 objects (Table 1), bytes and stage times (Fig. 9),\n"
+       "and end to end per frame with every edge behind a 10 Mbit/s link (tc tbf on veth pairs between\n"
+       "network namespaces; needs root, else that part is SKIPPED with the reason).\n"
+       "Writes DIR/{accuracy,precision_recall,costs,links}.csv, DIR/eval.json, DIR/*.png and the report.\n"
+       "  --quick      2 and 3 LiDARs, 10 and 30 objects, alpha 0.8, 1.5, 2.4; 3 LiDARs behind the links;\n"
+       "               under two minutes\n"
+       "  --out DIR    default docs/evaluation (full) or .fogmap/eval-quick (--quick)\n"
+       "  --doc FILE   the Markdown report (default: docs/evaluation.md (full) or DIR/evaluation.md)\n"
+       "  --frames N   complete frames per run (default 5, quick 4)\n"
+       "  --no-links   skip the rate-limited links\n",
+       fogmap::cli::runEval},
       {"up",
        "TOPOLOGY.yaml [--detach] [--state DIR]       start every service as a local process",
        "usage: fogctl up TOPOLOGY.yaml [--detach] [--state DIR] [--timeout-s 30]\n"
@@ -70,8 +94,9 @@ const std::vector<Command>& commands() {
        "TOPOLOGY.yaml | --target HOST:PORT [--count N] [--objects 10]   print the live global map",
        "usage: fogctl watch TOPOLOGY.yaml | --target HOST:PORT [--count N] [--objects 10] [--idle-s 10] [--timeout-s 0]\n"
        "                    [--identity NAME | --cert FILE --key FILE --ca FILE]\n"
-       "Prints the root aggregator's global maps as they come. Exits 1 when the root cannot be reached\n"
-       "within 5 s, when it goes away, or after --timeout-s without a map.\n"
+       "Prints the root aggregator's global maps as they come. A root that is still starting is tried again\n"
+       "until it answers; exits 1 when it cannot be reached within --timeout-s (default 5 s), when it goes\n"
+       "away, or after --timeout-s without a map.\n"
        "  --count N      stop after N maps (default 0: until Ctrl-C)\n"
        "  --objects N    objects listed per map, the largest first (default 10)\n"
        "  --idle-s S     say so after every S seconds without a global map (default 10)\n"
@@ -112,7 +137,7 @@ const std::vector<Command>& commands() {
        fogmap::cli::runFaults},
       {"certs",
        "TOPOLOGY.yaml --out DIR [--days 365] [--clients operator,...]   a CA and certificates for mutual TLS",
-       "usage: fogctl certs TOPOLOGY.yaml --out DIR [--days 365] [--clients operator,...] [--force]\n"
+       "usage: fogctl certs TOPOLOGY.yaml --out DIR [--days 365] [--clients operator,...] [--owner UID] [--force]\n"
        "Makes a CA (DIR/ca.crt, ca.key) and a certificate for every node of the topology and every client\n"
        "named (DIR/NAME.crt, NAME.key; keys readable by their owner only), EC P-256, signed by the CA.\n"
        "A certificate's common name is its holder's identity; a node's also names its host (IP\n"
@@ -120,15 +145,53 @@ const std::vector<Command>& commands() {
        "  --days N       valid from now for N days (default 365)\n"
        "  --clients A,B  client identities besides the nodes, for fogctl --identity\n"
        "                 (default: operator and the topology's tls.geofence_clients)\n"
+       "  --owner UID    give the nodes' private keys to UID (as root): the user the services run as,\n"
+       "                 10001 in the fogmap image (fogctl compose)\n"
        "  --force        replace a CA already in DIR (what it issued is no longer trusted)\n",
        fogmap::cli::runCerts},
+      {"compose",
+       "TOPOLOGY.yaml [--out FILE] [--prometheus FILE]   a docker compose deployment of the topology",
+       "usage: fogctl compose TOPOLOGY.yaml [--out FILE] [--prometheus FILE] [--image fogmap:latest]\n"
+       "                      [--prometheus-listen 127.0.0.1:9090] [--grafana-listen 127.0.0.1:3000] [--check]\n"
+       "Writes a docker compose file (to stdout unless --out) that runs every node of the topology as a\n"
+       "container of the fogmap image with host networking (each service listens where its topology entry\n"
+       "says, as under fogctl up), Prometheus scraping every service with the alert rules of\n"
+       "docker/prometheus/rules.yml, and Grafana with the provisioned dashboard (profile grafana). The\n"
+       "directory of the compose file is mounted read-only at /fogmap: the topology and every file it\n"
+       "names must lie inside it. Also writes the Prometheus configuration the deployment uses.\n"
+       "  --prometheus FILE  where (default: docker/prometheus/NAME.yml, NAME the topology's name)\n"
+       "  --image NAME       the fogmap image (default fogmap:latest, built from docker/Dockerfile)\n"
+       "  --check            write nothing; exit 1 when --out or the Prometheus file differ from what\n"
+       "                     the topology generates\n",
+       fogmap::cli::runCompose},
       {"topology",
-       "star|tree --edges K --source DIR [--base-port P] [--mode madc|baseline|ext] [--frames N] [--out FILE]",
+       "star|tree --edges K --source DIR | --scene FILE [--base-port P] [--mode madc|baseline|ext] [--frames N] [--out FILE]",
        "usage: fogctl topology star|tree --edges K --source DIR [--base-port 50000] [--mode madc|baseline|ext]\n"
-       "                       [--frames N] [--out FILE]\n"
+       "                       [--frames N] [--fanout 2] [--deadline-ms 80] [--tls-ca FILE] [--out FILE]\n"
+       "       fogctl topology [star|tree] --scene FILE [the same flags but --edges and --source]\n"
        "Writes a topology file: K virtual LiDARs cut from the scans in DIR, under one sink (star) or a\n"
-       "tree of aggregators; to stdout unless --out.\n",
+       "tree of aggregators; to stdout unless --out. Paths are relative to the topology file.\n"
+       "  --scene FILE     instead of scans: one edge per LiDAR of the scene (fogctl scene), named\n"
+       "                   edge-<LiDAR name>, ids 1..K, each simulating its LiDAR (sensor source sim) at the\n"
+       "                   LiDAR's pose in the scene, at 10 Hz; a star unless tree is given. The scene is\n"
+       "                   written relative to --out's directory (the working directory without --out)\n"
+       "  --fanout F       a tree's aggregators have at most F children (default 2)\n"
+       "  --deadline-ms D  an aggregator's deadline per level (default 80)\n"
+       "  --tls-ca FILE    mutual TLS on every link, certificates next to FILE (fogctl certs)\n",
        fogmap::cli::runTopology},
+      {"scene",
+       "random|factory|moving [...] [--seed S] [--out FILE]   a simulated scene with ground truth",
+       "usage: fogctl scene random --objects N --lidars K [--seed 1] [--out FILE]\n"
+       "       fogctl scene factory [--seed 1] [--out FILE]\n"
+       "       fogctl scene moving --people N --vehicles M --lidars K --cameras C [--seed 1] [--out FILE]\n"
+       "Writes a scene file (format: data/scenes/example.yaml) made from the seed; to stdout unless --out.\n"
+       "  random   N objects from 0.8 m crates to cars, people and poles, placed apart and turned at random\n"
+       "           on 50 x 50 m; K HDL-32E LiDARs at the MAD-C paper's spots (Lambda_1 .. Lambda_7)\n"
+       "  factory  shelves, forklifts driving the aisles, people walking, a crane; LiDARs in the four\n"
+       "           corners and the middle\n"
+       "  moving   people and vehicles on crossing and parallel paths across 40 x 40 m, K VLP-16 LiDARs and\n"
+       "           C cameras around the area looking inwards\n",
+       fogmap::cli::runScene},
       {"split",
        "--input SCAN --views K [--overlap-deg 10] --out DIR   cut a scan into virtual LiDARs",
        "usage: fogctl split --input SCAN --views K [--overlap-deg 10] --out DIR\n"

@@ -1037,6 +1037,50 @@ TEST(MergeAggregator, BaselineRootLeavesTheClusteringToTheCallerAndLabelsEveryPo
   EXPECT_EQ(global.mode, Mode::kBaseline);
 }
 
+TEST(MergeAggregator, ABaselineRootOfWholeScansPreprocessesEachAsAnEdgeWouldThenClustersThem) {
+  // Whole scans: the six blobs plus far points the crop box cuts away and a dense voxel-sized pair.
+  std::mt19937_64 rng(23);
+  auto clouds = twoSensorScene(rng);
+  for (Cloud& cloud : clouds) {
+    cloud.push_back({90.0F, 0.0F, 1.0F, 0.0F});
+    cloud.push_back({90.1F, 0.0F, 1.0F, 0.0F});
+  }
+  PreprocessConfig preprocess;
+  preprocess.crop = CropBox{};                 // +-50 m: the far points go
+  preprocess.voxel_leaf_m = 0.05;
+  BaselineJob whole;
+  whole.node = kRoot;
+  whole.preprocess = preprocess;
+  BaselineJob prepared = whole;
+  prepared.preprocess.reset();
+  for (std::uint32_t sensor : {1U, 2U}) {
+    const Cloud& scan = clouds[sensor - 1];
+    whole.scans.emplace_back(sensor, scan);
+    const auto cut = preprocessScan(scan, preprocess);
+    ASSERT_TRUE(cut.ok());
+    ASSERT_LT(cut->size(), scan.size());
+    prepared.scans.emplace_back(sensor, *cut);
+  }
+  // The oracle: the same clustering of scans pre-processed beforehand.
+  const GlobalMapMessage expected = clusterCentrally(prepared);
+  const GlobalMapMessage actual = clusterCentrally(whole);
+  EXPECT_EQ(actual.map, expected.map);
+  ASSERT_EQ(actual.point_labels.size(), 2U);
+  for (std::size_t i = 0; i < 2; ++i) EXPECT_EQ(actual.point_labels[i].labels, expected.point_labels[i].labels);
+  EXPECT_EQ(actual.map.objects.size(), 6U);
+
+  // The topology decides: a raw baseline's root gets the topology's pre-processing, no transform.
+  TopologyConfig topology = makeStarTopology(2, "scans", 51000);
+  topology.mode = Mode::kBaseline;
+  topology.preprocess.voxel_leaf_m = 0.1;
+  EXPECT_FALSE(aggregatorConfigFor(topology, "sink")->preprocess.has_value());
+  topology.baseline_ships_raw = true;
+  const auto config = aggregatorConfigFor(topology, "sink");
+  ASSERT_TRUE(config.ok() && config->preprocess.has_value());
+  EXPECT_EQ(config->preprocess->voxel_leaf_m, 0.1);
+  EXPECT_TRUE(config->preprocess->sensor_to_common.isApprox(Eigen::Isometry3d::Identity()));
+}
+
 TEST(MergeAggregator, BaselineRootSkipsSensorsUnderDeadChildren) {
   std::mt19937_64 rng(22);
   Streams streams;

@@ -366,6 +366,47 @@ TEST(AggregatorService, PushFromTwoChildrenPublishesTheMergedGlobalMap) {
       << "a closed stream is a dead child once its grace has passed";
 }
 
+// The gauge of `family` with the label, or nullopt when there is no such series.
+std::optional<double> gaugeValue(Metrics& metrics, const std::string& family,
+                                 const std::pair<std::string, std::string>& label) {
+  for (const auto& f : metrics.registry().Collect()) {
+    if (f.name != family) continue;
+    for (const auto& m : f.metric) {
+      const bool match = label.first.empty() || std::any_of(m.label.begin(), m.label.end(), [&](const auto& l) {
+                           return l.name == label.first && l.value == label.second;
+                         });
+      if (match) return m.gauge.value;
+    }
+  }
+  return std::nullopt;
+}
+
+TEST(AggregatorService, RootExportsObjectsAndMissingSensorsOfEachLiveGlobalMap) {
+  FakeClock clock(at(2, 5));
+  Metrics metrics("", "merge-aggregator", "sink");  // registry only, nothing served
+  SharedAggregator aggregator(makeCore(rootConfig(Mode::kMadc, {1, 2})));
+  std::vector<GlobalMapMessage> published;
+  Emitter emitter(aggregator, EmitterSinks{{}, [&](const GlobalMapMessage& m) { published.push_back(m); }, {}},
+                  &metrics, clock.fn());
+  emitter.sensorNames({{1, "edge-1"}, {2, "edge-2"}});
+
+  std::mt19937_64 rng(5);
+  const MapMessage map = randomMap(rng, 1, E(2), 6);
+  aggregator.with([&](MergeAggregator& core) {
+    ASSERT_TRUE(core.childConnected(1).ok());
+    ASSERT_TRUE(core.onMap(1, {1, 1}, map, 100, clock.fn()()).ok());
+  });
+  clock.set(at(3, 0));  // past epoch 2's deadline: emitted without edge-2
+  EXPECT_GE(emitter.pollOnce(), 1U);
+  const auto live = std::find_if(published.begin(), published.end(),
+                                 [](const GlobalMapMessage& m) { return m.header.epoch == E(2); });
+  ASSERT_NE(live, published.end());
+  EXPECT_EQ(gaugeValue(metrics, "fogmap_global_objects", {}), static_cast<double>(live->map.objects.size()));
+  EXPECT_EQ(live->map.objects.size(), map.map.objects.size()) << "one sensor's clusters are not merged further";
+  EXPECT_EQ(gaugeValue(metrics, "fogmap_sensor_missing", {"sensor", "edge-1"}), 0.0);
+  EXPECT_EQ(gaugeValue(metrics, "fogmap_sensor_missing", {"sensor", "edge-2"}), 1.0);
+}
+
 TEST(AggregatorService, EveryUploadIsAnsweredWithItsStatusAndRefusalsAreCounted) {
   Metrics metrics("", "merge-aggregator", "sink");  // registry only, nothing served
   FakeClock clock(at(1, 5));

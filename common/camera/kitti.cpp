@@ -1,0 +1,147 @@
+#include "common/camera/kitti.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <sstream>
+
+namespace fogmap::camera {
+namespace {
+
+// "KEY: n1 n2 ..." lines into key -> numbers; a value that is not a number is an error.
+Expected<std::map<std::string, std::vector<double>>> keyedNumbers(const std::string& text) {
+  std::map<std::string, std::vector<double>> out;
+  std::istringstream lines(text);
+  std::string line;
+  for (int number = 1; std::getline(lines, line); ++number) {
+    const auto colon = line.find(':');
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    if (colon == std::string::npos) return invalidArgument("calib line " + std::to_string(number) + ": no 'KEY:'");
+    std::istringstream values(line.substr(colon + 1));
+    std::vector<double> numbers;
+    std::string word;
+    while (values >> word) {
+      char* end = nullptr;
+      const double v = std::strtod(word.c_str(), &end);
+      if (end == word.c_str() || *end != '\0' || !std::isfinite(v)) {
+        return invalidArgument("calib line " + std::to_string(number) + ": '" + word + "' is not a number");
+      }
+      numbers.push_back(v);
+    }
+    out[line.substr(0, colon)] = std::move(numbers);
+  }
+  return out;
+}
+
+}  // namespace
+
+Eigen::Vector3d KittiCalibration::velodyneToRectified(const Eigen::Vector3d& point) const {
+  return rectification * (velodyne_to_camera * point);
+}
+
+Expected<KittiCalibration> parseKittiCalibration(const std::string& text) {
+  auto keyed = keyedNumbers(text);
+  if (!keyed) return keyed.error();
+  const auto numbers = [&](const std::string& key, std::size_t count) -> Expected<const std::vector<double>*> {
+    const auto it = keyed->find(key);
+    if (it == keyed->end()) return invalidArgument("calib: no " + key);
+    if (it->second.size() != count) {
+      return invalidArgument("calib: " + key + " has " + std::to_string(it->second.size()) + " numbers, not " +
+                             std::to_string(count));
+    }
+    return &it->second;
+  };
+  KittiCalibration calib;
+  for (int i = 0; i < 4; ++i) {
+    std::string key = "P";
+    key += std::to_string(i);
+    const auto p = numbers(key, 12);
+    if (!p) return p.error();
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 4; ++c) calib.projection[static_cast<std::size_t>(i)](r, c) = (**p)[static_cast<std::size_t>(4 * r + c)];
+    }
+  }
+  const auto r0 = numbers("R0_rect", 9);
+  if (!r0) return r0.error();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) calib.rectification(r, c) = (**r0)[static_cast<std::size_t>(3 * r + c)];
+  }
+  const auto tr = numbers("Tr_velo_to_cam", 12);
+  if (!tr) return tr.error();
+  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 4; ++c) m(r, c) = (**tr)[static_cast<std::size_t>(4 * r + c)];
+  }
+  calib.velodyne_to_camera.matrix() = m;
+  return calib;
+}
+
+Expected<std::vector<KittiLabel>> parseKittiLabels(const std::string& text) {
+  std::vector<KittiLabel> labels;
+  std::istringstream lines(text);
+  std::string line;
+  for (int number = 1; std::getline(lines, line); ++number) {
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    std::istringstream fields(line);
+    KittiLabel l;
+    double occluded = 0.0;
+    double h = 0.0, w = 0.0, len = 0.0, x = 0.0, y = 0.0, z = 0.0;
+    if (!(fields >> l.type >> l.truncated >> occluded >> l.alpha >> l.box.left >> l.box.top >> l.box.right >> l.box.bottom >>
+          h >> w >> len >> x >> y >> z >> l.rotation_y)) {
+      return invalidArgument("label line " + std::to_string(number) + ": expected 15 fields (type, truncation, occlusion, "
+                             "alpha, 2D box, h w l, x y z, rotation_y)");
+    }
+    l.occluded = static_cast<int>(occluded);
+    l.size_hwl = {h, w, len};
+    l.location = {x, y, z};
+    labels.push_back(std::move(l));
+  }
+  return labels;
+}
+
+std::array<Eigen::Vector3d, 8> boxCorners(const KittiLabel& label) {
+  const double h = label.size_hwl.x();
+  const double w = label.size_hwl.y();
+  const double l = label.size_hwl.z();
+  // Yaw about y: the box's length runs along its x.
+  const Eigen::Matrix3d turn = Eigen::AngleAxisd(label.rotation_y, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  std::array<Eigen::Vector3d, 8> corners;
+  const double xs[4] = {l / 2, l / 2, -l / 2, -l / 2};
+  const double zs[4] = {w / 2, -w / 2, -w / 2, w / 2};
+  for (std::size_t i = 0; i < 4; ++i) {
+    corners[i] = label.location + turn * Eigen::Vector3d(xs[i], 0.0, zs[i]);     // bottom (y grows downwards)
+    corners[i + 4] = label.location + turn * Eigen::Vector3d(xs[i], -h, zs[i]);  // top
+  }
+  return corners;
+}
+
+std::optional<Eigen::Vector2d> projectPoint(const Eigen::Matrix<double, 3, 4>& projection, const Eigen::Vector3d& point,
+                                            double near_m) {
+  if (!(point.z() >= near_m)) return std::nullopt;
+  const Eigen::Vector3d p = projection * point.homogeneous();
+  if (!(p.z() > 0.0)) return std::nullopt;
+  return Eigen::Vector2d(p.x() / p.z(), p.y() / p.z());
+}
+
+std::optional<Box2d> projectBox(const Eigen::Matrix<double, 3, 4>& projection, const std::array<Eigen::Vector3d, 8>& corners,
+                                int width, int height) {
+  Box2d box{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
+            -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
+  for (const auto& corner : corners) {
+    const auto pixel = projectPoint(projection, corner);
+    if (!pixel) return std::nullopt;
+    box.left = std::min(box.left, pixel->x());
+    box.top = std::min(box.top, pixel->y());
+    box.right = std::max(box.right, pixel->x());
+    box.bottom = std::max(box.bottom, pixel->y());
+  }
+  box.left = std::max(box.left, 0.0);
+  box.top = std::max(box.top, 0.0);
+  box.right = std::min(box.right, static_cast<double>(width - 1));
+  box.bottom = std::min(box.bottom, static_cast<double>(height - 1));
+  if (box.left >= box.right || box.top >= box.bottom) return std::nullopt;
+  return box;
+}
+
+}  // namespace fogmap::camera

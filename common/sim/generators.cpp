@@ -1,0 +1,240 @@
+#include "common/sim/generators.hpp"
+
+#include <cmath>
+#include <random>
+
+namespace fogmap::sim {
+namespace {
+
+Part box(double x, double y, double z, Eigen::Vector3d at = Eigen::Vector3d::Zero()) {
+  return {Shape::kBox, at, {x, y, z}, 0.0};
+}
+Part cylinder(double radius, double height, Eigen::Vector3d at = Eigen::Vector3d::Zero()) {
+  return {Shape::kCylinder, at, {2 * radius, 2 * radius, height}, 0.0};
+}
+
+// The catalogue of the random scenes (the paper's: from 0.8 m crates to cars; trucks in the
+// factory and by hand): label, parts, and the radius of a circle that holds them.
+struct Kind {
+  std::string label;
+  std::vector<Part> parts;
+  double radius;
+};
+
+const std::vector<Kind>& catalogue() {
+  static const std::vector<Kind> kinds = {
+      {"crate", {box(0.8, 0.8, 0.8)}, 0.57},
+      {"pallet", {box(1.2, 1.0, 1.4)}, 0.79},
+      {"person", {cylinder(0.25, 1.75)}, 0.25},
+      {"pole", {cylinder(0.12, 3.0)}, 0.12},
+      {"car", {box(4.4, 1.8, 0.9, {0, 0, 0.25}), box(2.2, 1.6, 0.55, {-0.3, 0, 1.15})}, 2.4},
+  };
+  return kinds;
+}
+
+Eigen::Isometry3d sensorPose(const Eigen::Vector3d& position, double yaw_rad) {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  pose.translation() = position;
+  return pose;
+}
+
+// Places `radius` at random in [-half, half]^2 away from every circle in `taken` by `gap`; false
+// after many tries (the area is full).
+bool place(std::mt19937_64& rng, double half, double radius, double gap, std::vector<std::pair<Eigen::Vector2d, double>>& taken,
+           Eigen::Vector2d& out) {
+  std::uniform_real_distribution<double> coord(-half + radius, half - radius);
+  for (int attempt = 0; attempt < 2000; ++attempt) {
+    const Eigen::Vector2d p(coord(rng), coord(rng));
+    bool free = true;
+    for (const auto& [c, r] : taken) free = free && (p - c).norm() >= r + radius + gap;
+    if (!free) continue;
+    taken.emplace_back(p, radius);
+    out = p;
+    return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+Eigen::Isometry3d lookAt(const Eigen::Vector3d& position, const Eigen::Vector3d& target) {
+  const Eigen::Vector3d forward = (target - position).normalized();
+  Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitZ());
+  if (right.norm() < 1e-9) right = Eigen::Vector3d::UnitX();
+  right.normalize();
+  const Eigen::Vector3d down = forward.cross(right);
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear().col(0) = right;
+  pose.linear().col(1) = down;
+  pose.linear().col(2) = forward;
+  pose.translation() = position;
+  return pose;
+}
+
+std::vector<LidarConfig> lidarSpots(int count, double half_m, const std::string& model) {
+  const std::vector<Eigen::Vector2d> spots = {{-half_m, -half_m}, {half_m, half_m}, {half_m, -half_m}, {-half_m, half_m},
+                                              {0.0, -half_m},     {0.0, half_m},    {0.0, 0.0}};
+  std::vector<LidarConfig> out;
+  for (int i = 0; i < std::min<int>(count, static_cast<int>(spots.size())); ++i) {
+    LidarConfig l;
+    l.name = "lidar-" + std::to_string(i + 1);
+    l.model = model;
+    const Eigen::Vector2d at = spots[static_cast<std::size_t>(i)];
+    const double yaw = at.isZero() ? 0.0 : std::atan2(-at.y(), -at.x());
+    l.pose = sensorPose({at.x(), at.y(), 1.8}, yaw);
+    out.push_back(l);
+  }
+  return out;
+}
+
+// A scene over a square area of half-size `half` (the ground reaching 15 m beyond it) watched by
+// `lidars` LiDARs of `model` at the paper's spots.
+Scene areaScene(std::string name, std::uint64_t seed, double half, int lidars, const std::string& model) {
+  Scene scene;
+  scene.name = std::move(name);
+  scene.seed = seed;
+  scene.extent_m = half + 15.0;
+  scene.lidars = lidarSpots(lidars, half, model);
+  return scene;
+}
+
+Scene randomScene(int objects, int lidars, std::uint64_t seed) {
+  constexpr double kHalf = 25.0;
+  Scene scene = areaScene("random-" + std::to_string(objects) + "-l" + std::to_string(lidars) + "-s" + std::to_string(seed),
+                          seed, kHalf, lidars, "HDL-32E");
+  std::mt19937_64 rng(seed);
+  std::uniform_int_distribution<std::size_t> kind(0, catalogue().size() - 1);
+  std::uniform_real_distribution<double> yaw(-180.0, 180.0);
+  std::vector<std::pair<Eigen::Vector2d, double>> taken;
+  for (const LidarConfig& l : scene.lidars) taken.emplace_back(l.pose.translation().head<2>(), 1.0);
+  for (int i = 0; i < objects; ++i) {
+    // A kind that no longer fits gives way to a smaller one: the count is what the caller asked.
+    const Kind* k = &catalogue()[kind(rng)];
+    SceneObject o;
+    bool placed = place(rng, kHalf, k->radius, 1.0, taken, o.xy);
+    for (std::size_t smaller = 0; !placed && smaller < catalogue().size(); ++smaller) {
+      if (catalogue()[smaller].radius >= k->radius) continue;
+      k = &catalogue()[smaller];
+      placed = place(rng, kHalf, k->radius, 1.0, taken, o.xy);
+    }
+    if (!placed) break;  // the area is full
+    o.id = static_cast<std::uint32_t>(i + 1);
+    o.label = k->label;
+    o.name = k->label + "-" + std::to_string(i + 1);
+    o.parts = k->parts;
+    o.yaw_deg = yaw(rng);
+    scene.objects.push_back(o);
+  }
+  return scene;
+}
+
+Scene factoryScene(std::uint64_t seed) {
+  Scene scene;
+  scene.name = "factory-s" + std::to_string(seed);
+  scene.seed = seed;
+  constexpr double kHalf = 20.0;
+  scene.extent_m = kHalf + 5.0;
+  scene.lidars = lidarSpots(4, kHalf, "HDL-32E");
+  auto middle = lidarSpots(7, kHalf, "HDL-32E").back();
+  middle.name = "lidar-5";
+  middle.pose.translation().z() = 4.0;  // above the shelves
+  scene.lidars.push_back(middle);
+  std::mt19937_64 rng(seed);
+  std::uint32_t id = 1;
+  auto add = [&](const std::string& label, std::vector<Part> parts, Eigen::Vector2d xy, double yaw_deg, Motion motion = {}) {
+    SceneObject o;
+    o.id = id++;
+    o.label = label;
+    o.name = label + "-" + std::to_string(o.id);
+    o.parts = std::move(parts);
+    o.xy = xy;
+    o.yaw_deg = yaw_deg;
+    o.motion = std::move(motion);
+    scene.objects.push_back(std::move(o));
+  };
+  // Two rows of shelves along x, aisles between them.
+  for (const double y : {-9.0, -3.0, 3.0, 9.0}) {
+    for (const double x : {-10.0, 2.0}) add("shelf", {box(8.0, 1.2, 2.5)}, {x, y}, 0.0);
+  }
+  // Forklifts drive the aisles (body and mast), back and forth.
+  std::uniform_real_distribution<double> speed(1.0, 2.0);
+  for (const double y : {0.0, 6.0, -6.0}) {
+    Motion m;
+    m.waypoints = {{-15.0, y}, {12.0, y}};
+    m.speed_mps = speed(rng);
+    m.loop = true;
+    add("forklift", {box(2.2, 1.2, 1.3), box(0.25, 1.0, 2.3, {1.2, 0, 0})}, {-15.0, y}, 0.0, m);
+  }
+  // People walk across the hall.
+  std::uniform_real_distribution<double> cross(-14.0, 14.0);
+  for (int i = 0; i < 4; ++i) {
+    Motion m;
+    m.waypoints = {{cross(rng), -16.0}, {cross(rng), 16.0}};
+    m.speed_mps = 1.3;
+    m.loop = true;
+    add("person", {cylinder(0.25, 1.75)}, m.waypoints.front(), 0.0, m);
+  }
+  // A crane: a pillar and its arm.
+  add("crane", {box(0.6, 0.6, 6.0), box(6.0, 0.4, 0.4, {2.7, 0, 5.6})}, {15.0, -15.0}, 135.0);
+  return scene;
+}
+
+Scene movingScene(int people, int vehicles, int lidars, int cameras, std::uint64_t seed) {
+  constexpr double kHalf = 20.0;
+  Scene scene = areaScene("moving-p" + std::to_string(people) + "-v" + std::to_string(vehicles) + "-s" + std::to_string(seed),
+                          seed, kHalf, lidars, "VLP-16");
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> across(-kHalf * 0.8, kHalf * 0.8);
+  std::uniform_real_distribution<double> walk(1.0, 1.6);
+  std::uniform_real_distribution<double> drive(3.0, 6.0);
+  std::uint32_t id = 1;
+  auto path = [&](int i) {
+    // Even paths run west-east, odd ones south-north, so they cross; the offsets keep some parallel.
+    const double offset = across(rng);
+    std::vector<Eigen::Vector2d> w = i % 2 == 0 ? std::vector<Eigen::Vector2d>{{-kHalf, offset}, {kHalf, offset}}
+                                                 : std::vector<Eigen::Vector2d>{{offset, -kHalf}, {offset, kHalf}};
+    return w;
+  };
+  for (int i = 0; i < people; ++i) {
+    SceneObject o;
+    o.id = id++;
+    o.label = "person";
+    o.name = "person-" + std::to_string(o.id);
+    o.parts = {cylinder(0.25, 1.75)};
+    o.motion.waypoints = path(i);
+    o.motion.speed_mps = walk(rng);
+    o.motion.loop = true;
+    o.xy = o.motion.waypoints.front();
+    scene.objects.push_back(o);
+  }
+  for (int i = 0; i < vehicles; ++i) {
+    SceneObject o;
+    o.id = id++;
+    o.label = "car";
+    o.name = "car-" + std::to_string(o.id);
+    o.parts = catalogue()[4].parts;
+    o.motion.waypoints = path(i + 1);
+    o.motion.speed_mps = drive(rng);
+    o.motion.loop = true;
+    o.xy = o.motion.waypoints.front();
+    scene.objects.push_back(o);
+  }
+  const std::vector<Eigen::Vector2d> camera_spots = {{-kHalf - 2, 0}, {kHalf + 2, 0}, {0, -kHalf - 2}, {0, kHalf + 2},
+                                                     {-kHalf - 2, -kHalf - 2}, {kHalf + 2, kHalf + 2}};
+  for (int i = 0; i < std::min<int>(cameras, static_cast<int>(camera_spots.size())); ++i) {
+    CameraConfig c;
+    c.name = "camera-" + std::to_string(i + 1);
+    const Eigen::Vector2d at = camera_spots[static_cast<std::size_t>(i)];
+    c.pose = lookAt({at.x(), at.y(), 4.0}, {0.0, 0.0, 0.5});
+    c.width = 640;
+    c.height = 480;
+    c.fx = c.fy = 420.0;
+    c.cx = 320.0;
+    c.cy = 240.0;
+    scene.cameras.push_back(c);
+  }
+  return scene;
+}
+
+}  // namespace fogmap::sim

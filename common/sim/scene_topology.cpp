@@ -1,0 +1,101 @@
+#include "common/sim/scene_topology.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+namespace fogmap::sim {
+namespace {
+
+constexpr std::size_t kMaxNameChars = 64;  // common/topology.hpp isName
+
+bool nameChar(char c) {
+  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' || c == '_' || c == '-';
+}
+
+std::string sanitized(const std::string& text) {
+  std::string out = text;
+  std::replace_if(out.begin(), out.end(), [](char c) { return !nameChar(c); }, '_');
+  return out;
+}
+
+// The highest point of any object above its ground, in metres (0 without objects).
+double tallestObject(const Scene& scene) {
+  double tallest = 0.0;
+  for (const SceneObject& o : scene.objects) {
+    for (const Part& p : o.parts) tallest = std::max(tallest, p.at.z() + p.size.z());
+  }
+  return tallest;
+}
+
+PreprocessConfig preprocessFor(const Scene& scene) {
+  PreprocessConfig p;
+  const double e = scene.extent_m;
+  // The ground's lowest and highest points over the extent (a plane with a step).
+  double low = std::min(scene.ground.heightAt(-e), scene.ground.heightAt(e));
+  double high = std::max(scene.ground.heightAt(-e), scene.ground.heightAt(e));
+  if (scene.ground.step_x_m && std::abs(*scene.ground.step_x_m) <= e) {
+    const double below = scene.ground.heightAt(std::nextafter(*scene.ground.step_x_m, -e - 1.0));
+    const double above = scene.ground.heightAt(*scene.ground.step_x_m);
+    low = std::min({low, below, above});
+    high = std::max({high, below, above});
+  }
+  p.crop = CropBox{{-e, -e, low - 1.0}, {e, e, high + std::max(3.0, tallestObject(scene) + 0.5)}};
+  GroundParams ground;
+  const double tilt = std::abs(scene.ground.tilt_deg);
+  ground.max_tilt_deg = std::max(ground.max_tilt_deg, tilt + 5.0);
+  // The hint picks the prior plane's points by height: only right where the ground is level.
+  if (tilt == 0.0) ground.ground_z_hint_m = scene.ground.height_m;
+  p.ground = ground;
+  return p;
+}
+
+}  // namespace
+
+std::string edgeNameFor(const std::string& lidar_name) {
+  return ("edge-" + sanitized(lidar_name)).substr(0, kMaxNameChars);
+}
+
+TopologyConfig sceneTopology(const Scene& scene, const std::filesystem::path& scene_file,
+                             const SceneTopologyOptions& options) {
+  const int edges = static_cast<int>(scene.lidars.size());
+  TopologyConfig t = options.tree ? makeTreeTopology(edges, kSimSource, options.base_port, options.fanout)
+                                  : makeStarTopology(edges, kSimSource, options.base_port);
+  // "<scene>-star-3": the scene's name as a node name allows, leaving room for the shape.
+  std::string prefix = sanitized(scene.name).substr(0, kMaxNameChars - 16);
+  if (prefix.empty()) prefix = "scene";
+  if (prefix.front() == '.') prefix.front() = '_';
+  t.name = prefix + "-" + t.name;
+  t.preprocess = preprocessFor(scene);
+
+  std::set<std::string> taken;
+  for (const NodeConfig& n : t.nodes) {
+    if (n.role == Role::kAggregator) taken.insert(n.name);
+  }
+  for (NodeConfig& n : t.nodes) {
+    if (n.role != Role::kEdge || n.id < 1 || n.id > scene.lidars.size()) continue;
+    const LidarConfig& lidar = scene.lidars[n.id - 1];
+    const std::string base = edgeNameFor(lidar.name);
+    std::string name = base;
+    // Two LiDAR names that differ only in replaced characters: the id (or the first free number
+    // from it) tells the edges apart.
+    for (std::size_t k = n.id; taken.count(name) > 0; ++k) {
+      std::string suffix = std::to_string(k);
+      suffix.insert(suffix.begin(), '-');
+      name.assign(base, 0, kMaxNameChars - suffix.size());
+      name.append(suffix);
+    }
+    taken.insert(name);
+    n.name = name;
+    SensorConfig s;
+    s.source = kSimSource;
+    s.scene = scene_file;
+    s.lidar = lidar.name;
+    s.rate_hz = options.rate_hz;
+    s.pose = lidar.pose;
+    n.sensor = s;
+  }
+  return t;  // edges are leaves: renaming them leaves every parent link as it was
+}
+
+}  // namespace fogmap::sim

@@ -1,0 +1,32 @@
+#pragma once
+// A topology from a scene (fogctl topology --scene): one edge per LiDAR of the scene, each a
+// simulated sensor (`sensor: {source: sim, scene, lidar}`) at the LiDAR's mounting pose, under one
+// sink (star) or a balanced tree of aggregators, as makeStarTopology and makeTreeTopology lay them out.
+#include <filesystem>
+#include <string>
+
+#include "common/sim/scene.hpp"
+#include "common/topology.hpp"
+
+namespace fogmap::sim {
+
+struct SceneTopologyOptions {
+  bool tree = false;       // a balanced tree of aggregators instead of a star
+  int fanout = 2;          // a tree's aggregators have at most this many children
+  int base_port = 50000;   // ports as makeStarTopology / makeTreeTopology number them
+  double rate_hz = 10.0;   // every simulated LiDAR's scan rate
+};
+
+// The edge that simulates LiDAR `lidar_name`: "edge-" + the name with every character outside
+// [A-Za-z0-9._-] replaced by '_', cut to a node name's 64 characters.
+std::string edgeNameFor(const std::string& lidar_name);
+
+// One edge per LiDAR of `scene` (ids 1..K in the scene's order, named edgeNameFor(LiDAR), with
+// "-<id>" appended when two would be equal), each with a sim sensor on `scene_file` as given
+// (written into the topology as is: relative paths resolve against the topology file's directory)
+// and the LiDAR's pose. The common frame is the scene's: the crop box spans the scene's extent and
+// its objects' heights, and ground removal is hinted at the scene's ground height when it is level.
+TopologyConfig sceneTopology(const Scene& scene, const std::filesystem::path& scene_file,
+                             const SceneTopologyOptions& options = {});
+
+}  // namespace fogmap::sim

@@ -1,0 +1,108 @@
+// KITTI calibration and labels: the projection chain checked against KITTI's own annotations.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "common/camera/kitti.hpp"
+#include "common/cloud_io.hpp"
+#include "tests/common/test_data.hpp"
+
+namespace fogmap::camera {
+namespace {
+
+using fogmap::testing::dataDir;
+
+constexpr int kWidth = 1242;  // KITTI's image_2 of frames 000001 and 000002
+constexpr int kHeight = 375;
+
+std::string slurp(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+struct Frame {
+  KittiCalibration calib;
+  std::vector<KittiLabel> labels;
+};
+
+Frame frame(const std::string& id) {
+  const auto calib = parseKittiCalibration(slurp(dataDir() / "kitti_object" / "calib" / (id + ".txt")));
+  EXPECT_TRUE(calib.ok()) << (calib ? "" : calib.error().message);
+  const auto labels = parseKittiLabels(slurp(dataDir() / "kitti_object" / "label_2" / (id + ".txt")));
+  EXPECT_TRUE(labels.ok()) << (labels ? "" : labels.error().message);
+  return {calib ? *calib : KittiCalibration{}, labels ? *labels : std::vector<KittiLabel>{}};
+}
+
+TEST(KittiCamera, ProjectedLabelBoxesFallOnTheirAnnotatedImageBoxes) {
+  std::size_t checked = 0;
+  for (const std::string id : {"000001", "000002"}) {
+    const Frame f = frame(id);
+    ASSERT_FALSE(f.labels.empty()) << id;
+    for (const KittiLabel& l : f.labels) {
+      if (l.type == "DontCare" || l.truncated > 0.0) continue;
+      SCOPED_TRACE(id + " " + l.type);
+      const auto box = projectBox(f.calib.projection[2], boxCorners(l), kWidth, kHeight);
+      ASSERT_TRUE(box.has_value());
+      // KITTI's 2D boxes were drawn by hand around the visible object: its projected 3D box lies
+      // on them within a few pixels (here within 2.1).
+      EXPECT_NEAR(box->left, l.box.left, 3.0);
+      EXPECT_NEAR(box->right, l.box.right, 3.0);
+      EXPECT_NEAR(box->top, l.box.top, 3.0);
+      EXPECT_NEAR(box->bottom, l.box.bottom, 3.0);
+      ++checked;
+    }
+  }
+  EXPECT_GE(checked, 3U);
+}
+
+TEST(KittiCamera, LidarPointsInsideALabelledBoxProjectIntoItsImageBox) {
+  const Frame f = frame("000001");
+  const auto scan = readKittiBin(dataDir() / "kitti_object" / "velodyne" / "000001.bin");
+  ASSERT_TRUE(scan.ok());
+  std::size_t inside_total = 0;
+  for (const KittiLabel& l : f.labels) {
+    if (l.type == "DontCare" || l.truncated > 0.0) continue;
+    const Eigen::Matrix3d turn = Eigen::AngleAxisd(l.rotation_y, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    std::size_t inside = 0;
+    std::size_t in_image_box = 0;
+    for (const Point& p : scan->points) {
+      const Eigen::Vector3d rect = f.calib.velodyneToRectified(Eigen::Vector3d(p.x, p.y, p.z));
+      // In the box's own frame: x along its length, y down from the bottom face, z across.
+      const Eigen::Vector3d local = turn.transpose() * (rect - l.location);
+      if (std::abs(local.x()) > l.size_hwl.z() / 2 || std::abs(local.z()) > l.size_hwl.y() / 2 || local.y() > 0.0 ||
+          local.y() < -l.size_hwl.x()) {
+        continue;
+      }
+      ++inside;
+      const auto pixel = projectPoint(f.calib.projection[2], rect);
+      if (pixel && pixel->x() >= l.box.left - 2 && pixel->x() <= l.box.right + 2 && pixel->y() >= l.box.top - 2 &&
+          pixel->y() <= l.box.bottom + 2) {
+        ++in_image_box;
+      }
+    }
+    SCOPED_TRACE(l.type);
+    EXPECT_GE(in_image_box * 100, inside * 95) << in_image_box << " of " << inside;
+    inside_total += inside;
+  }
+  EXPECT_GT(inside_total, 20U) << "the labelled objects have LiDAR points";
+}
+
+TEST(KittiCamera, BrokenFilesAreErrorsNamingWhatIsWrong) {
+  const auto missing = parseKittiCalibration("P0: 1 0 0 0 0 1 0 0 0 0 1 0\n");
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.error().message.find("no P1"), std::string::npos) << missing.error().message;
+  const auto word = parseKittiCalibration("P0: 1 0 0 0 0 1 zero 0 0 0 1 0\n");
+  ASSERT_FALSE(word.ok());
+  EXPECT_NE(word.error().message.find("'zero' is not a number"), std::string::npos) << word.error().message;
+  const auto short_label = parseKittiLabels("Car 0.00 0 1.85 387.63 181.54 423.81\n");
+  ASSERT_FALSE(short_label.ok());
+  EXPECT_NE(short_label.error().message.find("label line 1"), std::string::npos) << short_label.error().message;
+  EXPECT_FALSE(projectPoint(Eigen::Matrix<double, 3, 4>::Identity(), {0, 0, -1}).has_value()) << "behind the camera";
+}
+
+}  // namespace
+}  // namespace fogmap::camera

@@ -1,0 +1,201 @@
+#!/usr/bin/env bash
+# The deployment, end to end, with Docker (docs/deployment.md): one command, as root.
+#   tests/e2e/compose_test.sh [--skip-tree] [--skip-without-docker]
+# Installs Debian's docker.io and docker-compose if missing, starts the Docker daemon if it is not
+# running, makes the base images without a registry (docker/offline-base.sh) if absent, builds the
+# fogmap and Prometheus images, then for the star deployment (compose.yaml): makes certificates
+# (mutual TLS on every link), brings it up, waits until the root publishes global maps, checks that
+# Prometheus has every target up, that every query of the Grafana dashboard and every rule returns
+# data and evaluates without error, kills one edge container and checks that the root marks it
+# missing and the alert fires, and tears everything down. Then the tree deployment
+# (compose.tree.yaml): up, global maps, every target up, down. In both, every fogmap container
+# must turn healthy (HEALTHCHECK) and run as uid 10001, and a plaintext client must be refused.
+# Every container uses host networking on 127.0.0.1: no container traffic leaves loopback.
+# Reports each phase's time and the image size.
+# --skip-without-docker: when the Docker daemon cannot run here or the disk has less than 8 GB
+# free, say so and exit 0 (the test command uses it; by hand, that is a failure).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+root_dir=$PWD
+
+skip_tree=0
+skip_without_docker=0
+for arg in "$@"; do
+  case "$arg" in
+    --skip-tree) skip_tree=1 ;;
+    --skip-without-docker) skip_without_docker=1 ;;
+    -h | --help) sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    *) echo "compose_test.sh: unknown argument '$arg'" >&2; exit 2 ;;
+  esac
+done
+if [ "$(id -u)" -ne 0 ]; then
+  command -v sudo > /dev/null || { echo "compose_test.sh: run as root (Docker, debootstrap) or install sudo" >&2; exit 1; }
+  exec sudo "$0" "$@"
+fi
+unavailable() {  # unavailable REASON: Docker cannot run here
+  if [ $skip_without_docker -eq 1 ]; then
+    echo "compose_test.sh: SKIPPED: $*"
+    exit 0
+  fi
+  echo "compose_test.sh: FAILED: $*" >&2
+  exit 1
+}
+
+phases=()
+now_ms() { date +%s%3N; }
+started_ms=$(now_ms)
+phase_start=$started_ms
+phase() {  # phase NAME: closes the running phase under NAME
+  local now took
+  now=$(now_ms)
+  took=$(printf '%d.%d' $(((now - phase_start) / 1000)) $((((now - phase_start) % 1000) / 100)))
+  phases+=("$(printf '%-40s %7s s' "$1" "$took")")
+  echo "== $1: $took s"
+  phase_start=$now
+}
+report() {
+  echo "== phases"
+  printf '  %s\n' "${phases[@]}"
+  echo "  total: $((($(now_ms) - started_ms) / 1000)) s"
+}
+fail() {
+  echo "compose_test.sh: FAILED: $*" >&2
+  report
+  exit 1
+}
+
+project=fogmap-e2e
+compose() { docker-compose -p "$project" -f "$compose_file" "$@"; }
+cleanup() {
+  if [ -n "${compose_file:-}" ]; then compose down -v --remove-orphans > /dev/null 2>&1 || true; fi
+}
+trap cleanup EXIT
+
+# --- host ----------------------------------------------------------------------------------------
+free_gb=$(($(df -Pk /var/lib | awk 'NR == 2 {print $4}') / 1048576))
+[ "$free_gb" -ge 8 ] || unavailable "$free_gb GB free under /var/lib; building the image needs 8"
+tools/install-deps.sh --deploy
+if ! docker info > /dev/null 2>&1; then
+  echo "starting the Docker daemon"
+  (service docker start > /dev/null 2>&1 || true)
+  if ! docker info > /dev/null 2>&1; then
+    nohup dockerd > /var/log/fogmap-dockerd.log 2>&1 &
+  fi
+  for _ in $(seq 60); do docker info > /dev/null 2>&1 && break; sleep 1; done
+  docker info > /dev/null 2>&1 || unavailable "the Docker daemon did not start: $(tail -n 3 /var/log/fogmap-dockerd.log 2> /dev/null)"
+fi
+[ -x build/bin/fogctl ] || ./tools/build.sh
+fogctl=$root_dir/build/bin/fogctl
+phase "host ready (packages, daemon)"
+
+docker/offline-base.sh
+phase "base images (debootstrap)"
+
+docker build --network host -q -f docker/Dockerfile -t fogmap:latest . > /dev/null
+docker build --network host -q -t fogmap-prometheus:latest docker/prometheus > /dev/null
+image_mb=$(($(docker image inspect -f '{{.Size}}' fogmap:latest) / 1000000))
+phase "images built"
+echo "fogmap:latest is $image_mb MB (goal: under 250 MB)"
+
+# --- Prometheus over HTTP ------------------------------------------------------------------------
+prom=http://127.0.0.1:9090
+query() {  # query PROMQL: prints the API's JSON answer
+  curl -fsS --max-time 5 --get --data-urlencode "query=$1" "$prom/api/v1/query"
+}
+has_data() {  # has_data PROMQL: true when the query returns at least one sample
+  query "$1" 2> /dev/null | jq -e '.status == "success" and (.data.result | length) > 0' > /dev/null 2>&1
+}
+wait_for() {  # wait_for SECONDS WHAT PROMQL
+  local deadline=$(($(date +%s) + $1))
+  until has_data "$3"; do
+    [ "$(date +%s)" -lt $deadline ] || fail "$2: no data for $3 within $1 s: $(query "$3" 2>&1 | head -c 400)"
+    sleep 2
+  done
+}
+
+deploy() {  # deploy COMPOSE_FILE TOPOLOGY: certificates, up, global maps, every target up
+  compose_file=$1
+  local topology=$2 name nodes
+  name=$(basename "$topology" .yaml)
+  "$fogctl" compose "$topology" --out "$compose_file" --prometheus "$(grep -o 'config.file=/fogmap/[^,]*' "$compose_file" | sed 's|config.file=/fogmap/||')" --check \
+    || fail "$compose_file is not what $topology generates"
+  "$fogctl" certs "$topology" --out "docker/certs/$name" --owner 10001 --force > /dev/null
+  phase "$name: certificates"
+  compose up -d > /dev/null 2>&1 || { compose up -d; fail "docker-compose up"; }
+  phase "$name: containers started"
+  "$fogctl" watch "$topology" --count 3 --objects 0 --timeout-s 90 > /dev/null || fail "$name: no global map within 90 s"
+  phase "$name: root publishes global maps"
+  nodes=$(grep -c '^  - name:' "$topology")
+  wait_for 90 "$name: every target up" "count(up{job=\"fogmap\"} == 1) == $nodes"
+  phase "$name: $nodes targets up in Prometheus"
+  local deadline=$(($(date +%s) + 90)) unhealthy
+  while :; do
+    unhealthy=$(for c in $(compose ps -q); do
+      docker inspect -f '{{.Name}} {{.Config.Image}} {{if .State.Health}}{{.State.Health.Status}}{{end}}' "$c"
+    done | awk '$2 == "fogmap:latest" && $3 != "healthy" {print $1}')
+    [ -n "$unhealthy" ] || break
+    [ "$(date +%s)" -lt $deadline ] || fail "$name: not healthy within 90 s: $unhealthy"
+    sleep 2
+  done
+  for c in $(compose ps -q); do
+    if [ "$(docker inspect -f '{{.Config.Image}}' "$c")" = fogmap:latest ]; then
+      [ "$(docker exec "$c" id -u)" = 10001 ] || fail "$name: $(docker inspect -f '{{.Name}}' "$c") does not run as uid 10001"
+    fi
+  done
+  phase "$name: every fogmap container healthy, uid 10001"
+  local root_target
+  root_target=$(awk '/^  - name:/ {n++} n == 1 && /host:/ {h=$2} n == 1 && / port:/ {p=$2} END {print h ":" p}' "$topology")
+  if "$fogctl" watch --target "$root_target" --count 1 --timeout-s 5 > /dev/null 2>&1; then
+    fail "$name: a plaintext client got a global map from $root_target"
+  fi
+}
+
+# --- the star: every query, every rule, a killed edge -----------------------------------------
+deploy compose.yaml docker/topologies/star-4.yaml
+checked=0
+while IFS= read -r expr; do
+  q=${expr//\$__rate_interval/1m}
+  wait_for 90 "dashboard query" "$q"
+  checked=$((checked + 1))
+done < <(jq -r '.panels[].targets[].expr' docker/grafana/dashboards/fogmap.json)
+rules=$(curl -fsS "$prom/api/v1/rules")
+bad=$(echo "$rules" | jq -r '.data.groups[].rules[] | select(.health != "ok") | "\(.name): \(.health) \(.lastError)"')
+[ -z "$bad" ] || fail "rules that do not evaluate: $bad"
+while IFS= read -r name; do
+  wait_for 60 "recording rule" "$name"
+  checked=$((checked + 1))
+done < <(echo "$rules" | jq -r '.data.groups[].rules[] | select(.type == "recording") | .name')
+# An alert compares a quantity with a threshold; with `bool` it has data whether it fires or not.
+while IFS= read -r expr; do
+  q=$(echo "$expr" | sed -E 's/ (==|!=|>=|<=|>|<) / \1 bool /')
+  wait_for 60 "alert expression" "$q"
+  checked=$((checked + 1))
+done < <(echo "$rules" | jq -r '.data.groups[].rules[] | select(.type == "alerting") | .query')
+phase "star: $checked queries and rules have data"
+
+# At start-up the root publishes its first epochs before every edge has connected: those sensors
+# are missing for a moment (the alert may be pending, never firing).
+wait_for 60 "every sensor in the global map" 'sum(fogmap_sensor_missing) == 0'
+has_data 'ALERTS{alertname="FogmapSensorMissing",alertstate="firing"}' && fail "FogmapSensorMissing fired before any edge was killed"
+compose kill -s SIGKILL edge-2 > /dev/null 2>&1
+killed=$(date +%s)
+wait_for 30 "edge-2 missing" 'fogmap_sensor_missing{sensor="edge-2"} == 1'
+missing_after=$(($(date +%s) - killed))
+wait_for 90 "the alert" 'ALERTS{alertname="FogmapSensorMissing",alertstate="firing",sensor="edge-2"}'
+firing_after=$(($(date +%s) - killed))
+phase "star: edge-2 killed, missing, alert"
+echo "edge-2 marked missing within $missing_after s of kill -9; FogmapSensorMissing firing after $firing_after s (for: 15s)"
+compose down -v > /dev/null 2>&1
+compose_file=
+phase "star: torn down"
+
+if [ $skip_tree -eq 0 ]; then
+  deploy compose.tree.yaml docker/topologies/tree-7.yaml
+  compose down -v > /dev/null 2>&1
+  compose_file=
+  phase "tree: torn down"
+fi
+
+report
+echo "fogmap:latest $image_mb MB"
+echo "compose_test.sh: PASSED"

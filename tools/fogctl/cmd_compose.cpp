@@ -1,0 +1,103 @@
+// fogctl compose: a docker compose deployment of a topology (tools/fogctl/compose.hpp).
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <iterator>
+#include <utility>
+#include <string>
+#include <string_view>
+
+#include "common/topology.hpp"
+#include "tools/fogctl/args.hpp"
+#include "tools/fogctl/commands.hpp"
+#include "tools/fogctl/compose.hpp"
+
+namespace fogmap::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+Status writeText(const fs::path& path, const std::string& text) {
+  std::error_code ec;
+  if (path.has_parent_path()) fs::create_directories(path.parent_path(), ec);
+  std::ofstream out(path);
+  out << text;
+  out.close();
+  if (!out) return ioError("cannot write " + path.string());
+  return {};
+}
+
+}  // namespace
+
+int runCompose(int argc, char** argv) {
+  const std::string usage =
+      "usage: fogctl compose TOPOLOGY.yaml [--out FILE] [--prometheus FILE] [--image NAME] [--prometheus-listen ADDR]\n"
+      "                     [--grafana-listen ADDR] [--check]";
+  const auto args =
+      Args::parse(argc, argv, 2, {"out", "prometheus", "image", "prometheus-listen", "grafana-listen"}, {"check"});
+  if (!args) return fail(args.error(), "fogctl compose");
+  if (args->positional().size() != 1) return fail(invalidArgument(usage), "fogctl compose");
+  const fs::path topology_file = args->positional()[0];
+  const auto topology = loadTopology(topology_file);
+  if (!topology) return fail(topology.error(), "fogctl compose");
+
+  std::string command = "fogctl compose";
+  for (int i = 2; i < argc; ++i) {
+    if (std::string_view(argv[i]) != "--check") command += std::string(" ") + argv[i];
+  }
+
+  ComposeOptions options;
+  options.topology_file = topology_file;
+  options.project_dir = args->has("out") ? fs::absolute(args->get("out")).parent_path() : fs::current_path();
+  const fs::path prometheus =
+      args->has("prometheus") ? fs::path(args->get("prometheus")) : fs::path("docker/prometheus") / (topology->name + ".yml");
+  options.prometheus_config = fs::absolute(prometheus).lexically_relative(options.project_dir);
+  options.image = args->get("image", options.image);
+  options.prometheus_listen = args->get("prometheus-listen", options.prometheus_listen);
+  options.grafana_listen = args->get("grafana-listen", options.grafana_listen);
+  for (const std::string* listen : {&options.prometheus_listen, &options.grafana_listen}) {
+    const auto colon = listen->rfind(':');
+    if (colon == std::string::npos || colon == 0 || colon + 1 == listen->size()) {
+      return fail(invalidArgument("'" + *listen + "' is not HOST:PORT"), "fogctl compose");
+    }
+  }
+  options.command = command;
+  const auto compose = composeFile(*topology, options);
+  if (!compose) return fail(compose.error(), "fogctl compose");
+
+  PrometheusOptions scrape;
+  scrape.rule_files = {"/fogmap/docker/prometheus/rules.yml"};
+  scrape.command = command;
+  if (args->has("check")) {  // compare with the files, write nothing
+    if (!args->has("out")) return fail(invalidArgument("--check needs --out"), "fogctl compose");
+    bool current = true;
+    for (const auto& [path, text] : {std::pair{fs::path(args->get("out")), *compose},
+                                     std::pair{prometheus, prometheusConfig(*topology, scrape)}}) {
+      std::ifstream in(path);
+      const std::string on_disk((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      if (on_disk != text) {
+        std::cerr << "fogctl compose: " << path.string() << " is not what the topology generates\n";
+        current = false;
+      }
+    }
+    if (!current) {
+      std::cerr << "fogctl compose: generate again with: " << command << "\n";
+      return 1;
+    }
+    std::cout << args->get("out") << " and " << prometheus.string() << " are current\n";
+    return 0;
+  }
+  if (const Status written = writeText(prometheus, prometheusConfig(*topology, scrape)); !written.ok()) {
+    return fail(written.error(), "fogctl compose");
+  }
+  if (!args->has("out")) {
+    std::cout << *compose;
+    std::cerr << "fogctl compose: the Prometheus configuration is in " << prometheus.string() << "\n";
+    return 0;
+  }
+  if (const Status written = writeText(args->get("out"), *compose); !written.ok()) return fail(written.error(), "fogctl compose");
+  std::cout << "wrote " << args->get("out") << " and " << prometheus.string() << "\n";
+  return 0;
+}
+
+}  // namespace fogmap::cli

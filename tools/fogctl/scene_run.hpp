@@ -1,0 +1,87 @@
+#pragma once
+// A simulated scene run by real clusters, MAD-C and the baseline side by side, and scored against
+// the baseline and against the truth: what `fogctl demo --scene` shows and `fogctl eval` repeats
+// over scene sizes, LiDAR counts and alphas.
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/object_match.hpp"
+#include "common/rand_index.hpp"
+#include "common/sim/scene.hpp"
+#include "common/status.hpp"
+#include "common/topology.hpp"
+#include "tools/fogctl/cluster_run.hpp"
+
+namespace fogmap::cli {
+
+struct SceneRunOptions {
+  Mode mode = Mode::kExt;    // kExt, kMadc or kBaseline
+  double alpha = 1.5;
+  bool tree = false;
+  int fanout = 2;
+  int base_port = 47000;
+  bool free_ports = false;   // ports the kernel says are free now instead of base_port's block
+  double rate_hz = 10.0;     // the sensors' rate and the cluster's epoch rate
+  std::uint64_t frames = 5;  // complete epochs to collect
+  std::optional<double> link_mbit;  // every edge behind a shaped link of this rate (ShapedLinks)
+  bool baseline_raw = false;        // baseline: the edges ship whole scans, the root pre-processes
+};
+
+// One cluster run on a scene: the topology it ran (as written) and what the root published.
+struct SceneRun {
+  TopologyConfig topology;
+  RunResult result;
+};
+
+// The scene replayed as a loop of `cycle_frames` frames at `rate_hz` (its duration_s set so),
+// written to dir/scene.yaml: every run on it shows the same frames, so MAD-C and the baseline can
+// be compared frame by frame. Score runs with the scene as changed here.
+Expected<std::filesystem::path> writeCycledScene(const std::filesystem::path& dir, sim::Scene& scene,
+                                                 std::uint64_t cycle_frames, double rate_hz);
+
+// Starts the cluster of `scene_file` (one edge per LiDAR, sceneTopology) in the given mode, waits
+// for `frames` complete epochs and stops it. With link_mbit, every edge runs behind a shaped link
+// (an error saying why when that cannot be done here).
+Expected<SceneRun> runScene(const std::filesystem::path& dir, const std::filesystem::path& scene_file,
+                            const sim::Scene& scene, const SceneRunOptions& options);
+
+// MAD-C (an ext run) against the baseline and the truth over the frames both published complete.
+struct SceneScores {
+  std::size_t frames = 0;              // complete MAD-C epochs scored against the truth
+  std::size_t frames_vs_baseline = 0;  // of which paired with a complete baseline epoch of the same frame
+  RandScores madc_vs_baseline;         // mean over frames, elements = local clusters (MAD-C, the paper)
+  RandScores ext_vs_baseline;          // mean over frames, elements = points (MAD-C-ext)
+  RandScores madc_vs_truth;            // mean over frames, elements = points
+  RandScores baseline_vs_truth;        // mean over the paired frames
+  ObjectMatch madc_objects;            // summed over frames
+  ObjectMatch baseline_objects;        // summed over the paired frames
+  double madc_bytes_per_frame = 0.0;   // what the edges ship per frame (the services' wire sizes)
+  double baseline_bytes_per_frame = 0.0;
+  double raw_bytes_per_frame = 0.0;    // the raw scans in the same wire format (the paper's baseline)
+  double global_objects = 0.0;         // MAD-C's global objects per frame
+  double true_objects = 0.0;           // true objects with points per frame
+  // From the services' metrics.
+  double pairs_tested_per_epoch = 0.0;  // exact ellipsoid tests after box pruning, at the root
+  double pairs_all_per_epoch = 0.0;     // what an all-pairs MERGE would test
+  double clustering_ms = 0.0;           // local clustering per scan at an edge (mean)
+  double merge_ms = 0.0;                // MERGE per epoch at the root (mean)
+  double baseline_clustering_ms = 0.0;  // central clustering per epoch at the baseline's root
+  double madc_e2e_p50_ms = 0.0;         // sensor time to published global map, complete epochs
+  double baseline_e2e_p50_ms = 0.0;
+  double madc_bytes_measured = 0.0;     // received by every aggregator over the run
+  double baseline_bytes_measured = 0.0;
+};
+// `baseline` may be empty (nothing to compare with); errors when no complete epoch can be scored.
+Expected<SceneScores> scoreSceneRuns(const sim::Scene& scene, const SceneRun& madc, const SceneRun* baseline);
+
+// The views of the last complete MAD-C epoch (for pictures): its number and the edges' view.
+Expected<std::pair<std::uint64_t, EdgeView>> lastCompleteView(const SceneRun& run);
+
+// The median time from a frame's sensor time to its global map, over the complete epochs.
+double endToEndP50Ms(const SceneRun& run);
+
+}  // namespace fogmap::cli
