@@ -22,6 +22,8 @@
 #include "common/certs.hpp"
 #include "common/cloud_io.hpp"
 #include "common/geofence.hpp"
+#include "common/sim/scene.hpp"
+#include "common/sim/scene_topology.hpp"
 #include "common/topology.hpp"
 #include "common/virtual_lidar.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
@@ -196,19 +198,71 @@ int runDown(int argc, char** argv) {
   return 0;
 }
 
+namespace {
+
+// `file` as a path relative to `dir` (both taken from the working directory), or absolute when
+// they share no root: a topology names its files relative to its own directory.
+std::filesystem::path relativeTo(const std::filesystem::path& file, const std::filesystem::path& dir) {
+  const std::filesystem::path full = std::filesystem::absolute(file).lexically_normal();
+  const std::filesystem::path relative = full.lexically_relative(std::filesystem::absolute(dir).lexically_normal());
+  return relative.empty() ? full : relative;
+}
+
+}  // namespace
+
 int runTopology(int argc, char** argv) {
-  const auto args = Args::parse(argc, argv, 2, {"edges", "source", "base-port", "mode", "frames", "out"}, {});
+  const auto args = Args::parse(
+      argc, argv, 2, {"edges", "source", "scene", "base-port", "mode", "frames", "out", "fanout", "deadline-ms", "tls-ca"}, {});
   if (!args) return fail(args.error());
-  if (args->positional().size() != 1 || (args->positional()[0] != "star" && args->positional()[0] != "tree")) {
-    return fail(invalidArgument("usage: fogctl topology star|tree --edges K --source DIR [--base-port P] [--mode madc|baseline|ext] [--frames N] [--out FILE]"));
+  const bool from_scene = args->has("scene");
+  std::string shape = from_scene ? "star" : "";  // a scene's topology is a star unless told
+  if (args->positional().size() == 1) shape = args->positional()[0];
+  if (args->positional().size() > 1 || (shape != "star" && shape != "tree")) {
+    return fail(invalidArgument("usage: fogctl topology star|tree --edges K --source DIR [--base-port P] [--mode madc|baseline|ext] "
+                                "[--frames N] [--fanout F] [--deadline-ms D] [--tls-ca FILE] [--out FILE]\n"
+                                "       fogctl topology [star|tree] --scene FILE [...]"));
   }
+  const auto fanout = args->getInt("fanout", 2);
+  if (!fanout || *fanout < 2 || *fanout > 64) return fail(invalidArgument("--fanout must be in [2, 64]"));
+  if (args->has("fanout") && shape != "tree") return fail(invalidArgument("--fanout is for trees"));
   const auto edges = args->getInt("edges", 4);
   const auto base = args->getInt("base-port", 50000);
   if (!edges || *edges < 1 || *edges > 64) return fail(invalidArgument("--edges must be in [1, 64]"));
   if (!base || *base < 1024 || *base > 60000) return fail(invalidArgument("--base-port must be in [1024, 60000]"));
-  const std::string source = args->get("source", "../data/kitti_raw_seq_a");
-  TopologyConfig t = args->positional()[0] == "star" ? makeStarTopology(static_cast<int>(*edges), source, static_cast<int>(*base))
-                                                     : makeTreeTopology(static_cast<int>(*edges), source, static_cast<int>(*base));
+  TopologyConfig t;
+  if (from_scene) {
+    if (args->has("edges") || args->has("source")) {
+      return fail(invalidArgument("--scene makes one edge per LiDAR of the scene, simulated: give neither --edges nor --source"));
+    }
+    const std::filesystem::path scene_file = args->get("scene");
+    const auto scene = sim::loadScene(scene_file);
+    if (!scene) return fail(scene.error());
+    if (scene->lidars.size() > 64) {
+      return fail(invalidArgument(scene_file.string() + ": " + std::to_string(scene->lidars.size()) +
+                                  " LiDARs; a topology has at most 64 edges"));
+    }
+    sim::SceneTopologyOptions options;
+    options.tree = shape == "tree";
+    options.fanout = static_cast<int>(*fanout);
+    options.base_port = static_cast<int>(*base);
+    // The topology names the scene relative to its own directory, as services resolve it.
+    const std::filesystem::path topology_dir =
+        args->has("out") ? std::filesystem::absolute(args->get("out")).parent_path() : std::filesystem::current_path();
+    t = sim::sceneTopology(*scene, relativeTo(scene_file, topology_dir), options);
+  } else {
+    const std::string source = args->get("source", "../data/kitti_raw_seq_a");
+    t = shape == "star" ? makeStarTopology(static_cast<int>(*edges), source, static_cast<int>(*base))
+                        : makeTreeTopology(static_cast<int>(*edges), source, static_cast<int>(*base), static_cast<int>(*fanout));
+  }
+  if (args->has("deadline-ms")) {
+    const auto deadline = args->getDouble("deadline-ms", t.deadline_ms);
+    if (!deadline || !(*deadline > 0.0) || *deadline > 60'000.0) return fail(invalidArgument("--deadline-ms must be in (0, 60000]"));
+    t.deadline_ms = *deadline;
+  }
+  if (args->has("tls-ca")) {
+    const std::filesystem::path ca = args->get("tls-ca");
+    t.tls = TlsConfig{ca, ca.parent_path(), {}};
+  }
   const std::string mode = args->get("mode", "madc");
   if (mode == "baseline") {
     t.mode = Mode::kBaseline;
@@ -224,8 +278,15 @@ int runTopology(int argc, char** argv) {
       if (n.sensor) n.sensor->frames = static_cast<std::uint64_t>(*frames);
     }
   }
-  const std::string text = "# fogmap topology, generated by: fogctl topology " + args->positional()[0] + " --edges " +
-                           std::to_string(*edges) + "\n" + toYaml(t);
+  std::string command = "fogctl topology";
+  for (int i = 2; i < argc; ++i) {
+    if (std::string_view(argv[i]) == "--out") {
+      ++i;  // where it was written is not part of what it is
+      continue;
+    }
+    command += std::string(" ") + argv[i];
+  }
+  const std::string text = "# fogmap topology, generated by: " + command + "\n" + toYaml(t);
   if (!args->has("out")) {
     std::cout << text;
     return 0;
@@ -271,18 +332,27 @@ int runSplit(int argc, char** argv) {
 
 namespace {
 
-// How long watch waits for the root to accept a connection.
-constexpr std::chrono::seconds kConnectTimeout{5};
+// How long watch waits for the root to accept a connection when --timeout-s does not say.
+constexpr double kConnectTimeoutS = 5.0;
 
-// Connects the channel within kConnectTimeout: an empty string, or why not.
-std::string connect(grpc::Channel& channel) {
-  const auto deadline = std::chrono::steady_clock::now() + kConnectTimeout;
+// Connects the channel within window_s: an empty string, or why not. A refused connection is not
+// final: a root that is still starting (fogctl up, docker-compose up) is tried again, with the
+// channel's capped reconnect backoff, until the window closes.
+std::string connect(grpc::Channel& channel, double window_s) {
+  const auto deadline =
+      std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(window_s));
+  std::string last_problem = "no connection";
   auto state = channel.GetState(true);
   while (state != GRPC_CHANNEL_READY) {
-    if (state == GRPC_CHANNEL_TRANSIENT_FAILURE || state == GRPC_CHANNEL_SHUTDOWN) return "the connection failed";
+    if (state == GRPC_CHANNEL_SHUTDOWN) return "the channel was shut down";
+    if (state == GRPC_CHANNEL_TRANSIENT_FAILURE) last_problem = "the connection failed";
     if (stopRequested()) return "interrupted";
     const auto now = std::chrono::steady_clock::now();
-    if (now >= deadline) return "no connection within " + std::to_string(kConnectTimeout.count()) + " s";
+    if (now >= deadline) {
+      char within[48];
+      std::snprintf(within, sizeof within, " within %g s", window_s);
+      return last_problem + within;
+    }
     // In slices, so that Ctrl-C is seen.
     const auto slice = std::min<std::chrono::steady_clock::duration>(deadline - now, std::chrono::milliseconds(100));
     channel.WaitForStateChange(state, std::chrono::system_clock::now() + slice);
@@ -345,7 +415,7 @@ int runWatch(int argc, char** argv) {
   if (!timeout_s || *timeout_s < 0.0) return fail(invalidArgument("--timeout-s must be a non-negative number of seconds"));
   installStopHandlers();
   auto channel = makeChannel(target, connection->credentials, 64U << 20);
-  if (const std::string problem = connect(*channel); !problem.empty()) {
+  if (const std::string problem = connect(*channel, *timeout_s > 0.0 ? *timeout_s : kConnectTimeoutS); !problem.empty()) {
     if (stopRequested()) return 0;
     std::fprintf(stderr, "fogctl: cannot reach the root at %s: %s (is the cluster up?)\n", target.c_str(), problem.c_str());
     return 1;
