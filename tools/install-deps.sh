@@ -19,6 +19,7 @@ test=(
   prometheus  # a real Prometheus server and promtool for the monitoring tests
   iproute2 iptables
   clang libclang-rt-14-dev  # tools/fuzz.sh: libFuzzer, AddressSanitizer and UBSan runtimes
+  opencv-data python3-onnx  # the detector tests: OpenCV's cascades, and building a tiny ONNX network
 )
 deploy=(docker.io docker-compose debootstrap curl jq)
 

@@ -13,6 +13,7 @@
 
 #include <Eigen/Geometry>
 
+#include "common/camera/detection.hpp"  // Box2d
 #include "common/status.hpp"
 
 namespace fogmap::camera {
@@ -29,10 +30,6 @@ struct KittiCalibration {
 // Parses a calib file ("P0: 12 numbers" ... "R0_rect: 9", "Tr_velo_to_cam: 12"; other keys are
 // ignored). Errors name the missing key or the line that does not parse.
 Expected<KittiCalibration> parseKittiCalibration(const std::string& text);
-
-struct Box2d {
-  double left = 0.0, top = 0.0, right = 0.0, bottom = 0.0;  // pixels
-};
 
 struct KittiLabel {
   std::string type;          // Car, Van, Truck, Pedestrian, Person_sitting, Cyclist, Tram, Misc, DontCare

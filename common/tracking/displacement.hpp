@@ -1,0 +1,79 @@
+#pragma once
+// Displacement centroids (the camera-LiDAR fusion paper's Algorithm 1): the points of a frame that
+// fall in voxels the previous frame left empty, clustered with DBSCAN; clusters flat in z (ground
+// revealed by a moving object) are dropped, the others become centroids. Frames are compared in the
+// sensor frame, so the sensor is assumed to stand still (as in the paper). Pure; one detector per
+// sensor, fed its frames in order.
+#include <cstddef>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/cloud.hpp"
+#include "common/status.hpp"
+
+namespace fogmap::tracking {
+
+// The defaults are the paper's indoor settings (its Table 1).
+struct DisplacementParams {
+  double voxel_m = 0.1;             // octree voxel edge l_voxel; voxels are aligned to the sensor origin
+  double neighbour_m = 0.05;        // DBSCAN d_neighbor: points closer than this (strictly) are neighbours
+  std::size_t min_neighbours = 5;   // DBSCAN n_dense: a core point has this many neighbours, itself included
+  std::size_t min_points = 10;      // N_cluster: smaller clusters are noise (at least 2: a covariance needs two)
+  double min_z_variance_m2 = 0.01;  // sigma_zfilter: clusters whose z sample variance is at most this are dropped
+
+  // The paper's indoor setting (the defaults above).
+  static DisplacementParams indoor();
+  // Outdoors with a Velodyne HDL-64E (KITTI): 1 m voxels and a DBSCAN that connects its rings.
+  static DisplacementParams outdoor();
+};
+
+// Ok, or kInvalidArgument naming the first field out of range.
+Status validateDisplacementParams(const DisplacementParams& params);
+
+// One moving (or newly seen) object's points, summarised.
+struct DisplacementCentroid {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();      // mean of the cluster's points, sensor frame, m
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();    // sample covariance (n - 1) of those points, m^2
+  std::size_t point_count = 0;
+};
+
+struct DisplacementResult {
+  std::vector<DisplacementCentroid> centroids;  // kept clusters, in the order of their first point in the frame
+  std::size_t displacement_points = 0;          // finite points in voxels empty in the previous frame
+  std::size_t clusters = 0;                     // DBSCAN clusters, before the z filter
+  std::size_t dropped_flat = 0;                 // clusters dropped by the z-variance filter
+  std::size_t non_finite = 0;                   // points with a NaN or infinite coordinate, skipped
+  std::size_t beyond_reach = 0;                 // finite points farther than reachM() on some axis, skipped
+};
+
+class DisplacementDetector {
+ public:
+  // A detector with no previous frame, or the validation error of `params`.
+  static Expected<DisplacementDetector> create(const DisplacementParams& params);
+
+  DisplacementDetector(DisplacementDetector&&) noexcept;
+  DisplacementDetector& operator=(DisplacementDetector&&) noexcept;
+  ~DisplacementDetector();
+
+  // Displacement centroids of `frame` against the previous frame pushed (the whole frame is
+  // displacement on the first push), then keeps `frame` as the previous frame.
+  DisplacementResult push(std::span<const Point> frame);
+
+  const DisplacementParams& params() const { return params_; }
+  // How far from the sensor, on each axis, points are taken: 2^19 voxels (52 km with 0.1 m voxels).
+  // Points farther away are skipped and counted in beyond_reach.
+  double reachM() const;
+
+ private:
+  struct ChangeDetector;  // PCL's double-buffered octree: the previous frame's voxels and the current one's
+
+  explicit DisplacementDetector(const DisplacementParams& params);
+
+  DisplacementParams params_;
+  std::unique_ptr<ChangeDetector> change_;
+};
+
+}  // namespace fogmap::tracking

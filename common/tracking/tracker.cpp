@@ -1,0 +1,363 @@
+#include "common/tracking/tracker.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <set>
+
+#include "common/tracking/assignment.hpp"
+
+namespace fogmap::tracking {
+
+namespace {
+
+double seconds(std::int64_t ns) { return static_cast<double>(ns) * 1e-9; }
+std::int64_t nanoseconds(double s) { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
+
+Eigen::Vector2d ground(const CloudObservation& o) { return o.position.head<2>(); }
+
+// The measurement covariance on the ground plane, with a floor so that a tight cluster (or a
+// degenerate one) never makes the filter over-confident.
+Eigen::Matrix2d groundCovariance(const CloudObservation& o, double min_sigma_m) {
+  Eigen::Matrix2d r = o.covariance.topLeftCorner<2, 2>();
+  r = 0.5 * (r + r.transpose());
+  return r + Eigen::Matrix2d::Identity() * min_sigma_m * min_sigma_m;
+}
+
+std::string bestLabel(const std::map<std::string, double>& votes) {
+  std::string best = kUnknownLabel;
+  double best_score = 0.0;
+  for (const auto& [label, score] : votes) {
+    if (score > best_score) {  // ties: the first in name order, so the result is deterministic
+      best = label;
+      best_score = score;
+    }
+  }
+  return best;
+}
+
+}  // namespace
+
+const char* trackStateName(TrackState state) {
+  switch (state) {
+    case TrackState::kTentative:
+      return "tentative";
+    case TrackState::kConfirmed:
+      return "confirmed";
+    case TrackState::kLost:
+      return "lost";
+  }
+  return "?";
+}
+
+std::optional<std::size_t> overlay(const std::vector<CloudObservation>& observations, const camera::PinholeCamera& camera,
+                                   const camera::Box2d& box, const Eigen::Vector3d& sensor_position) {
+  // "In front of the camera" is z > 0 in the paper; a millimetre keeps the division well away from 0.
+  constexpr double kInFrontM = 1e-3;
+  std::optional<std::size_t> nearest;
+  double nearest_distance = std::numeric_limits<double>::infinity();
+  for (std::size_t g = 0; g < observations.size(); ++g) {
+    const auto pixel = camera.project(observations[g].position, kInFrontM);
+    if (!pixel) continue;
+    if (pixel->x() < box.left || pixel->x() > box.right || pixel->y() < box.top || pixel->y() > box.bottom) continue;
+    const double distance = (ground(observations[g]) - sensor_position.head<2>()).norm();
+    if (distance < nearest_distance) {
+      nearest_distance = distance;
+      nearest = g;
+    }
+  }
+  return nearest;
+}
+
+Tracker::Tracker(TrackerConfig config, std::vector<camera::PinholeCamera> cameras)
+    : config_(config), cameras_(std::move(cameras)) {}
+
+Expected<Tracker> Tracker::create(TrackerConfig config, std::vector<camera::PinholeCamera> cameras) {
+  if (auto status = validate(config); !status) return status.error();
+  std::set<std::string> names;
+  for (const auto& c : cameras) {
+    if (auto status = camera::validate(c); !status) return status.error();
+    if (!names.insert(c.name).second) return invalidArgument("tracker: camera '" + c.name + "' is listed twice");
+  }
+  return Tracker(config, std::move(cameras));
+}
+
+void Tracker::addDetections(DetectionFrame frame) {
+  const bool known = std::any_of(cameras_.begin(), cameras_.end(), [&](const auto& c) { return c.name == frame.camera; });
+  if (!known) {
+    ++counters_.detection_frames_unknown_camera;
+    return;
+  }
+  auto& newest = last_capture_ns_[frame.camera];
+  newest = std::max(newest, frame.capture_time_ns);
+  if (last_cloud_ns_ && frame.capture_time_ns < *last_cloud_ns_ - nanoseconds(config_.eps_sync_s)) {
+    ++counters_.detection_frames_stale;  // every LiDAR frame still to come is further away in time
+    return;
+  }
+  auto& queue = pending_[frame.camera];
+  const auto at = std::upper_bound(queue.begin(), queue.end(), frame.capture_time_ns,
+                                   [](std::int64_t t, const DetectionFrame& f) { return t < f.capture_time_ns; });
+  queue.insert(at, std::move(frame));
+  if (queue.size() > config_.max_buffered_frames) {
+    queue.erase(queue.begin());
+    ++counters_.detection_frames_overflow;
+  }
+}
+
+std::vector<DetectionFrame> Tracker::takeSynchronized(std::int64_t cloud_time_ns) {
+  const std::int64_t eps_ns = nanoseconds(config_.eps_sync_s);
+  std::vector<DetectionFrame> matched;
+  for (auto& [camera, queue] : pending_) {
+    // The frame nearest in time within eps_sync (the paper: the shortest time difference wins).
+    auto best = queue.end();
+    std::int64_t best_gap = eps_ns;
+    for (auto it = queue.begin(); it != queue.end(); ++it) {
+      const std::int64_t gap = std::llabs(it->capture_time_ns - cloud_time_ns);
+      if (gap <= best_gap) {
+        if (best == queue.end() || gap < best_gap) best = it;
+        best_gap = gap;
+      }
+    }
+    if (best != queue.end()) {
+      matched.push_back(std::move(*best));
+      queue.erase(best);
+    }
+    // Frames older than this LiDAR frame by more than eps_sync cannot match a later one.
+    const auto stale_end = std::find_if(queue.begin(), queue.end(),
+                                        [&](const DetectionFrame& f) { return f.capture_time_ns >= cloud_time_ns - eps_ns; });
+    counters_.detection_frames_stale += static_cast<std::uint64_t>(stale_end - queue.begin());
+    queue.erase(queue.begin(), stale_end);
+  }
+  return matched;
+}
+
+StepStats Tracker::addCloud(const CloudFrame& frame) {
+  StepStats stats;
+  if (last_cloud_ns_ && frame.time_ns < *last_cloud_ns_) {
+    ++counters_.cloud_frames_out_of_order;
+    return stats;
+  }
+  const auto detections = takeSynchronized(frame.time_ns);
+  stats.detection_frames_used = detections.size();
+  if (config_.association == Association::kPaper) {
+    stepPaper(frame, detections, stats);
+  } else {
+    stepKalman(frame, detections, stats);
+  }
+  prune(frame.time_ns, stats);
+  last_cloud_ns_ = frame.time_ns;
+  ++counters_.steps;
+  counters_.detections_fused += stats.detections_fused;
+  counters_.updates_overlay += stats.updates_overlay;
+  counters_.updates_cloud_only += stats.updates_cloud_only;
+  counters_.tracks_created += stats.tracks_created;
+  counters_.tracks_deleted += stats.tracks_deleted;
+  return stats;
+}
+
+Track& Tracker::spawn(const Eigen::Vector2d& position, const Eigen::Matrix2d& covariance, std::int64_t now_ns) {
+  Track track;
+  track.id = next_id_++;
+  track.position = position;
+  track.covariance = covariance;
+  track.created_ns = now_ns;
+  track.last_update_ns = now_ns;
+  track.consecutive_hits = 1;
+  tracks_.push_back(track);
+  filters_.emplace_back(position, covariance, config_.initial_speed_sigma,
+                        ConstantVelocityModel{.acceleration_sigma = config_.acceleration_sigma});
+  label_votes_.emplace_back();
+  return tracks_.back();
+}
+
+// Algorithms 2, 4 and 5, as published.
+void Tracker::stepPaper(const CloudFrame& frame, const std::vector<DetectionFrame>& detections, StepStats& stats) {
+  const std::size_t previous = tracks_.size();  // T_i: the tracks of the previous frame
+  std::vector<bool> associated(previous, false);
+  std::set<std::size_t> remaining;  // C^XY: observations not overlaid
+  for (std::size_t g = 0; g < frame.observations.size(); ++g) remaining.insert(g);
+  const auto cameraNamed = [&](const std::string& name) {
+    return std::find_if(cameras_.begin(), cameras_.end(), [&](const auto& c) { return c.name == name; });
+  };
+  struct NewTrack {
+    Eigen::Vector2d position;
+    std::string label;
+  };
+  std::vector<NewTrack> created;  // H: added after every detection is handled
+  for (const auto& message : detections) {
+    const auto cam = cameraNamed(message.camera);
+    for (const auto& detection : message.detections) {
+      const auto g = overlay(frame.observations, *cam, detection.box, frame.sensor_position);  // Alg. 3
+      if (!g) continue;
+      ++stats.detections_fused;
+      const Eigen::Vector2d c = ground(frame.observations[*g]);
+      // Alg. 4: the closest track of T_i; same label and within rho_overlay, or a new track.
+      std::optional<std::size_t> closest;
+      double closest_distance = std::numeric_limits<double>::infinity();
+      for (std::size_t o = 0; o < previous; ++o) {
+        const double d = (tracks_[o].position - c).norm();
+        if (d < closest_distance) {
+          closest_distance = d;
+          closest = o;
+        }
+      }
+      if (closest && tracks_[*closest].label == detection.label && closest_distance < config_.rho_overlay_m) {
+        auto& track = tracks_[*closest];
+        track.position = c;
+        track.last_update_ns = frame.time_ns;
+        associated[*closest] = true;
+        ++stats.updates_overlay;
+      } else {
+        created.push_back({c, detection.label});
+      }
+      remaining.erase(*g);
+    }
+  }
+  // Alg. 5: every track not associated takes the nearest remaining centroid within rho_purecloud
+  // (as published, a centroid is not removed once taken).
+  for (std::size_t o = 0; o < previous; ++o) {
+    if (associated[o]) continue;
+    auto& track = tracks_[o];
+    std::optional<std::size_t> nearest;
+    double nearest_distance = std::numeric_limits<double>::infinity();
+    for (const std::size_t g : remaining) {
+      const double d = (track.position - ground(frame.observations[g])).norm();
+      if (d < nearest_distance) {
+        nearest_distance = d;
+        nearest = g;
+      }
+    }
+    if (nearest && nearest_distance < config_.rho_purecloud_m) {
+      track.position = ground(frame.observations[*nearest]);
+      track.last_update_ns = frame.time_ns;
+      ++stats.updates_cloud_only;
+    }
+  }
+  for (const auto& h : created) {
+    Track& track = spawn(h.position, Eigen::Matrix2d::Zero(), frame.time_ns);
+    track.label = h.label;
+    track.state = TrackState::kConfirmed;  // the paper makes tracks only by fusion
+    track.camera_confirmed = true;
+    ++stats.tracks_created;
+  }
+  for (auto& track : tracks_) {
+    if (track.state != TrackState::kTentative) {
+      track.state = track.last_update_ns == frame.time_ns ? TrackState::kConfirmed : TrackState::kLost;
+    }
+  }
+}
+
+// Predict, associate, update, spawn (pruning follows in addCloud).
+void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFrame>& detections, StepStats& stats) {
+  // Predict every track to the frame's time.
+  const double dt = last_cloud_ns_ ? seconds(frame.time_ns - *last_cloud_ns_) : 0.0;
+  for (auto& filter : filters_) filter.predict(dt);
+
+  // Measurements: every observation, with the labels of the detections that overlay it (several
+  // cameras may see one object: their votes add up in one measurement).
+  struct Measurement {
+    Eigen::Vector2d position;
+    Eigen::Matrix2d covariance;
+    std::map<std::string, double> votes;
+  };
+  std::vector<Measurement> measurements;
+  measurements.reserve(frame.observations.size());
+  for (const auto& o : frame.observations) {
+    measurements.push_back({ground(o), groundCovariance(o, config_.min_measurement_sigma_m), {}});
+  }
+  for (const auto& message : detections) {
+    const auto cam = std::find_if(cameras_.begin(), cameras_.end(), [&](const auto& c) { return c.name == message.camera; });
+    for (const auto& detection : message.detections) {
+      const auto g = overlay(frame.observations, *cam, detection.box, frame.sensor_position);
+      if (!g) continue;
+      ++stats.detections_fused;
+      measurements[*g].votes[detection.label] += std::max(detection.score, 1e-6);
+    }
+  }
+
+  // Associate: the least total squared Mahalanobis distance, inside the gate, never across labels
+  // a camera has told apart.
+  const double inf = std::numeric_limits<double>::infinity();
+  std::vector<std::vector<double>> cost(tracks_.size(), std::vector<double>(measurements.size(), inf));
+  for (std::size_t t = 0; t < tracks_.size(); ++t) {
+    for (std::size_t m = 0; m < measurements.size(); ++m) {
+      const auto& meas = measurements[m];
+      if (!meas.votes.empty() && tracks_[t].label != kUnknownLabel && bestLabel(meas.votes) != tracks_[t].label) continue;
+      const double d2 = filters_[t].mahalanobis2(meas.position, meas.covariance);
+      if (d2 <= config_.gate_chi2) cost[t][m] = d2;
+    }
+  }
+  const auto assignment = assignMinCost(cost);
+
+  // Update the matched tracks; the others miss a hit.
+  std::vector<bool> used(measurements.size(), false);
+  for (std::size_t t = 0; t < tracks_.size(); ++t) {
+    auto& track = tracks_[t];
+    if (!assignment[t]) {
+      track.consecutive_hits = 0;
+      if (track.state == TrackState::kConfirmed) track.state = TrackState::kLost;
+      continue;
+    }
+    const auto& meas = measurements[*assignment[t]];
+    used[*assignment[t]] = true;
+    filters_[t].update(meas.position, meas.covariance);
+    track.last_update_ns = frame.time_ns;
+    ++track.consecutive_hits;
+    if (meas.votes.empty()) {
+      ++stats.updates_cloud_only;
+    } else {
+      ++stats.updates_overlay;
+      track.camera_confirmed = true;
+      for (const auto& [label, score] : meas.votes) label_votes_[t][label] += score;
+    }
+    if (track.camera_confirmed || track.consecutive_hits >= config_.confirm_hits) track.state = TrackState::kConfirmed;
+  }
+
+  // Spawn: every measurement no track took starts a track; a camera-confirmed one is confirmed at
+  // once (as the paper makes tracks by fusion), a LiDAR-only one after confirm_hits hits.
+  for (std::size_t m = 0; m < measurements.size(); ++m) {
+    if (used[m]) continue;
+    const auto& meas = measurements[m];
+    Track& track = spawn(meas.position, meas.covariance, frame.time_ns);
+    ++stats.tracks_created;
+    if (!meas.votes.empty()) {
+      track.camera_confirmed = true;
+      label_votes_.back() = meas.votes;
+    }
+    if (track.camera_confirmed || config_.confirm_hits <= 1) track.state = TrackState::kConfirmed;
+  }
+
+  // The published view of every track: the filter's estimate and the label the votes give.
+  for (std::size_t t = 0; t < tracks_.size(); ++t) {
+    tracks_[t].position = filters_[t].position();
+    tracks_[t].velocity = filters_[t].velocity();
+    tracks_[t].covariance = filters_[t].covariance().topLeftCorner<2, 2>();
+    tracks_[t].label = bestLabel(label_votes_[t]);
+  }
+}
+
+void Tracker::prune(std::int64_t now_ns, StepStats& stats) {
+  const std::int64_t tentative_ns = nanoseconds(config_.tentative_timeout_s);
+  const std::int64_t timeout_ns = nanoseconds(config_.track_timeout_s);
+  std::size_t kept = 0;
+  for (std::size_t t = 0; t < tracks_.size(); ++t) {
+    const auto& track = tracks_[t];
+    const std::int64_t unobserved = now_ns - track.last_update_ns;
+    const bool expired = track.state == TrackState::kTentative ? unobserved > tentative_ns : unobserved > timeout_ns;
+    if (expired) {
+      ++stats.tracks_deleted;
+      continue;
+    }
+    if (kept != t) {
+      tracks_[kept] = std::move(tracks_[t]);
+      filters_[kept] = std::move(filters_[t]);
+      label_votes_[kept] = std::move(label_votes_[t]);
+    }
+    ++kept;
+  }
+  tracks_.resize(kept);
+  filters_.erase(filters_.begin() + static_cast<std::ptrdiff_t>(kept), filters_.end());
+  label_votes_.resize(kept);
+}
+
+}  // namespace fogmap::tracking

@@ -1,0 +1,144 @@
+#pragma once
+// The fusion tracker (DESIGN.md 2.5): LiDAR observations (displacement centroids, or the global
+// map's objects) fused with 2D camera detections that arrive asynchronously, kept as labelled
+// tracks on the ground plane. Pure: the tracker service feeds it and publishes what it returns.
+//
+// Two associations, chosen in the config:
+//  - paper: Algorithms 2 to 5 of the camera-LiDAR fusion paper as published: each detection's
+//    overlaid centroid nearest the sensor updates the nearest track of the same label within
+//    rho_overlay or creates a track; tracks left alone take the nearest remaining centroid within
+//    rho_purecloud. Tracks are made only by fusion; positions are the last measurement.
+//  - kalman (default): a constant-velocity Kalman filter per track; one step is predict,
+//    associate (Hungarian over squared Mahalanobis distances, gated), update, spawn, prune.
+//    Tracks are tentative until confirmed (a camera detection, or N consecutive LiDAR hits), lost
+//    while unobserved, deleted after a timeout; the label is the vote of the fused detections.
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/camera/detection.hpp"
+#include "common/camera/pinhole.hpp"
+#include "common/status.hpp"
+#include "common/tracking/kalman.hpp"
+#include "common/tracking/tracker_config.hpp"
+
+namespace fogmap::tracking {
+
+// A LiDAR observation: a displacement centroid or a global-map object, in the common frame.
+struct CloudObservation {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity() * 0.01;  // m^2
+};
+
+// Every observation of one LiDAR frame (or one global map), with the sensor's timestamp and where
+// the sensor is (the overlay keeps the overlaid observation nearest to it).
+struct CloudFrame {
+  std::int64_t time_ns = 0;
+  Eigen::Vector3d sensor_position = Eigen::Vector3d::Zero();
+  std::vector<CloudObservation> observations;
+};
+
+// Every detection of one camera image, with the image's capture time.
+struct DetectionFrame {
+  std::string camera;
+  std::int64_t capture_time_ns = 0;
+  std::vector<camera::Detection> detections;
+};
+
+enum class TrackState { kTentative, kConfirmed, kLost };
+const char* trackStateName(TrackState state);
+
+inline constexpr const char* kUnknownLabel = "unknown";
+
+struct Track {
+  std::uint64_t id = 0;
+  std::string label = kUnknownLabel;
+  TrackState state = TrackState::kTentative;
+  Eigen::Vector2d position = Eigen::Vector2d::Zero();  // ground plane, m
+  Eigen::Vector2d velocity = Eigen::Vector2d::Zero();  // m/s (0 under the paper's association)
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();  // of the position, m^2
+  std::int64_t created_ns = 0;
+  std::int64_t last_update_ns = 0;
+  bool camera_confirmed = false;  // a camera detection was fused into it at least once
+  int consecutive_hits = 0;
+};
+
+
+
+// What one step did: the counters the service exports.
+struct StepStats {
+  std::size_t detections_fused = 0;       // detections whose overlay found an observation
+  std::size_t updates_overlay = 0;        // track updates by a fused (camera + LiDAR) measurement
+  std::size_t updates_cloud_only = 0;     // track updates by a LiDAR observation alone
+  std::size_t tracks_created = 0;
+  std::size_t tracks_deleted = 0;
+  std::size_t detection_frames_used = 0;  // detection frames matched to this LiDAR frame
+};
+
+struct TrackerCounters {
+  std::uint64_t steps = 0;
+  std::uint64_t detections_fused = 0;
+  std::uint64_t updates_overlay = 0;
+  std::uint64_t updates_cloud_only = 0;
+  std::uint64_t tracks_created = 0;
+  std::uint64_t tracks_deleted = 0;
+  std::uint64_t detection_frames_stale = 0;    // older than every LiDAR frame they could match: dropped
+  std::uint64_t detection_frames_overflow = 0;  // beyond max_buffered_frames: the oldest dropped
+  std::uint64_t detection_frames_unknown_camera = 0;
+  std::uint64_t cloud_frames_out_of_order = 0;  // older than the last fused LiDAR frame: dropped
+};
+
+class Tracker {
+ public:
+  // `cameras`: the calibrated cameras whose detections may arrive (names must be unique).
+  static Expected<Tracker> create(TrackerConfig config, std::vector<camera::PinholeCamera> cameras);
+
+  // Buffers a camera's detections until the LiDAR frame nearest in time arrives. A frame of an
+  // unknown camera, or one older than the last fused LiDAR frame by more than eps_sync, is
+  // dropped and counted.
+  void addDetections(DetectionFrame frame);
+
+  // Fuses a LiDAR frame with the buffered detection frames nearest in time (one per camera,
+  // within eps_sync) and steps the tracks to its time. Detection frames that can no longer match
+  // any later LiDAR frame are dropped as stale. A LiDAR frame older than the last is dropped.
+  StepStats addCloud(const CloudFrame& frame);
+
+  // The live tracks (tentative ones too; callers usually publish confirmed and lost ones).
+  const std::vector<Track>& tracks() const { return tracks_; }
+  const TrackerCounters& counters() const { return counters_; }
+  const TrackerConfig& config() const { return config_; }
+  // When each camera's newest detection frame was captured (absent until one arrived).
+  const std::map<std::string, std::int64_t>& lastCapture() const { return last_capture_ns_; }
+
+ private:
+  Tracker(TrackerConfig config, std::vector<camera::PinholeCamera> cameras);
+
+  std::vector<DetectionFrame> takeSynchronized(std::int64_t cloud_time_ns);
+  void stepPaper(const CloudFrame& frame, const std::vector<DetectionFrame>& detections, StepStats& stats);
+  void stepKalman(const CloudFrame& frame, const std::vector<DetectionFrame>& detections, StepStats& stats);
+  void prune(std::int64_t now_ns, StepStats& stats);
+  Track& spawn(const Eigen::Vector2d& position, const Eigen::Matrix2d& covariance, std::int64_t now_ns);
+
+  TrackerConfig config_;
+  std::vector<camera::PinholeCamera> cameras_;
+  std::map<std::string, std::vector<DetectionFrame>> pending_;  // per camera, by capture time
+  std::map<std::string, std::int64_t> last_capture_ns_;
+  std::optional<std::int64_t> last_cloud_ns_;
+  std::vector<Track> tracks_;
+  std::vector<ConstantVelocityFilter> filters_;                // kalman: one per track, same order
+  std::vector<std::map<std::string, double>> label_votes_;     // kalman: summed scores per label
+  std::uint64_t next_id_ = 1;
+  TrackerCounters counters_;
+};
+
+// Algorithm 3 (Overlay): of the observations in front of `camera` whose pixel lies inside `box`,
+// the ground projection of the one nearest to `sensor_position` (on the ground plane); nothing
+// when none is overlaid. Returns the index of that observation.
+std::optional<std::size_t> overlay(const std::vector<CloudObservation>& observations, const camera::PinholeCamera& camera,
+                                   const camera::Box2d& box, const Eigen::Vector3d& sensor_position);
+
+}  // namespace fogmap::tracking

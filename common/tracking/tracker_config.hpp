@@ -1,0 +1,35 @@
+#pragma once
+// The tracker's settings (common/tracking/tracker.hpp): the association (the fusion paper's or
+// Kalman with global assignment), synchronisation, thresholds and track life cycle, as a plain
+// struct with units in the names and its check. Read from a tracker node's `tracker:` section.
+#include <cstddef>
+#include <string>
+
+#include "common/status.hpp"
+
+namespace fogmap::tracking {
+
+enum class Association { kPaper, kKalman };
+const char* associationName(Association association);
+Expected<Association> parseAssociation(const std::string& name);
+
+struct TrackerConfig {
+  Association association = Association::kKalman;
+  double eps_sync_s = 0.1;  // a detection frame fuses with the LiDAR frame nearest in time within this
+  // The paper's thresholds (Algorithms 4 and 5): 0.5 m and 0.3 m indoors, 5 m on KITTI.
+  double rho_overlay_m = 0.5;
+  double rho_purecloud_m = 0.3;
+  // Kalman association.
+  double gate_chi2 = 9.21;              // squared Mahalanobis gate: chi-square, 2 dof, 99 %
+  double acceleration_sigma = 2.0;      // m/s^2, the constant-velocity model's process noise
+  double initial_speed_sigma = 3.0;     // m/s, a new track's velocity uncertainty
+  double min_measurement_sigma_m = 0.05;  // floor of a measurement's standard deviation
+  int confirm_hits = 3;                 // consecutive LiDAR hits that confirm a track without a camera
+  double tentative_timeout_s = 0.3;     // a tentative track unobserved this long is dropped
+  double track_timeout_s = 2.0;         // a track unobserved this long is deleted (both associations)
+  std::size_t max_buffered_frames = 64;  // detection frames kept per camera while waiting for LiDAR
+};
+
+Status validate(const TrackerConfig& config);
+
+}  // namespace fogmap::tracking

@@ -1,0 +1,399 @@
+// The fusion tracker against hand-made cases: the paper's Algorithms 3 to 5 step by step, the
+// synchronisation of asynchronous detections, and the Kalman association on crossing and
+// non-crossing paths, a camera that stops, and track life cycles.
+#include "common/tracking/tracker.hpp"
+
+#include <cmath>
+#include <functional>
+#include <map>
+#include <set>
+
+#include <gtest/gtest.h>
+
+namespace fogmap::tracking {
+namespace {
+
+constexpr std::int64_t kMs = 1'000'000;
+
+// A camera at `position` looking along +x of the common frame (z up): its x is -y, its y is -z.
+camera::PinholeCamera forwardCamera(const std::string& name, const Eigen::Vector3d& position = {0.0, 0.0, 1.0}) {
+  camera::PinholeCamera cam;
+  cam.name = name;
+  cam.fx = cam.fy = 500.0;
+  cam.cx = 320.0;
+  cam.cy = 240.0;
+  cam.width = 640;
+  cam.height = 480;
+  Eigen::Matrix3d r;
+  r << 0, -1, 0,  //
+      0, 0, -1,   //
+      1, 0, 0;
+  cam.world_to_camera.linear() = r;
+  cam.world_to_camera.translation() = -r * position;
+  return cam;
+}
+
+CloudObservation at(double x, double y, double z = 0.5) {
+  CloudObservation o;
+  o.position = {x, y, z};
+  o.covariance = Eigen::Matrix3d::Identity() * 0.01;
+  return o;
+}
+
+// A detection box of +-half pixels around where `cam` sees `point`.
+camera::Detection detectionOf(const camera::PinholeCamera& cam, const Eigen::Vector3d& point, const std::string& label,
+                              double half = 20.0) {
+  const auto pixel = cam.project(point);
+  EXPECT_TRUE(pixel.has_value());
+  camera::Detection d;
+  d.box = {pixel->x() - half, pixel->y() - half, pixel->x() + half, pixel->y() + half};
+  d.label = label;
+  d.score = 1.0;
+  d.camera = cam.name;
+  return d;
+}
+
+CloudFrame cloudAt(std::int64_t t_ns, std::vector<CloudObservation> observations) {
+  CloudFrame f;
+  f.time_ns = t_ns;
+  f.observations = std::move(observations);
+  return f;
+}
+
+DetectionFrame detectionsAt(const std::string& camera, std::int64_t t_ns, std::vector<camera::Detection> detections) {
+  return DetectionFrame{camera, t_ns, std::move(detections)};
+}
+
+Tracker makeTracker(TrackerConfig config, std::vector<camera::PinholeCamera> cameras) {
+  auto tracker = Tracker::create(config, std::move(cameras));
+  EXPECT_TRUE(tracker.ok()) << (tracker.ok() ? "" : tracker.error().message);
+  return std::move(tracker).value();
+}
+
+const Track* trackWithLabel(const Tracker& tracker, const std::string& label) {
+  for (const auto& t : tracker.tracks()) {
+    if (t.label == label) return &t;
+  }
+  return nullptr;
+}
+
+// --- Algorithm 3 ---------------------------------------------------------------------------------
+
+TEST(Overlay, TakesTheOverlaidObservationNearestTheSensorAndIgnoresThoseBehindOrOutside) {
+  const auto cam = forwardCamera("front");
+  // Two on the camera's axis (pixel (320, ~240)), 10 m and 6 m ahead; one behind; one far left.
+  const std::vector<CloudObservation> observations{at(10, 0, 1), at(6, 0, 1), at(-5, 0, 1), at(5, 8, 1)};
+  camera::Box2d box{300, 220, 340, 260};
+  const auto g = overlay(observations, cam, box, Eigen::Vector3d::Zero());
+  ASSERT_TRUE(g.has_value());
+  EXPECT_EQ(*g, 1U);  // 6 m is nearer the sensor than 10 m
+  // Nearest to a sensor standing beyond both: the 10 m one.
+  EXPECT_EQ(*overlay(observations, cam, box, Eigen::Vector3d(12, 0, 0)), 0U);
+  // A box elsewhere in the image overlays nothing; the point behind projects nowhere.
+  EXPECT_FALSE(overlay(observations, cam, camera::Box2d{0, 0, 10, 10}, Eigen::Vector3d::Zero()).has_value());
+  EXPECT_FALSE(overlay({at(-5, 0, 1)}, cam, camera::Box2d{0, 0, 640, 480}, Eigen::Vector3d::Zero()).has_value());
+}
+
+// --- Algorithms 2, 4 and 5 (association: paper) --------------------------------------------------
+
+TrackerConfig paperConfig() {
+  TrackerConfig c;
+  c.association = Association::kPaper;
+  c.rho_overlay_m = 0.5;
+  c.rho_purecloud_m = 0.3;
+  return c;
+}
+
+TEST(PaperAssociation, FusionCreatesALabelledTrackAndUpdatesItWithinRhoOverlay) {
+  const auto cam = forwardCamera("front");
+  auto tracker = makeTracker(paperConfig(), {cam});
+  tracker.addDetections(detectionsAt("front", 0, {detectionOf(cam, {8, 0, 1}, "person")}));
+  auto stats = tracker.addCloud(cloudAt(0, {at(8, 0, 1)}));
+  EXPECT_EQ(stats.detections_fused, 1U);
+  EXPECT_EQ(stats.tracks_created, 1U);
+  ASSERT_EQ(tracker.tracks().size(), 1U);
+  const auto id = tracker.tracks()[0].id;
+  EXPECT_EQ(tracker.tracks()[0].label, "person");
+  EXPECT_TRUE(tracker.tracks()[0].camera_confirmed);
+
+  // 0.4 m further: within rho_overlay, same label: the same track, at the new position.
+  tracker.addDetections(detectionsAt("front", 100 * kMs, {detectionOf(cam, {8.4, 0, 1}, "person")}));
+  stats = tracker.addCloud(cloudAt(100 * kMs, {at(8.4, 0, 1)}));
+  EXPECT_EQ(stats.updates_overlay, 1U);
+  EXPECT_EQ(stats.tracks_created, 0U);
+  ASSERT_EQ(tracker.tracks().size(), 1U);
+  EXPECT_EQ(tracker.tracks()[0].id, id);
+  EXPECT_DOUBLE_EQ(tracker.tracks()[0].position.x(), 8.4);
+
+  // 0.6 m further: beyond rho_overlay: the paper makes a new track (and keeps the old one).
+  tracker.addDetections(detectionsAt("front", 200 * kMs, {detectionOf(cam, {9.0, 0, 1}, "person")}));
+  stats = tracker.addCloud(cloudAt(200 * kMs, {at(9.0, 0, 1)}));
+  EXPECT_EQ(stats.tracks_created, 1U);
+  EXPECT_EQ(tracker.tracks().size(), 2U);
+}
+
+TEST(PaperAssociation, AnotherLabelMakesANewTrackEvenAtTheSamePlace) {
+  const auto cam = forwardCamera("front");
+  auto tracker = makeTracker(paperConfig(), {cam});
+  tracker.addDetections(detectionsAt("front", 0, {detectionOf(cam, {8, 0, 1}, "person")}));
+  tracker.addCloud(cloudAt(0, {at(8, 0, 1)}));
+  tracker.addDetections(detectionsAt("front", 100 * kMs, {detectionOf(cam, {8, 0, 1}, "car")}));
+  const auto stats = tracker.addCloud(cloudAt(100 * kMs, {at(8, 0, 1)}));
+  EXPECT_EQ(stats.tracks_created, 1U);
+  EXPECT_EQ(stats.updates_overlay, 0U);
+  ASSERT_NE(trackWithLabel(tracker, "car"), nullptr);
+  ASSERT_NE(trackWithLabel(tracker, "person"), nullptr);
+}
+
+TEST(PaperAssociation, ATrackWithoutDetectionTakesTheNearestCentroidWithinRhoPurecloudOnly) {
+  const auto cam = forwardCamera("front");
+  auto tracker = makeTracker(paperConfig(), {cam});
+  tracker.addDetections(detectionsAt("front", 0, {detectionOf(cam, {8, 0, 1}, "person")}));
+  tracker.addCloud(cloudAt(0, {at(8, 0, 1)}));
+  // No detection: centroids 0.2 m and 0.25 m away: the nearest one (0.2 m) is taken.
+  auto stats = tracker.addCloud(cloudAt(100 * kMs, {at(8.25, 0, 1), at(8.2, 0, 1)}));
+  EXPECT_EQ(stats.updates_cloud_only, 1U);
+  EXPECT_DOUBLE_EQ(tracker.tracks()[0].position.x(), 8.2);
+  // 0.35 m away: beyond rho_purecloud: the track stays where it was, and no track is made.
+  stats = tracker.addCloud(cloudAt(200 * kMs, {at(8.55, 0, 1)}));
+  EXPECT_EQ(stats.updates_cloud_only, 0U);
+  EXPECT_EQ(stats.tracks_created, 0U);
+  EXPECT_DOUBLE_EQ(tracker.tracks()[0].position.x(), 8.2);
+  EXPECT_EQ(tracker.tracks()[0].state, TrackState::kLost);
+}
+
+TEST(PaperAssociation, CentroidsAloneNeverCreateTracks) {
+  auto tracker = makeTracker(paperConfig(), {forwardCamera("front")});
+  for (int k = 0; k < 10; ++k) tracker.addCloud(cloudAt(k * 100 * kMs, {at(8, 0, 1), at(12, 3, 1)}));
+  EXPECT_TRUE(tracker.tracks().empty());
+}
+
+// --- Synchronisation (Algorithm 2's input) ---------------------------------------------------------
+
+TEST(FusionSync, TheDetectionFrameNearestInTimeWithinEpsSyncIsFusedAndOlderOnesAreDroppedAsStale) {
+  const auto cam = forwardCamera("front");
+  TrackerConfig config = paperConfig();
+  config.eps_sync_s = 0.1;
+  auto tracker = makeTracker(config, {cam});
+  // Three frames of the same camera around a LiDAR frame at 1 s: 0.85 s (outside), 0.95 s and
+  // 1.02 s (inside; 1.02 is nearer). Only the 1.02 s frame (a "car") may be fused.
+  tracker.addDetections(detectionsAt("front", 850 * kMs, {detectionOf(cam, {8, 0, 1}, "bus")}));
+  tracker.addDetections(detectionsAt("front", 950 * kMs, {detectionOf(cam, {8, 0, 1}, "truck")}));
+  tracker.addDetections(detectionsAt("front", 1020 * kMs, {detectionOf(cam, {8, 0, 1}, "car")}));
+  const auto stats = tracker.addCloud(cloudAt(1000 * kMs, {at(8, 0, 1)}));
+  EXPECT_EQ(stats.detection_frames_used, 1U);
+  ASSERT_EQ(tracker.tracks().size(), 1U);
+  EXPECT_EQ(tracker.tracks()[0].label, "car");
+  EXPECT_EQ(tracker.counters().detection_frames_stale, 1U);  // 0.85 s can match no later LiDAR frame
+  // 0.95 s is still within eps of a LiDAR frame at 1.05 s: it waits. A frame older than the last
+  // LiDAR frame by more than eps is dropped on arrival.
+  tracker.addDetections(detectionsAt("front", 880 * kMs, {}));
+  EXPECT_EQ(tracker.counters().detection_frames_stale, 2U);
+  // The next LiDAR frame at 1.2 s: 0.95 s is now more than eps older: stale, never fused.
+  const auto later = tracker.addCloud(cloudAt(1200 * kMs, {at(8, 0, 1)}));
+  EXPECT_EQ(later.detection_frames_used, 0U);
+  EXPECT_EQ(later.detections_fused, 0U);
+  EXPECT_EQ(tracker.counters().detection_frames_stale, 3U);
+}
+
+TEST(FusionSync, UnknownCamerasOverflowAndOutOfOrderLidarFramesAreCountedNeverFused) {
+  const auto cam = forwardCamera("front");
+  TrackerConfig config = paperConfig();
+  config.max_buffered_frames = 2;
+  auto tracker = makeTracker(config, {cam});
+  tracker.addDetections(detectionsAt("rear", 0, {detectionOf(cam, {8, 0, 1}, "person")}));
+  EXPECT_EQ(tracker.counters().detection_frames_unknown_camera, 1U);
+  for (int k = 0; k < 3; ++k) tracker.addDetections(detectionsAt("front", k * 10 * kMs, {}));
+  EXPECT_EQ(tracker.counters().detection_frames_overflow, 1U);
+  tracker.addCloud(cloudAt(500 * kMs, {}));
+  const auto stats = tracker.addCloud(cloudAt(400 * kMs, {at(8, 0, 1)}));
+  EXPECT_EQ(tracker.counters().cloud_frames_out_of_order, 1U);
+  EXPECT_EQ(stats.tracks_created, 0U);
+  EXPECT_EQ(tracker.lastCapture().at("front"), 20 * kMs);
+}
+
+TEST(TrackerConfig, EveryBadFieldIsRefusedByName) {
+  const auto refused = [](TrackerConfig c, const std::string& field) {
+    const auto t = Tracker::create(c, {});
+    ASSERT_FALSE(t.ok()) << field;
+    EXPECT_NE(t.error().message.find(field), std::string::npos) << t.error().message;
+  };
+  TrackerConfig c;
+  c.eps_sync_s = 0.0;
+  refused(c, "eps_sync_s");
+  c = {};
+  c.gate_chi2 = std::nan("");
+  refused(c, "gate_chi2");
+  c = {};
+  c.confirm_hits = 0;
+  refused(c, "confirm_hits");
+  c = {};
+  c.track_timeout_s = -1;
+  refused(c, "track_timeout_s");
+  auto twice = Tracker::create({}, {forwardCamera("a"), forwardCamera("a")});
+  ASSERT_FALSE(twice.ok());
+  EXPECT_NE(twice.error().message.find("'a' is listed twice"), std::string::npos);
+  auto bad_camera = forwardCamera("b");
+  bad_camera.fx = 0.0;
+  EXPECT_FALSE(Tracker::create({}, {bad_camera}).ok());
+  EXPECT_FALSE(parseAssociation("greedy").ok());
+  EXPECT_EQ(*parseAssociation("paper"), Association::kPaper);
+}
+
+// --- association: kalman ---------------------------------------------------------------------------
+
+struct Walker {
+  Eigen::Vector2d start;
+  Eigen::Vector2d velocity;
+  Eigen::Vector2d at(double t) const { return start + velocity * t; }
+};
+
+// Runs walkers for `frames` LiDAR frames at 10 Hz with camera detections on the frames
+// `with_camera` allows; returns, per walker, the set of track ids that covered it (a track covers
+// a walker when it is the nearest confirmed track within 1 m, on frames where no other walker is
+// within 1 m).
+std::vector<std::set<std::uint64_t>> run(Tracker& tracker, const camera::PinholeCamera& cam, const std::vector<Walker>& walkers,
+                                         int frames, const std::function<bool(int)>& with_camera, int warmup = 3) {
+  std::vector<std::set<std::uint64_t>> ids(walkers.size());
+  for (int k = 0; k < frames; ++k) {
+    const double t = 0.1 * k;
+    const std::int64_t t_ns = k * 100 * kMs;
+    std::vector<CloudObservation> observations;
+    std::vector<camera::Detection> detections;
+    for (const auto& w : walkers) {
+      const Eigen::Vector2d p = w.at(t);
+      observations.push_back(at(p.x(), p.y(), 0.9));
+      if (with_camera(k)) detections.push_back(detectionOf(cam, {p.x(), p.y(), 0.9}, "person", 8.0));
+    }
+    if (with_camera(k)) tracker.addDetections(detectionsAt(cam.name, t_ns + 30 * kMs, detections));  // 30 ms late
+    tracker.addCloud(cloudAt(t_ns, observations));
+    if (k < warmup) continue;
+    for (std::size_t w = 0; w < walkers.size(); ++w) {
+      // Where two walkers stand within a metre of each other, which track is whose is not defined.
+      bool crowded = false;
+      for (std::size_t v = 0; v < walkers.size(); ++v) crowded |= v != w && (walkers[v].at(t) - walkers[w].at(t)).norm() < 1.0;
+      if (crowded) continue;
+      const Track* best = nullptr;
+      for (const auto& track : tracker.tracks()) {
+        if (track.state == TrackState::kTentative) continue;
+        const double d = (track.position - walkers[w].at(t)).norm();
+        if (d < 1.0 && (!best || d < (best->position - walkers[w].at(t)).norm())) best = &track;
+      }
+      if (best) ids[w].insert(best->id);
+    }
+  }
+  return ids;
+}
+
+TEST(KalmanAssociation, CrossingWalkersKeepTheirIdsAfterMeetingAtOnePoint) {
+  const auto cam = forwardCamera("front", {-5.0, 0.0, 1.0});
+  auto tracker = makeTracker(TrackerConfig{}, {cam});
+  // Two people crossing in an X at 1.4 m/s, meeting at (10, 0) at t = 2 s.
+  const std::vector<Walker> walkers{{{8.0, -2.0}, {1.0, 1.0}}, {{8.0, 2.0}, {1.0, -1.0}}};
+  const auto ids = run(tracker, cam, walkers, 40, [](int) { return true; });
+  ASSERT_EQ(ids[0].size(), 1U);
+  ASSERT_EQ(ids[1].size(), 1U);
+  EXPECT_NE(*ids[0].begin(), *ids[1].begin());
+  for (const auto& track : tracker.tracks()) {
+    EXPECT_EQ(track.label, "person");
+    EXPECT_NEAR(track.velocity.x(), 1.0, 0.1);  // the filter has learnt the motion
+  }
+}
+
+TEST(KalmanAssociation, ParallelWalkersOneMetreApartNeverSwap) {
+  const auto cam = forwardCamera("front", {-5.0, 0.0, 1.0});
+  auto tracker = makeTracker(TrackerConfig{}, {cam});
+  const std::vector<Walker> walkers{{{6.0, -0.5}, {1.2, 0.0}}, {{6.0, 0.5}, {1.2, 0.0}}, {{14.0, 3.0}, {-1.0, 0.0}}};
+  const auto ids = run(tracker, cam, walkers, 50, [](int) { return true; });
+  std::set<std::uint64_t> all;
+  for (const auto& s : ids) {
+    ASSERT_EQ(s.size(), 1U);
+    all.insert(*s.begin());
+  }
+  EXPECT_EQ(all.size(), 3U);
+}
+
+TEST(KalmanAssociation, TracksSurviveACameraThatStopsForTwoSecondsAndKeepTheirLabels) {
+  const auto cam = forwardCamera("front", {-5.0, 0.0, 1.0});
+  auto tracker = makeTracker(TrackerConfig{}, {cam});
+  const std::vector<Walker> walkers{{{6.0, -2.0}, {1.0, 0.2}}, {{12.0, 2.0}, {-0.5, -0.2}}};
+  // The camera sends frames 0..9, nothing for 2 s (frames 10..29), then again.
+  const auto camera_on = [](int k) { return k < 10 || k >= 30; };
+  const auto ids = run(tracker, cam, walkers, 40, camera_on);
+  for (const auto& s : ids) EXPECT_EQ(s.size(), 1U);
+  EXPECT_GT(tracker.counters().updates_cloud_only, 30U);  // 2 walkers x 20 frames without a camera
+  for (const auto& track : tracker.tracks()) {
+    EXPECT_EQ(track.label, "person");
+    EXPECT_EQ(track.state, TrackState::kConfirmed);
+  }
+}
+
+TEST(KalmanAssociation, LidarAloneConfirmsAfterConfirmHitsWithAnUnknownLabelThatACameraLaterNames) {
+  const auto cam = forwardCamera("front");
+  TrackerConfig config;
+  config.confirm_hits = 3;
+  auto tracker = makeTracker(config, {cam});
+  tracker.addCloud(cloudAt(0, {at(8, 0, 1)}));
+  ASSERT_EQ(tracker.tracks().size(), 1U);
+  EXPECT_EQ(tracker.tracks()[0].state, TrackState::kTentative);
+  tracker.addCloud(cloudAt(100 * kMs, {at(8, 0, 1)}));
+  EXPECT_EQ(tracker.tracks()[0].state, TrackState::kTentative);
+  tracker.addCloud(cloudAt(200 * kMs, {at(8, 0, 1)}));
+  EXPECT_EQ(tracker.tracks()[0].state, TrackState::kConfirmed);
+  EXPECT_EQ(tracker.tracks()[0].label, kUnknownLabel);
+  EXPECT_FALSE(tracker.tracks()[0].camera_confirmed);
+  const auto id = tracker.tracks()[0].id;
+  tracker.addDetections(detectionsAt("front", 300 * kMs, {detectionOf(cam, {8, 0, 1}, "person")}));
+  tracker.addCloud(cloudAt(300 * kMs, {at(8, 0, 1)}));
+  ASSERT_EQ(tracker.tracks().size(), 1U);
+  EXPECT_EQ(tracker.tracks()[0].id, id);
+  EXPECT_EQ(tracker.tracks()[0].label, "person");
+  EXPECT_TRUE(tracker.tracks()[0].camera_confirmed);
+}
+
+TEST(KalmanAssociation, UnobservedTracksAreLostThenDeletedAfterTheTimeoutAndTentativeOnesSooner) {
+  const auto cam = forwardCamera("front");
+  TrackerConfig config;
+  config.track_timeout_s = 1.0;
+  config.tentative_timeout_s = 0.25;
+  auto tracker = makeTracker(config, {cam});
+  tracker.addDetections(detectionsAt("front", 0, {detectionOf(cam, {8, 0, 1}, "person")}));
+  tracker.addCloud(cloudAt(0, {at(8, 0, 1), at(20, 5, 1)}));  // a person, and a LiDAR-only blob
+  ASSERT_EQ(tracker.tracks().size(), 2U);
+  std::size_t deleted = 0;
+  std::vector<std::pair<int, std::size_t>> sizes;
+  for (int k = 1; k <= 12; ++k) {
+    const auto stats = tracker.addCloud(cloudAt(k * 100 * kMs, {}));
+    deleted += stats.tracks_deleted;
+    sizes.emplace_back(k, tracker.tracks().size());
+    if (k == 1) {
+      ASSERT_EQ(tracker.tracks().size(), 2U);
+      EXPECT_EQ(trackWithLabel(tracker, "person")->state, TrackState::kLost);
+    }
+  }
+  // The blob goes at 0.3 s (> 0.25 s unobserved), the person at 1.1 s (> 1 s).
+  EXPECT_EQ(sizes[1].second, 2U);   // 0.2 s
+  EXPECT_EQ(sizes[2].second, 1U);   // 0.3 s
+  EXPECT_EQ(sizes[9].second, 1U);   // 1.0 s
+  EXPECT_EQ(sizes[10].second, 0U);  // 1.1 s
+  EXPECT_EQ(deleted, 2U);
+  EXPECT_EQ(tracker.counters().tracks_deleted, 2U);
+}
+
+TEST(KalmanAssociation, TwoCamerasSeeingOneObjectMakeOneTrackWhereThePaperMakesTwo) {
+  const auto front = forwardCamera("front", {-5.0, -1.0, 1.0});
+  const auto second = forwardCamera("second", {-5.0, 1.0, 1.0});
+  for (const auto association : {Association::kKalman, Association::kPaper}) {
+    TrackerConfig config;
+    config.association = association;
+    auto tracker = makeTracker(config, {front, second});
+    tracker.addDetections(detectionsAt("front", 0, {detectionOf(front, {8, 0, 1}, "person")}));
+    tracker.addDetections(detectionsAt("second", 0, {detectionOf(second, {8, 0, 1}, "person")}));
+    const auto stats = tracker.addCloud(cloudAt(0, {at(8, 0, 1)}));
+    EXPECT_EQ(stats.detections_fused, 2U);
+    EXPECT_EQ(tracker.tracks().size(), association == Association::kKalman ? 1U : 2U) << associationName(association);
+  }
+}
+
+}  // namespace
+}  // namespace fogmap::tracking
