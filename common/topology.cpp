@@ -34,9 +34,17 @@ const NodeConfig* TopologyConfig::find(std::uint32_t id) const {
 
 const NodeConfig* TopologyConfig::root() const {
   for (const auto& n : nodes) {
-    if (n.parent.empty()) return &n;
+    if (n.parent.empty() && n.role == Role::kAggregator) return &n;
   }
   return nullptr;
+}
+
+std::vector<const NodeConfig*> TopologyConfig::camerasOf(const std::string& node_name) const {
+  std::vector<const NodeConfig*> out;
+  for (const auto& n : nodes) {
+    if (n.role == Role::kDetection && n.parent == node_name) out.push_back(&n);
+  }
+  return out;
 }
 
 std::vector<const NodeConfig*> TopologyConfig::children(const std::string& node_name) const {
@@ -199,6 +207,262 @@ Expected<SensorConfig> parseSensor(const YAML::Node& node, const std::string& wh
   return s;
 }
 
+// `detector:` of a camera: {kind: hog|cascade|dnn|truth, hog: {...}, cascade: {...}, dnn: {...},
+// truth: {...}}; the section of the chosen kind is read, files resolved against the topology. Values
+// are checked when the detection service builds the detector (camera::validate), files included.
+Status parseDetector(const YAML::Node& node, const std::string& where, const std::filesystem::path& base_dir,
+                     CameraNodeConfig& c) {
+  if (const Status st = checkSection(node, where, {"kind", "hog", "cascade", "dnn", "truth"}); !st) return st;
+  const auto kind = scalar<std::string>(node, "kind", where, "hog");
+  if (!kind) return kind.error();
+  if (*kind == "truth") {
+    c.truth = true;
+  } else {
+    const auto parsed = camera::parseDetectorKind(*kind);
+    if (!parsed) return bad(where + ".kind", "must be hog, cascade, dnn or truth, got '" + *kind + "'");
+    c.detector.kind = *parsed;
+  }
+  const auto path = [&](const YAML::Node& n, const std::string& key, const std::string& at, std::string& out) -> Status {
+    const auto text = scalar<std::string>(n, key, at, "");
+    if (!text) return text.error();
+    if (!text->empty()) out = (std::filesystem::path(*text).is_absolute() ? std::filesystem::path(*text) : base_dir / *text).string();
+    return {};
+  };
+  if (const YAML::Node h = node["hog"]) {
+    const std::string at = where + ".hog";
+    if (const Status st = checkSection(h, at, {"hit_threshold", "scale", "win_stride_px", "upscale", "min_height_px", "nms_iou"}); !st) return st;
+    auto& d = c.detector.hog;
+    const auto a = scalar<double>(h, "hit_threshold", at, d.hit_threshold);
+    const auto b = scalar<double>(h, "scale", at, d.scale);
+    const auto w = scalar<int>(h, "win_stride_px", at, d.win_stride_px);
+    const auto u = scalar<double>(h, "upscale", at, d.upscale);
+    const auto m = scalar<double>(h, "min_height_px", at, d.min_height_px);
+    const auto n = scalar<double>(h, "nms_iou", at, d.nms_iou);
+    for (const auto* e : {&a, &b, &u, &m, &n}) {
+      if (!*e) return e->error();
+    }
+    if (!w) return w.error();
+    d.hit_threshold = *a;
+    d.scale = *b;
+    d.win_stride_px = *w;
+    d.upscale = *u;
+    d.min_height_px = *m;
+    d.nms_iou = *n;
+  }
+  if (const YAML::Node k = node["cascade"]) {
+    const std::string at = where + ".cascade";
+    if (const Status st = checkSection(k, at, {"cascade_path", "label", "scale_factor", "min_neighbors", "min_size_px", "nms_iou"}); !st) return st;
+    auto& d = c.detector.cascade;
+    if (const Status st = path(k, "cascade_path", at, d.cascade_path); !st) return st;
+    const auto label = scalar<std::string>(k, "label", at, d.label);
+    const auto f = scalar<double>(k, "scale_factor", at, d.scale_factor);
+    const auto nb = scalar<int>(k, "min_neighbors", at, d.min_neighbors);
+    const auto sz = scalar<int>(k, "min_size_px", at, d.min_size_px);
+    const auto n = scalar<double>(k, "nms_iou", at, d.nms_iou);
+    if (!label) return label.error();
+    if (!f) return f.error();
+    if (!nb) return nb.error();
+    if (!sz) return sz.error();
+    if (!n) return n.error();
+    d.label = *label;
+    d.scale_factor = *f;
+    d.min_neighbors = *nb;
+    d.min_size_px = *sz;
+    d.nms_iou = *n;
+  }
+  if (const YAML::Node k = node["dnn"]) {
+    const std::string at = where + ".dnn";
+    if (const Status st = checkSection(k, at, {"model_path", "config_path", "names_path", "output", "input_width", "input_height",
+                                                "mean", "scale", "swap_rb", "confidence_threshold", "nms_threshold"});
+        !st) {
+      return st;
+    }
+    auto& d = c.detector.dnn;
+    if (const Status st = path(k, "model_path", at, d.model_path); !st) return st;
+    if (const Status st = path(k, "config_path", at, d.config_path); !st) return st;
+    if (const Status st = path(k, "names_path", at, d.names_path); !st) return st;
+    const auto output = scalar<std::string>(k, "output", at, camera::dnnOutputName(d.output));
+    if (!output) return output.error();
+    const auto parsed = camera::parseDnnOutput(*output);
+    if (!parsed) return bad(at + ".output", parsed.error().message);
+    d.output = *parsed;
+    const auto iw = scalar<int>(k, "input_width", at, d.input_width);
+    const auto ih = scalar<int>(k, "input_height", at, d.input_height);
+    const auto mean = vec3(k, "mean", at, Eigen::Vector3d(d.mean[0], d.mean[1], d.mean[2]));
+    const auto sc = scalar<double>(k, "scale", at, d.scale);
+    const auto rb = scalar<bool>(k, "swap_rb", at, d.swap_rb);
+    const auto ct = scalar<double>(k, "confidence_threshold", at, d.confidence_threshold);
+    const auto nt = scalar<double>(k, "nms_threshold", at, d.nms_threshold);
+    if (!iw) return iw.error();
+    if (!ih) return ih.error();
+    if (!mean) return mean.error();
+    if (!sc) return sc.error();
+    if (!rb) return rb.error();
+    if (!ct) return ct.error();
+    if (!nt) return nt.error();
+    d.input_width = *iw;
+    d.input_height = *ih;
+    d.mean = {mean->x(), mean->y(), mean->z()};
+    d.scale = *sc;
+    d.swap_rb = *rb;
+    d.confidence_threshold = *ct;
+    d.nms_threshold = *nt;
+  }
+  if (const YAML::Node t = node["truth"]) {
+    const std::string at = where + ".truth";
+    if (const Status st = checkSection(t, at, {"miss_rate", "box_jitter_px", "latency_ms"}); !st) return st;
+    auto& r = c.truth_replay;
+    const auto miss = scalar<double>(t, "miss_rate", at, r.miss_rate);
+    const auto jitter = scalar<double>(t, "box_jitter_px", at, r.box_jitter_px);
+    const auto latency = scalar<double>(t, "latency_ms", at, r.latency_ms);
+    if (!miss) return miss.error();
+    if (!jitter) return jitter.error();
+    if (!latency) return latency.error();
+    if (!(*miss >= 0.0 && *miss <= 1.0)) return bad(at + ".miss_rate", "must be in [0, 1]");
+    if (!(*jitter >= 0.0 && *jitter <= 1000.0)) return bad(at + ".box_jitter_px", "must be in [0, 1000] pixels");
+    if (!(*latency >= 0.0 && *latency <= 60000.0)) return bad(at + ".latency_ms", "must be in [0, 60000]");
+    r.miss_rate = *miss;
+    r.box_jitter_px = *jitter;
+    r.latency_ms = *latency;
+  }
+  if (c.truth && !c.simulated()) return bad(where + ".kind", "truth replays a simulated scene: it needs source sim");
+  return {};
+}
+
+Expected<camera::PinholeCamera> parseCalibration(const YAML::Node& node, const std::string& where, const std::string& name) {
+  if (!node) return bad(where, "is required ({fx, fy, cx, cy, width, height, distortion, pose}: where the camera is and how it maps to pixels)");
+  if (const Status st = checkSection(node, where, {"fx", "fy", "cx", "cy", "width", "height", "distortion", "pose"}); !st) {
+    return st.error();
+  }
+  camera::PinholeCamera cam;
+  cam.name = name;
+  const auto fx = scalar<double>(node, "fx", where, cam.fx);
+  const auto fy = scalar<double>(node, "fy", where, cam.fy);
+  const auto cx = scalar<double>(node, "cx", where, cam.cx);
+  const auto cy = scalar<double>(node, "cy", where, cam.cy);
+  const auto width = scalar<int>(node, "width", where, cam.width);
+  const auto height = scalar<int>(node, "height", where, cam.height);
+  const auto distortion = scalar<std::vector<double>>(node, "distortion", where, {});
+  for (const auto* e : {&fx, &fy, &cx, &cy}) {
+    if (!*e) return e->error();
+  }
+  if (!width) return width.error();
+  if (!height) return height.error();
+  if (!distortion) return distortion.error();
+  cam.fx = *fx;
+  cam.fy = *fy;
+  cam.cx = *cx;
+  cam.cy = *cy;
+  cam.width = *width;
+  cam.height = *height;
+  if (!distortion->empty()) {
+    if (distortion->size() != 5) return bad(where + ".distortion", "must be [k1, k2, p1, p2, k3]");
+    cam.distortion = {(*distortion)[0], (*distortion)[1], (*distortion)[2], (*distortion)[3], (*distortion)[4]};
+  }
+  const auto pose = parsePose(node["pose"], where + ".pose");
+  if (!pose) return pose.error();
+  cam.world_to_camera = pose->inverse();
+  if (const Status st = camera::validate(cam); !st) return bad(where, st.error().message);
+  return cam;
+}
+
+Expected<CameraNodeConfig> parseCamera(const YAML::Node& node, const std::string& where, const std::filesystem::path& base_dir,
+                                       const std::string& node_name) {
+  if (const Status st = checkSection(node, where, {"source", "scene", "camera", "rate_hz", "loop", "frames", "queue_frames",
+                                                    "detector", "calibration"});
+      !st) {
+    return st.error();
+  }
+  CameraNodeConfig c;
+  const auto source = scalar<std::string>(node, "source", where, "");
+  if (!source) return source.error();
+  if (source->empty()) {
+    return bad(where + ".source", "is required (a directory of images, a video file, a V4L2 device such as /dev/video0, or sim)");
+  }
+  const auto scene = scalar<std::string>(node, "scene", where, "");
+  const auto cam = scalar<std::string>(node, "camera", where, "");
+  if (!scene) return scene.error();
+  if (!cam) return cam.error();
+  if (*source == kSimSource) {
+    c.source = kSimSource;
+    if (scene->empty()) return bad(where + ".scene", "is required with source sim (the scene file, common/sim)");
+    if (cam->empty()) return bad(where + ".camera", "is required with source sim (the name of one of the scene's cameras)");
+    c.scene = std::filesystem::path(*scene).is_absolute() ? std::filesystem::path(*scene) : base_dir / *scene;
+    c.camera = *cam;
+  } else {
+    if (node["scene"]) return bad(where + ".scene", "goes with source sim only");
+    if (node["camera"]) return bad(where + ".camera", "goes with source sim only");
+    // A device stays as written; files and directories resolve against the topology.
+    c.source = (std::filesystem::path(*source).is_absolute() || source->rfind("/dev/", 0) == 0)
+                   ? std::filesystem::path(*source)
+                   : base_dir / *source;
+  }
+  const auto rate = scalar<double>(node, "rate_hz", where, c.rate_hz);
+  const auto loop = scalar<bool>(node, "loop", where, c.loop);
+  const auto queue = scalar<long long>(node, "queue_frames", where, static_cast<long long>(c.queue_frames));
+  if (!rate) return rate.error();
+  if (!loop) return loop.error();
+  if (!queue) return queue.error();
+  if (!(*rate > 0.0 && *rate <= 1000.0)) return bad(where + ".rate_hz", "must be in (0, 1000]");
+  if (*queue < 1 || *queue > 1000) return bad(where + ".queue_frames", "must be in [1, 1000]");
+  c.rate_hz = *rate;
+  c.loop = *loop;
+  c.queue_frames = static_cast<std::size_t>(*queue);
+  if (node["frames"]) {
+    const auto frames = scalar<long long>(node, "frames", where, 0);
+    if (!frames) return frames.error();
+    if (*frames <= 0) return bad(where + ".frames", "must be positive");
+    c.frames = static_cast<std::uint64_t>(*frames);
+  }
+  if (const YAML::Node d = node["detector"]) {
+    if (const Status st = parseDetector(d, where + ".detector", base_dir, c); !st) return st.error();
+  }
+  auto calibration = parseCalibration(node["calibration"], where + ".calibration", node_name);
+  if (!calibration) return calibration.error();
+  c.calibration = std::move(*calibration);
+  return c;
+}
+
+Expected<TrackerNodeConfig> parseTracker(const YAML::Node& node, const std::string& where) {
+  if (const Status st = checkSection(node, where, {"association", "eps_sync_s", "rho_overlay_m", "rho_purecloud_m", "gate_chi2",
+                                                    "acceleration_sigma", "initial_speed_sigma", "min_measurement_sigma_m",
+                                                    "confirm_hits", "tentative_timeout_s", "track_timeout_s",
+                                                    "max_buffered_frames", "max_detection_wait_s"});
+      !st) {
+    return st.error();
+  }
+  TrackerNodeConfig t;
+  auto& c = t.tracking;
+  const auto association = scalar<std::string>(node, "association", where, tracking::associationName(c.association));
+  if (!association) return association.error();
+  const auto parsed = tracking::parseAssociation(*association);
+  if (!parsed) return bad(where + ".association", parsed.error().message);
+  c.association = *parsed;
+  const auto number = [&](const std::string& key, double& value) -> Status {
+    const auto v = scalar<double>(node, key, where, value);
+    if (!v) return v.error();
+    value = *v;
+    return {};
+  };
+  for (auto [key, value] : std::initializer_list<std::pair<const char*, double*>>{
+           {"eps_sync_s", &c.eps_sync_s}, {"rho_overlay_m", &c.rho_overlay_m}, {"rho_purecloud_m", &c.rho_purecloud_m},
+           {"gate_chi2", &c.gate_chi2}, {"acceleration_sigma", &c.acceleration_sigma},
+           {"initial_speed_sigma", &c.initial_speed_sigma}, {"min_measurement_sigma_m", &c.min_measurement_sigma_m},
+           {"tentative_timeout_s", &c.tentative_timeout_s}, {"track_timeout_s", &c.track_timeout_s},
+           {"max_detection_wait_s", &c.max_detection_wait_s}}) {
+    if (const Status st = number(key, *value); !st) return st.error();
+  }
+  const auto hits = scalar<int>(node, "confirm_hits", where, c.confirm_hits);
+  const auto buffered = scalar<long long>(node, "max_buffered_frames", where, static_cast<long long>(c.max_buffered_frames));
+  if (!hits) return hits.error();
+  if (!buffered) return buffered.error();
+  c.confirm_hits = *hits;
+  if (*buffered < 1 || *buffered > 100000) return bad(where + ".max_buffered_frames", "must be in [1, 100000]");
+  c.max_buffered_frames = static_cast<std::size_t>(*buffered);
+  if (const Status st = tracking::validate(c); !st) return bad(where, st.error().message);
+  return t;
+}
+
 std::filesystem::path resolve(const std::string& path, const std::filesystem::path& base_dir) {
   return std::filesystem::path(path).is_absolute() ? std::filesystem::path(path) : base_dir / path;
 }
@@ -294,10 +558,20 @@ Status validate(const TopologyConfig& t) {
       if (p != 0 && !ports.insert({n.host, p}).second) return bad(where, "port " + std::to_string(p) + " used twice on " + n.host);
     }
     if (n.metrics_port == 0) return bad(where, "metrics_port is required");
-    if (n.role == Role::kAggregator && n.port == 0) return bad(where, "an aggregator needs a port");
+    if ((n.role == Role::kAggregator || n.role == Role::kTracker) && n.port == 0) {
+      return bad(where, std::string("a") + (n.role == Role::kTracker ? " tracker" : "n aggregator") + " needs a port");
+    }
     if (n.role == Role::kEdge && !n.sensor) return bad(where, "an edge needs a sensor");
-    if (n.role == Role::kAggregator && n.sensor) return bad(where + ".sensor", "only edges have a sensor");
+    if (n.role != Role::kEdge && n.sensor) return bad(where + ".sensor", "only edges have a sensor");
+    if (n.role == Role::kDetection && !n.camera) return bad(where, "a detection node needs a camera");
+    if (n.role != Role::kDetection && n.camera) return bad(where + ".camera", "only detection nodes have a camera");
+    if (n.role != Role::kTracker && n.tracker) return bad(where + ".tracker", "only tracker nodes have a tracker section");
     if (n.role == Role::kEdge && n.parent.empty()) return bad(where, "an edge needs a parent aggregator");
+    if (n.role == Role::kDetection && n.parent.empty()) return bad(where, "a detection node needs a parent tracker");
+    if (n.role == Role::kTracker) {
+      if (!n.parent.empty()) return bad(where + ".parent", "a tracker has no parent (it reads the root's global map)");
+      continue;
+    }
     if (n.parent.empty()) {
       ++roots;
       continue;
@@ -305,6 +579,10 @@ Status validate(const TopologyConfig& t) {
     if (n.parent == n.name) return bad(where + ".parent", "node '" + n.name + "' is its own parent");
     const NodeConfig* parent = t.find(n.parent);
     if (parent == nullptr) return bad(where + ".parent", "no node named '" + n.parent + "'");
+    if (n.role == Role::kDetection) {
+      if (parent->role != Role::kTracker) return bad(where + ".parent", "'" + n.parent + "' is not a tracker");
+      continue;
+    }
     if (parent->role != Role::kAggregator) return bad(where + ".parent", "'" + n.parent + "' is not an aggregator");
   }
   // Cycles first: a cycle with no way out also leaves the tree without a root.
@@ -316,6 +594,7 @@ Status validate(const TopologyConfig& t) {
     return bad("nodes", "the parents of '" + cycle.front() + "' form a cycle: " + path);
   }
   if (roots != 1) return bad("nodes", "exactly one node (the root aggregator) must have no parent, found " + std::to_string(roots));
+  if (t.root() == nullptr) return bad("nodes", "the node without a parent must be an aggregator (the root)");
   for (std::size_t i = 0; i < t.nodes.size(); ++i) {
     const auto& n = t.nodes[i];
     const std::string where = "nodes[" + std::to_string(i) + "] (" + n.name + ")";
@@ -477,7 +756,7 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
     const std::string where = "nodes[" + std::to_string(i) + "]";
     if (!n.IsMap()) return bad(where, "each node must be a mapping");
     if (const Status s =
-            checkSection(n, where, {"name", "id", "role", "parent", "host", "port", "metrics_port", "sensor", "tls"});
+            checkSection(n, where, {"name", "id", "role", "parent", "host", "port", "metrics_port", "sensor", "camera", "tracker", "tls"});
         !s) {
       return s.error();
     }
@@ -497,8 +776,12 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
       node.role = Role::kEdge;
     } else if (*role == "aggregator") {
       node.role = Role::kAggregator;
+    } else if (*role == "detection") {
+      node.role = Role::kDetection;
+    } else if (*role == "tracker") {
+      node.role = Role::kTracker;
     } else {
-      return bad(where + ".role", "must be edge or aggregator, got '" + *role + "'");
+      return bad(where + ".role", "must be edge, aggregator, detection or tracker, got '" + *role + "'");
     }
     const auto parent = scalar<std::string>(n, "parent", where, "");
     const auto host = scalar<std::string>(n, "host", where, node.host);
@@ -518,6 +801,18 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
       auto s = parseSensor(sensor, where + ".sensor", base_dir);
       if (!s) return s.error();
       node.sensor = std::move(*s);
+    }
+    if (const YAML::Node camera = n["camera"]) {
+      auto c = parseCamera(camera, where + ".camera", base_dir, node.name);
+      if (!c) return c.error();
+      node.camera = std::move(*c);
+    }
+    if (const YAML::Node tracker = n["tracker"]) {
+      auto c = parseTracker(tracker, where + ".tracker");
+      if (!c) return c.error();
+      node.tracker = std::move(*c);
+    } else if (node.role == Role::kTracker) {
+      node.tracker = TrackerNodeConfig{};
     }
     if (const YAML::Node tls = n["tls"]) {
       auto files = parseNodeTls(tls, where + ".tls", base_dir);
@@ -556,6 +851,24 @@ const char* serviceName(Role role) {
       return "edge-cluster";
     case Role::kAggregator:
       return "merge-aggregator";
+    case Role::kDetection:
+      return "detection";
+    case Role::kTracker:
+      return "tracker";
+  }
+  return "unknown";
+}
+
+const char* roleName(Role role) {
+  switch (role) {
+    case Role::kEdge:
+      return "edge";
+    case Role::kAggregator:
+      return "aggregator";
+    case Role::kDetection:
+      return "detection";
+    case Role::kTracker:
+      return "tracker";
   }
   return "unknown";
 }
@@ -693,7 +1006,7 @@ std::string toYaml(const TopologyConfig& t) {
     out << YAML::BeginMap;
     out << YAML::Key << "name" << YAML::Value << n.name;
     out << YAML::Key << "id" << YAML::Value << n.id;
-    out << YAML::Key << "role" << YAML::Value << (n.role == Role::kEdge ? "edge" : "aggregator");
+    out << YAML::Key << "role" << YAML::Value << roleName(n.role);
     if (!n.parent.empty()) out << YAML::Key << "parent" << YAML::Value << n.parent;
     out << YAML::Key << "host" << YAML::Value << n.host;
     if (n.port != 0) out << YAML::Key << "port" << YAML::Value << n.port;
@@ -722,6 +1035,88 @@ std::string toYaml(const TopologyConfig& t) {
         out << YAML::EndMap;
       }
       out << YAML::EndMap;
+    }
+    if (n.camera) {
+      const auto& c = *n.camera;
+      out << YAML::Key << "camera" << YAML::Value << YAML::BeginMap;
+      out << YAML::Key << "source" << YAML::Value << c.source.string();
+      if (c.simulated()) {
+        out << YAML::Key << "scene" << YAML::Value << c.scene.string();
+        out << YAML::Key << "camera" << YAML::Value << c.camera;
+      }
+      out << YAML::Key << "rate_hz" << YAML::Value << c.rate_hz;
+      out << YAML::Key << "loop" << YAML::Value << c.loop;
+      if (c.frames) out << YAML::Key << "frames" << YAML::Value << *c.frames;
+      out << YAML::Key << "queue_frames" << YAML::Value << c.queue_frames;
+      out << YAML::Key << "detector" << YAML::Value << YAML::BeginMap;
+      if (c.truth) {
+        out << YAML::Key << "kind" << YAML::Value << "truth";
+        out << YAML::Key << "truth" << YAML::Value << YAML::Flow << YAML::BeginMap << YAML::Key << "miss_rate" << YAML::Value
+            << c.truth_replay.miss_rate << YAML::Key << "box_jitter_px" << YAML::Value << c.truth_replay.box_jitter_px
+            << YAML::Key << "latency_ms" << YAML::Value << c.truth_replay.latency_ms << YAML::EndMap;
+      } else {
+        const auto& d = c.detector;
+        out << YAML::Key << "kind" << YAML::Value << camera::detectorKindName(d.kind);
+        switch (d.kind) {
+          case camera::DetectorKind::kHog:
+            out << YAML::Key << "hog" << YAML::Value << YAML::Flow << YAML::BeginMap << YAML::Key << "hit_threshold"
+                << YAML::Value << d.hog.hit_threshold << YAML::Key << "scale" << YAML::Value << d.hog.scale << YAML::Key
+                << "win_stride_px" << YAML::Value << d.hog.win_stride_px << YAML::Key << "upscale" << YAML::Value
+                << d.hog.upscale << YAML::Key << "min_height_px" << YAML::Value << d.hog.min_height_px << YAML::Key
+                << "nms_iou" << YAML::Value << d.hog.nms_iou << YAML::EndMap;
+            break;
+          case camera::DetectorKind::kCascade:
+            out << YAML::Key << "cascade" << YAML::Value << YAML::BeginMap << YAML::Key << "cascade_path" << YAML::Value
+                << d.cascade.cascade_path << YAML::Key << "label" << YAML::Value << d.cascade.label << YAML::Key
+                << "scale_factor" << YAML::Value << d.cascade.scale_factor << YAML::Key << "min_neighbors" << YAML::Value
+                << d.cascade.min_neighbors << YAML::Key << "min_size_px" << YAML::Value << d.cascade.min_size_px
+                << YAML::Key << "nms_iou" << YAML::Value << d.cascade.nms_iou << YAML::EndMap;
+            break;
+          case camera::DetectorKind::kDnn:
+            out << YAML::Key << "dnn" << YAML::Value << YAML::BeginMap << YAML::Key << "model_path" << YAML::Value
+                << d.dnn.model_path;
+            if (!d.dnn.config_path.empty()) out << YAML::Key << "config_path" << YAML::Value << d.dnn.config_path;
+            out << YAML::Key << "names_path" << YAML::Value << d.dnn.names_path << YAML::Key << "output" << YAML::Value
+                << camera::dnnOutputName(d.dnn.output) << YAML::Key << "input_width" << YAML::Value << d.dnn.input_width
+                << YAML::Key << "input_height" << YAML::Value << d.dnn.input_height << YAML::Key << "mean" << YAML::Value;
+            list3(Eigen::Vector3d(d.dnn.mean[0], d.dnn.mean[1], d.dnn.mean[2]));
+            out << YAML::Key << "scale" << YAML::Value << d.dnn.scale << YAML::Key << "swap_rb" << YAML::Value
+                << d.dnn.swap_rb << YAML::Key << "confidence_threshold" << YAML::Value << d.dnn.confidence_threshold
+                << YAML::Key << "nms_threshold" << YAML::Value << d.dnn.nms_threshold << YAML::EndMap;
+            break;
+        }
+      }
+      out << YAML::EndMap;
+      const auto& k = c.calibration;
+      out << YAML::Key << "calibration" << YAML::Value << YAML::BeginMap << YAML::Key << "fx" << YAML::Value << k.fx
+          << YAML::Key << "fy" << YAML::Value << k.fy << YAML::Key << "cx" << YAML::Value << k.cx << YAML::Key << "cy"
+          << YAML::Value << k.cy << YAML::Key << "width" << YAML::Value << k.width << YAML::Key << "height" << YAML::Value
+          << k.height;
+      if (!k.distortion.none()) {
+        out << YAML::Key << "distortion" << YAML::Value << YAML::Flow << YAML::BeginSeq << k.distortion.k1
+            << k.distortion.k2 << k.distortion.p1 << k.distortion.p2 << k.distortion.k3 << YAML::EndSeq;
+      }
+      const Eigen::Isometry3d pose = k.world_to_camera.inverse();
+      out << YAML::Key << "pose" << YAML::Value << YAML::BeginMap << YAML::Key << "translation_m" << YAML::Value;
+      list3(pose.translation());
+      out << YAML::Key << "rpy_deg" << YAML::Value;
+      list3(rpyDegrees(pose.rotation()));
+      out << YAML::EndMap << YAML::EndMap;
+      out << YAML::EndMap;
+    }
+    if (n.tracker) {
+      const auto& c = n.tracker->tracking;
+      out << YAML::Key << "tracker" << YAML::Value << YAML::BeginMap << YAML::Key << "association" << YAML::Value
+          << tracking::associationName(c.association) << YAML::Key << "eps_sync_s" << YAML::Value << c.eps_sync_s
+          << YAML::Key << "rho_overlay_m" << YAML::Value << c.rho_overlay_m << YAML::Key << "rho_purecloud_m" << YAML::Value
+          << c.rho_purecloud_m << YAML::Key << "gate_chi2" << YAML::Value << c.gate_chi2 << YAML::Key
+          << "acceleration_sigma" << YAML::Value << c.acceleration_sigma << YAML::Key << "initial_speed_sigma"
+          << YAML::Value << c.initial_speed_sigma << YAML::Key << "min_measurement_sigma_m" << YAML::Value
+          << c.min_measurement_sigma_m << YAML::Key << "confirm_hits" << YAML::Value << c.confirm_hits << YAML::Key
+          << "tentative_timeout_s" << YAML::Value << c.tentative_timeout_s << YAML::Key << "track_timeout_s"
+          << YAML::Value << c.track_timeout_s << YAML::Key << "max_buffered_frames" << YAML::Value
+          << c.max_buffered_frames << YAML::Key << "max_detection_wait_s" << YAML::Value << c.max_detection_wait_s
+          << YAML::EndMap;
     }
     if (n.tls) {
       out << YAML::Key << "tls" << YAML::Value << YAML::BeginMap << YAML::Key << "cert" << YAML::Value

@@ -10,17 +10,25 @@
 #include <Eigen/Geometry>
 
 #include "common/admission.hpp"
+#include "common/camera/detector_config.hpp"
+#include "common/camera/pinhole.hpp"
 #include "common/madc.hpp"
 #include "common/messages.hpp"
 #include "common/preprocess.hpp"
 #include "common/cloud_io.hpp"
 #include "common/status.hpp"
+#include "common/tracking/tracker_config.hpp"
 
 namespace fogmap {
 
-enum class Role { kEdge, kAggregator };
-// The service (and binary) that runs a node of this role: "edge-cluster", "merge-aggregator".
+// Edges and aggregators make the map; a detection node (one per camera) sends its camera's 2D
+// detections to a tracker, which fuses them with the root's global map into tracks.
+enum class Role { kEdge, kAggregator, kDetection, kTracker };
+// The service (and binary) that runs a node of this role: "edge-cluster", "merge-aggregator",
+// "detection", "tracker".
 const char* serviceName(Role role);
+// The role as the topology file writes it: "edge", "aggregator", "detection", "tracker".
+const char* roleName(Role role);
 
 // A virtual LiDAR cut from a real scan: azimuth sector `index` of `views`, widened by overlap.
 struct SectorSplit {
@@ -48,6 +56,43 @@ struct SensorConfig {
 
   // True for a simulated LiDAR (source: sim).
   bool simulated() const { return source == kSimSource; }
+};
+
+// What a detection node replays as its detector's output instead of running one (`detector: {kind:
+// truth}`): the simulated scene's objects projected into the camera (source sim), with seeded
+// misses, box jitter and latency, for repeatable tests and evaluations.
+struct TruthReplayConfig {
+  double miss_rate = 0.0;     // probability that a visible object is not reported
+  double box_jitter_px = 0.0;  // Gaussian sigma added to each box edge
+  double latency_ms = 0.0;     // how long after the capture the detections are sent
+};
+
+// A detection node's camera (`camera:`): where its frames come from, its calibration and its
+// detector.
+struct CameraNodeConfig {
+  // A directory of images (replayed in name order), a video file, a V4L2 device (/dev/videoN), or
+  // sim: camera `camera` of the scene `scene`, whose objects are projected (detector truth).
+  std::filesystem::path source;
+  std::filesystem::path scene;
+  std::string camera;
+  double rate_hz = 10.0;                // replay rate of a directory (and sim); devices and videos keep theirs
+  bool loop = true;
+  std::optional<std::uint64_t> frames;  // stop after this many frames
+  std::size_t queue_frames = 2;         // frames waiting for a slower detector; beyond, the oldest is dropped
+  bool truth = false;                   // detector kind truth: replay the scene's objects (source sim only)
+  camera::DetectorConfig detector;      // kind hog, cascade or dnn (paths resolved against the topology)
+  TruthReplayConfig truth_replay;
+  // The camera's calibration in the common frame (`calibration:` {fx, fy, cx, cy, width, height,
+  // distortion: [k1, k2, p1, p2, k3], pose: camera -> common frame, x right, y down, z forward}).
+  camera::PinholeCamera calibration;
+
+  bool simulated() const { return source == kSimSource; }
+};
+
+// A tracker node's settings (`tracker:`): its LiDAR input is the root's global map (every object
+// a measurement: the centroid of its ellipsoids, their spread as covariance).
+struct TrackerNodeConfig {
+  tracking::TrackerConfig tracking;
 };
 
 // A node's own certificate and private key (PEM files), when they are not <cert_dir>/<name>.crt
@@ -83,6 +128,8 @@ struct NodeConfig {
   std::uint16_t port = 0;              // gRPC port (aggregators)
   std::uint16_t metrics_port = 0;      // Prometheus /metrics
   std::optional<SensorConfig> sensor;  // edges only
+  std::optional<CameraNodeConfig> camera;  // detection nodes only; their parent is a tracker
+  std::optional<TrackerNodeConfig> tracker;  // tracker nodes only (no parent; they read the root)
   std::optional<TlsFiles> tls;         // overrides <cert_dir>/<name>.crt and .key (TLS on only)
 };
 
@@ -107,7 +154,10 @@ struct TopologyConfig {
 
   const NodeConfig* find(const std::string& name) const;
   const NodeConfig* find(std::uint32_t id) const;
+  // The root aggregator: the aggregator without a parent.
   const NodeConfig* root() const;
+  // Detection nodes whose detections go to tracker `name`.
+  std::vector<const NodeConfig*> camerasOf(const std::string& name) const;
   std::vector<const NodeConfig*> children(const std::string& name) const;
   // Levels of aggregators in the subtree of `name`: 1 when its children are edges, 0 for an edge.
   int aggregatorLevels(const std::string& name) const;

@@ -56,6 +56,10 @@ std::string edgeNameFor(const std::string& lidar_name) {
   return ("edge-" + sanitized(lidar_name)).substr(0, kMaxNameChars);
 }
 
+std::string cameraNodeFor(const std::string& camera_name) {
+  return ("cam-" + sanitized(camera_name)).substr(0, kMaxNameChars);
+}
+
 TopologyConfig sceneTopology(const Scene& scene, const std::filesystem::path& scene_file,
                              const SceneTopologyOptions& options) {
   const int edges = static_cast<int>(scene.lidars.size());
@@ -94,6 +98,46 @@ TopologyConfig sceneTopology(const Scene& scene, const std::filesystem::path& sc
     s.rate_hz = options.rate_hz;
     s.pose = lidar.pose;
     n.sensor = s;
+  }
+  if (options.tracker) {
+    // Ports after the aggregators (base + i), the edges' metrics (base + 100 + i) and the
+    // aggregators' metrics (base + 200 + i).
+    NodeConfig tracker;
+    tracker.id = 300;
+    tracker.name = "tracker";
+    tracker.role = Role::kTracker;
+    tracker.port = static_cast<std::uint16_t>(options.base_port + 300);
+    tracker.metrics_port = static_cast<std::uint16_t>(options.base_port + 301);
+    tracker.tracker = TrackerNodeConfig{options.tracking};
+    t.nodes.push_back(tracker);
+    for (std::size_t k = 0; k < scene.cameras.size(); ++k) {
+      const CameraConfig& cam = scene.cameras[k];
+      NodeConfig n;
+      n.id = static_cast<std::uint32_t>(400 + k + 1);
+      n.name = cameraNodeFor(cam.name);
+      if (taken.count(n.name) > 0) n.name = n.name.substr(0, kMaxNameChars - 4) + "-" + std::to_string(k + 1);
+      taken.insert(n.name);
+      n.role = Role::kDetection;
+      n.parent = tracker.name;
+      n.metrics_port = static_cast<std::uint16_t>(options.base_port + 400 + k + 1);
+      CameraNodeConfig c;
+      c.source = kSimSource;
+      c.scene = scene_file;
+      c.camera = cam.name;
+      c.rate_hz = cam.rate_hz;
+      c.truth = true;
+      c.truth_replay = options.truth;
+      c.calibration.name = n.name;
+      c.calibration.fx = cam.fx;
+      c.calibration.fy = cam.fy;
+      c.calibration.cx = cam.cx;
+      c.calibration.cy = cam.cy;
+      c.calibration.width = cam.width;
+      c.calibration.height = cam.height;
+      c.calibration.world_to_camera = cam.pose.inverse();
+      n.camera = c;
+      t.nodes.push_back(n);
+    }
   }
   return t;  // edges are leaves: renaming them leaves every parent link as it was
 }

@@ -15,7 +15,16 @@ struct SceneTopologyOptions {
   int fanout = 2;          // a tree's aggregators have at most this many children
   int base_port = 50000;   // ports as makeStarTopology / makeTreeTopology number them
   double rate_hz = 10.0;   // every simulated LiDAR's scan rate
+  // A tracker (named "tracker") and one detection node per camera of the scene (named
+  // cameraNodeFor(camera)), each replaying the scene's objects as its detections with `truth`;
+  // the tracker reads the root's global maps.
+  bool tracker = false;
+  TruthReplayConfig truth;
+  tracking::TrackerConfig tracking;
 };
+
+// The detection node of scene camera `camera_name`: "cam-" + the name as edgeNameFor cleans it.
+std::string cameraNodeFor(const std::string& camera_name);
 
 // The edge that simulates LiDAR `lidar_name`: "edge-" + the name with every character outside
 // [A-Za-z0-9._-] replaced by '_', cut to a node name's 64 characters.
@@ -23,6 +32,8 @@ std::string edgeNameFor(const std::string& lidar_name);
 
 // One edge per LiDAR of `scene` (ids 1..K in the scene's order, named edgeNameFor(LiDAR), with
 // "-<id>" appended when two would be equal), each with a sim sensor on `scene_file` as given
+// (and with options.tracker, the tracker and a detection node per camera, calibrated as the scene
+// says, on the same scene file)
 // (written into the topology as is: relative paths resolve against the topology file's directory)
 // and the LiDAR's pose. The common frame is the scene's: the crop box spans the scene's extent and
 // its objects' heights, and ground removal is hinted at the scene's ground height when it is level.

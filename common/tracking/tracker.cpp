@@ -38,17 +38,6 @@ std::string bestLabel(const std::map<std::string, double>& votes) {
 
 }  // namespace
 
-const char* trackStateName(TrackState state) {
-  switch (state) {
-    case TrackState::kTentative:
-      return "tentative";
-    case TrackState::kConfirmed:
-      return "confirmed";
-    case TrackState::kLost:
-      return "lost";
-  }
-  return "?";
-}
 
 std::optional<std::size_t> overlay(const std::vector<CloudObservation>& observations, const camera::PinholeCamera& camera,
                                    const camera::Box2d& box, const Eigen::Vector3d& sensor_position) {
@@ -108,13 +97,14 @@ std::vector<DetectionFrame> Tracker::takeSynchronized(std::int64_t cloud_time_ns
   const std::int64_t eps_ns = nanoseconds(config_.eps_sync_s);
   std::vector<DetectionFrame> matched;
   for (auto& [camera, queue] : pending_) {
-    // The frame nearest in time within eps_sync (the paper: the shortest time difference wins).
+    // The frame nearest in time, less than eps_sync away (the paper: the shortest time difference
+    // wins; the earlier of two equally near).
     auto best = queue.end();
     std::int64_t best_gap = eps_ns;
     for (auto it = queue.begin(); it != queue.end(); ++it) {
       const std::int64_t gap = std::llabs(it->capture_time_ns - cloud_time_ns);
-      if (gap <= best_gap) {
-        if (best == queue.end() || gap < best_gap) best = it;
+      if (gap < best_gap) {
+        best = it;
         best_gap = gap;
       }
     }
@@ -133,6 +123,7 @@ std::vector<DetectionFrame> Tracker::takeSynchronized(std::int64_t cloud_time_ns
 
 StepStats Tracker::addCloud(const CloudFrame& frame) {
   StepStats stats;
+  stats.time_ns = frame.time_ns;
   if (last_cloud_ns_ && frame.time_ns < *last_cloud_ns_) {
     ++counters_.cloud_frames_out_of_order;
     return stats;
@@ -153,6 +144,43 @@ StepStats Tracker::addCloud(const CloudFrame& frame) {
   counters_.tracks_created += stats.tracks_created;
   counters_.tracks_deleted += stats.tracks_deleted;
   return stats;
+}
+
+bool Tracker::ready(const CloudFrame& frame, std::int64_t now_ns) const {
+  if (now_ns - frame.time_ns >= nanoseconds(config_.max_detection_wait_s)) return true;
+  // Frames of one camera arrive in capture order: once one captured at or after the LiDAR frame
+  // is here, no later one can be nearer.
+  return std::all_of(cameras_.begin(), cameras_.end(), [&](const camera::PinholeCamera& c) {
+    const auto newest = last_capture_ns_.find(c.name);
+    return newest != last_capture_ns_.end() && newest->second >= frame.time_ns;
+  });
+}
+
+std::vector<StepStats> Tracker::offerCloud(const CloudFrame& frame, std::int64_t now_ns) {
+  const std::int64_t newest = waiting_.empty() ? (last_cloud_ns_ ? *last_cloud_ns_ : frame.time_ns) : waiting_.back().time_ns;
+  if (frame.time_ns < newest) {
+    ++counters_.cloud_frames_out_of_order;
+    return {};
+  }
+  waiting_.push_back(frame);
+  std::vector<StepStats> out;
+  while (waiting_.size() > config_.max_buffered_frames) {
+    out.push_back(addCloud(waiting_.front()));
+    waiting_.erase(waiting_.begin());
+  }
+  for (auto& stats : advance(now_ns)) out.push_back(stats);
+  return out;
+}
+
+std::vector<StepStats> Tracker::advance(std::int64_t now_ns) {
+  std::vector<StepStats> out;
+  std::size_t fused = 0;
+  while (fused < waiting_.size() && ready(waiting_[fused], now_ns)) {
+    out.push_back(addCloud(waiting_[fused]));
+    ++fused;
+  }
+  waiting_.erase(waiting_.begin(), waiting_.begin() + static_cast<std::ptrdiff_t>(fused));
+  return out;
 }
 
 Track& Tracker::spawn(const Eigen::Vector2d& position, const Eigen::Matrix2d& covariance, std::int64_t now_ns) {

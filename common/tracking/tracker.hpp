@@ -20,57 +20,16 @@
 
 #include <Eigen/Core>
 
-#include "common/camera/detection.hpp"
 #include "common/camera/pinhole.hpp"
 #include "common/status.hpp"
 #include "common/tracking/kalman.hpp"
+#include "common/tracking/track.hpp"
 #include "common/tracking/tracker_config.hpp"
 
 namespace fogmap::tracking {
 
-// A LiDAR observation: a displacement centroid or a global-map object, in the common frame.
-struct CloudObservation {
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity() * 0.01;  // m^2
-};
-
-// Every observation of one LiDAR frame (or one global map), with the sensor's timestamp and where
-// the sensor is (the overlay keeps the overlaid observation nearest to it).
-struct CloudFrame {
-  std::int64_t time_ns = 0;
-  Eigen::Vector3d sensor_position = Eigen::Vector3d::Zero();
-  std::vector<CloudObservation> observations;
-};
-
-// Every detection of one camera image, with the image's capture time.
-struct DetectionFrame {
-  std::string camera;
-  std::int64_t capture_time_ns = 0;
-  std::vector<camera::Detection> detections;
-};
-
-enum class TrackState { kTentative, kConfirmed, kLost };
-const char* trackStateName(TrackState state);
-
-inline constexpr const char* kUnknownLabel = "unknown";
-
-struct Track {
-  std::uint64_t id = 0;
-  std::string label = kUnknownLabel;
-  TrackState state = TrackState::kTentative;
-  Eigen::Vector2d position = Eigen::Vector2d::Zero();  // ground plane, m
-  Eigen::Vector2d velocity = Eigen::Vector2d::Zero();  // m/s (0 under the paper's association)
-  Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();  // of the position, m^2
-  std::int64_t created_ns = 0;
-  std::int64_t last_update_ns = 0;
-  bool camera_confirmed = false;  // a camera detection was fused into it at least once
-  int consecutive_hits = 0;
-};
-
-
-
-// What one step did: the counters the service exports.
 struct StepStats {
+  std::int64_t time_ns = 0;               // the fused LiDAR frame's sensor time
   std::size_t detections_fused = 0;       // detections whose overlay found an observation
   std::size_t updates_overlay = 0;        // track updates by a fused (camera + LiDAR) measurement
   std::size_t updates_cloud_only = 0;     // track updates by a LiDAR observation alone
@@ -102,10 +61,22 @@ class Tracker {
   // dropped and counted.
   void addDetections(DetectionFrame frame);
 
-  // Fuses a LiDAR frame with the buffered detection frames nearest in time (one per camera,
-  // within eps_sync) and steps the tracks to its time. Detection frames that can no longer match
-  // any later LiDAR frame are dropped as stale. A LiDAR frame older than the last is dropped.
+  // Fuses a LiDAR frame now with the buffered detection frames nearest in time (one per camera,
+  // within eps_sync) and steps the tracks to its time: the caller has given every detection frame
+  // that could match it. Detection frames that can no longer match any later LiDAR frame are
+  // dropped as stale. A LiDAR frame older than the last is dropped.
   StepStats addCloud(const CloudFrame& frame);
+
+  // Asynchronous fusion, for detections that arrive after the LiDAR frame they belong to: the
+  // frame waits until every camera has sent a frame captured at or after it, or until
+  // max_detection_wait_s has passed since its sensor time (`now_ns`, the same clock); then it is
+  // fused as addCloud does. Returns what each frame fused now did (in time order). At most
+  // max_buffered_frames LiDAR frames wait; beyond, the oldest is fused at once.
+  std::vector<StepStats> offerCloud(const CloudFrame& frame, std::int64_t now_ns);
+  // Fuses the waiting LiDAR frames that are ready at `now_ns` (after detections arrived, or as
+  // time passes).
+  std::vector<StepStats> advance(std::int64_t now_ns);
+  std::size_t waitingClouds() const { return waiting_.size(); }
 
   // The live tracks (tentative ones too; callers usually publish confirmed and lost ones).
   const std::vector<Track>& tracks() const { return tracks_; }
@@ -118,6 +89,7 @@ class Tracker {
   Tracker(TrackerConfig config, std::vector<camera::PinholeCamera> cameras);
 
   std::vector<DetectionFrame> takeSynchronized(std::int64_t cloud_time_ns);
+  bool ready(const CloudFrame& frame, std::int64_t now_ns) const;
   void stepPaper(const CloudFrame& frame, const std::vector<DetectionFrame>& detections, StepStats& stats);
   void stepKalman(const CloudFrame& frame, const std::vector<DetectionFrame>& detections, StepStats& stats);
   void prune(std::int64_t now_ns, StepStats& stats);
@@ -128,6 +100,7 @@ class Tracker {
   std::map<std::string, std::vector<DetectionFrame>> pending_;  // per camera, by capture time
   std::map<std::string, std::int64_t> last_capture_ns_;
   std::optional<std::int64_t> last_cloud_ns_;
+  std::vector<CloudFrame> waiting_;  // offered LiDAR frames not fused yet, by time
   std::vector<Track> tracks_;
   std::vector<ConstantVelocityFilter> filters_;                // kalman: one per track, same order
   std::vector<std::map<std::string, double>> label_votes_;     // kalman: summed scores per label

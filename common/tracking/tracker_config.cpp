@@ -33,6 +33,9 @@ Status validate(const TrackerConfig& c) {
   if (!positive(c.tentative_timeout_s)) return invalidArgument("tracker: tentative_timeout_s must be positive");
   if (!positive(c.track_timeout_s)) return invalidArgument("tracker: track_timeout_s must be positive");
   if (c.max_buffered_frames < 1) return invalidArgument("tracker: max_buffered_frames must be at least 1");
+  if (!(std::isfinite(c.max_detection_wait_s) && c.max_detection_wait_s >= 0.0 && c.max_detection_wait_s <= 10.0)) {
+    return invalidArgument("tracker: max_detection_wait_s must be in [0, 10] seconds");
+  }
   return {};
 }
 

@@ -15,7 +15,7 @@ Expected<Association> parseAssociation(const std::string& name);
 
 struct TrackerConfig {
   Association association = Association::kKalman;
-  double eps_sync_s = 0.1;  // a detection frame fuses with the LiDAR frame nearest in time within this
+  double eps_sync_s = 0.1;  // a detection frame fuses with the LiDAR frame nearest in time, less than this away
   // The paper's thresholds (Algorithms 4 and 5): 0.5 m and 0.3 m indoors, 5 m on KITTI.
   double rho_overlay_m = 0.5;
   double rho_purecloud_m = 0.3;
@@ -28,6 +28,9 @@ struct TrackerConfig {
   double tentative_timeout_s = 0.3;     // a tentative track unobserved this long is dropped
   double track_timeout_s = 2.0;         // a track unobserved this long is deleted (both associations)
   std::size_t max_buffered_frames = 64;  // detection frames kept per camera while waiting for LiDAR
+  // Asynchronous fusion (Tracker::offerCloud): a LiDAR frame waits until every camera has sent a
+  // frame captured at or after it (its nearest detection frame is then known), or this long.
+  double max_detection_wait_s = 0.25;
 };
 
 Status validate(const TrackerConfig& config);

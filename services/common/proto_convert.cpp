@@ -14,6 +14,8 @@
 #include <Eigen/Cholesky>
 #include <google/protobuf/io/coded_stream.h>
 
+#include "common/topology.hpp"
+
 
 namespace fogmap {
 namespace {
@@ -416,6 +418,116 @@ std::size_t baselineUploadBytes(const MapHeader& header, std::size_t points, std
              CodedOutputStream::VarintSize64(inner) + inner;
   }
   return total;
+}
+
+// ---- cameras and tracks -----------------------------------------------------------------------
+
+v1::DetectionFrame toProto(const tracking::DetectionFrame& frame) {
+  v1::DetectionFrame out;
+  out.set_camera(frame.camera);
+  out.set_capture_time_ns(frame.capture_time_ns);
+  for (const auto& d : frame.detections) {
+    auto* p = out.add_detections();
+    p->set_left(static_cast<float>(d.box.left));
+    p->set_top(static_cast<float>(d.box.top));
+    p->set_right(static_cast<float>(d.box.right));
+    p->set_bottom(static_cast<float>(d.box.bottom));
+    p->set_label(d.label);
+    p->set_score(static_cast<float>(d.score));
+  }
+  return out;
+}
+
+Expected<tracking::DetectionFrame> fromProto(const v1::DetectionFrame& frame) {
+  if (!isName(frame.camera())) return invalidArgument("detection frame: camera '" + frame.camera().substr(0, 64) + "' is not a node name");
+  if (frame.detections_size() > kMaxDetectionsPerFrame) {
+    return invalidArgument("detection frame: " + std::to_string(frame.detections_size()) + " detections, more than " +
+                           std::to_string(kMaxDetectionsPerFrame));
+  }
+  tracking::DetectionFrame out;
+  out.camera = frame.camera();
+  out.capture_time_ns = frame.capture_time_ns();
+  out.detections.reserve(static_cast<std::size_t>(frame.detections_size()));
+  constexpr double kMaxPixel = 1e6;
+  for (int i = 0; i < frame.detections_size(); ++i) {
+    const auto& d = frame.detections(i);
+    const std::string where = "detection frame: detections[" + std::to_string(i) + "]";
+    for (const float v : {d.left(), d.top(), d.right(), d.bottom()}) {
+      if (!std::isfinite(v) || std::abs(v) > kMaxPixel) return invalidArgument(where + ": box coordinates must be finite pixels");
+    }
+    if (d.left() > d.right() || d.top() > d.bottom()) return invalidArgument(where + ": box has left > right or top > bottom");
+    if (!std::isfinite(d.score())) return invalidArgument(where + ": score must be finite");
+    const bool printable = std::all_of(d.label().begin(), d.label().end(), [](char c) { return c >= 0x20 && c < 0x7f; });
+    if (d.label().empty() || d.label().size() > 64 || !printable) {
+      return invalidArgument(where + ": label must be 1 to 64 printable characters");
+    }
+    camera::Detection detection;
+    detection.box = {d.left(), d.top(), d.right(), d.bottom()};
+    detection.label = d.label();
+    detection.score = d.score();
+    detection.camera = out.camera;
+    detection.capture_time_ns = out.capture_time_ns;
+    out.detections.push_back(std::move(detection));
+  }
+  return out;
+}
+
+v1::Track toProto(const tracking::Track& track) {
+  v1::Track out;
+  out.set_id(track.id);
+  out.set_label(track.label);
+  switch (track.state) {
+    case tracking::TrackState::kTentative:
+      out.set_state(v1::TRACK_STATE_TENTATIVE);
+      break;
+    case tracking::TrackState::kConfirmed:
+      out.set_state(v1::TRACK_STATE_CONFIRMED);
+      break;
+    case tracking::TrackState::kLost:
+      out.set_state(v1::TRACK_STATE_LOST);
+      break;
+  }
+  out.set_x(track.position.x());
+  out.set_y(track.position.y());
+  out.set_vx(track.velocity.x());
+  out.set_vy(track.velocity.y());
+  out.add_covariance(track.covariance(0, 0));
+  out.add_covariance(track.covariance(0, 1));
+  out.add_covariance(track.covariance(1, 1));
+  out.set_created_ns(track.created_ns);
+  out.set_last_update_ns(track.last_update_ns);
+  out.set_camera_confirmed(track.camera_confirmed);
+  return out;
+}
+
+Expected<tracking::Track> fromProto(const v1::Track& track) {
+  tracking::Track out;
+  out.id = track.id();
+  out.label = track.label();
+  switch (track.state()) {
+    case v1::TRACK_STATE_TENTATIVE:
+      out.state = tracking::TrackState::kTentative;
+      break;
+    case v1::TRACK_STATE_CONFIRMED:
+      out.state = tracking::TrackState::kConfirmed;
+      break;
+    case v1::TRACK_STATE_LOST:
+      out.state = tracking::TrackState::kLost;
+      break;
+    default:
+      return invalidArgument("track " + std::to_string(track.id()) + ": unknown state");
+  }
+  if (track.covariance_size() != 3) return invalidArgument("track " + std::to_string(track.id()) + ": covariance must be xx, xy, yy");
+  for (const double v : {track.x(), track.y(), track.vx(), track.vy(), track.covariance(0), track.covariance(1), track.covariance(2)}) {
+    if (!std::isfinite(v)) return invalidArgument("track " + std::to_string(track.id()) + ": position, velocity and covariance must be finite");
+  }
+  out.position = {track.x(), track.y()};
+  out.velocity = {track.vx(), track.vy()};
+  out.covariance << track.covariance(0), track.covariance(1), track.covariance(1), track.covariance(2);
+  out.created_ns = track.created_ns();
+  out.last_update_ns = track.last_update_ns();
+  out.camera_confirmed = track.camera_confirmed();
+  return out;
 }
 
 }  // namespace fogmap

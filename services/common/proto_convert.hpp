@@ -5,6 +5,7 @@
 #include "common/geofence.hpp"
 #include "common/messages.hpp"
 #include "common/status.hpp"
+#include "common/tracking/track.hpp"
 #include "fogmap/v1/fogmap.pb.h"
 
 namespace fogmap {
@@ -18,6 +19,8 @@ v1::PointChunk toProto(const PointChunk& chunk);
 v1::GlobalMap toProto(const GlobalMapMessage& message);
 v1::Geofence toProto(const Geofence& fence);
 v1::Containment toProto(Containment containment);
+v1::DetectionFrame toProto(const tracking::DetectionFrame& frame);
+v1::Track toProto(const tracking::Track& track);
 
 // The serialised size of the uploads (v1::Upload, as ParentLink counts them) that would carry
 // `points` pre-processed points of a frame with `header` in baseline mode, cut into chunks of at
@@ -47,5 +50,12 @@ Expected<PointChunk> fromProto(const v1::PointChunk& chunk);
 Expected<GlobalMapMessage> fromProto(const v1::GlobalMap& message);
 Expected<Geofence> fromProto(const v1::Geofence& fence);
 Expected<Containment> fromProto(v1::Containment containment);  // rejects UNSPECIFIED and unknown values
+// A camera's detections: the camera a name, at most kMaxDetectionsPerFrame detections, every box
+// finite with left <= right and top <= bottom, within 1e6 pixels, a finite score, a label of 1 to 64
+// printable characters. Each detection is stamped with the frame's camera and capture time.
+inline constexpr int kMaxDetectionsPerFrame = 10000;
+Expected<tracking::DetectionFrame> fromProto(const v1::DetectionFrame& frame);
+// A track (what fogctl watch and the tests read): finite state, a known state value.
+Expected<tracking::Track> fromProto(const v1::Track& track);
 
 }  // namespace fogmap

@@ -653,5 +653,110 @@ TEST(Topology, SimulatedSensorNeedsASceneAndALidarAndIsNotSplit) {
   EXPECT_EQ(dir->nodes.back().sensor->source, fs::path("base") / "./sim");
 }
 
+
+// Cameras and a tracker beside the map's tree: detection nodes send to a tracker, which has no
+// parent; every section round-trips.
+std::string fusionNodes(const std::string& camera_extra = "", const std::string& tracker_extra = "") {
+  return "  - {name: sink, id: 100, role: aggregator, port: 50000, metrics_port: 50200}\n"
+         "  - {name: edge-1, id: 1, role: edge, parent: sink, metrics_port: 50101, sensor: {source: scans}}\n"
+         "  - {name: fusion, id: 300, role: tracker, port: 50300, metrics_port: 50301" + tracker_extra + "}\n"
+         "  - name: cam-1\n    id: 201\n    role: detection\n    parent: fusion\n    metrics_port: 50201\n"
+         "    camera:\n      source: sim\n      scene: s.yaml\n      camera: cam-a\n" + camera_extra +
+         "      calibration: {fx: 400, fy: 410, cx: 320, cy: 240, width: 640, height: 480,\n"
+         "                    pose: {translation_m: [1, 2, 3], rpy_deg: [-90, 0, -90]}}\n";
+}
+
+TEST(Topology, DetectionAndTrackerNodesRoundTripThroughYaml) {
+  const Expected<TopologyConfig> parsed = parseTopology(
+      topologyYaml("", "", fusionNodes("      detector: {kind: truth, truth: {miss_rate: 0.3, box_jitter_px: 2, latency_ms: 40}}\n",
+                                       ", tracker: {association: paper, rho_overlay_m: 5, confirm_hits: 4}")),
+      "base");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  EXPECT_EQ(parsed->root()->name, "sink");
+  const NodeConfig& tracker = *parsed->find("fusion");
+  EXPECT_EQ(tracker.role, Role::kTracker);
+  ASSERT_TRUE(tracker.tracker.has_value());
+  EXPECT_EQ(tracker.tracker->tracking.association, tracking::Association::kPaper);
+  EXPECT_DOUBLE_EQ(tracker.tracker->tracking.rho_overlay_m, 5.0);
+  EXPECT_EQ(tracker.tracker->tracking.confirm_hits, 4);
+  const auto cameras = parsed->camerasOf("fusion");
+  ASSERT_EQ(cameras.size(), 1U);
+  const CameraNodeConfig& cam = *cameras[0]->camera;
+  EXPECT_TRUE(cam.simulated());
+  EXPECT_EQ(cam.scene, fs::path("base") / "s.yaml");
+  EXPECT_EQ(cam.camera, "cam-a");
+  EXPECT_TRUE(cam.truth);
+  EXPECT_DOUBLE_EQ(cam.truth_replay.miss_rate, 0.3);
+  EXPECT_DOUBLE_EQ(cam.truth_replay.latency_ms, 40.0);
+  EXPECT_EQ(cam.calibration.name, "cam-1");
+  EXPECT_DOUBLE_EQ(cam.calibration.fy, 410.0);
+  // Pose: camera -> common frame; the camera centre is its translation, and the camera's z axis
+  // (rpy -90, 0, -90: x right, y down, z forward) looks along the common frame's +x.
+  EXPECT_LT((cam.calibration.centre() - Eigen::Vector3d(1, 2, 3)).norm(), 1e-12);
+  EXPECT_LT((cam.calibration.toCamera(Eigen::Vector3d(11, 2, 3)) - Eigen::Vector3d(0, 0, 10)).norm(), 1e-9);
+
+  const std::string yaml = toYaml(*parsed);
+  const Expected<TopologyConfig> again = parseTopology(yaml, "");
+  ASSERT_TRUE(again.ok()) << again.error().message << "\n" << yaml;
+  expectSameTopology(*again, *parsed);
+  const CameraNodeConfig& back = *again->find("cam-1")->camera;
+  EXPECT_TRUE(back.truth);
+  EXPECT_DOUBLE_EQ(back.truth_replay.box_jitter_px, 2.0);
+  EXPECT_LT((back.calibration.world_to_camera.matrix() - cam.calibration.world_to_camera.matrix()).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_EQ(again->find("fusion")->tracker->tracking.association, tracking::Association::kPaper);
+
+  // A HOG detector's settings and a dnn's paths round-trip too.
+  const Expected<TopologyConfig> hog = parseTopology(
+      topologyYaml("", "", fusionNodes("      detector: {kind: hog, hog: {upscale: 1.5, hit_threshold: 0.2}}\n")), "");
+  ASSERT_TRUE(hog.ok()) << hog.error().message;
+  const auto hog_again = parseTopology(toYaml(*hog), "");
+  ASSERT_TRUE(hog_again.ok()) << hog_again.error().message;
+  EXPECT_DOUBLE_EQ(hog_again->find("cam-1")->camera->detector.hog.upscale, 1.5);
+  const Expected<TopologyConfig> dnn = parseTopology(
+      topologyYaml("", "", fusionNodes("      detector: {kind: dnn, dnn: {model_path: m.onnx, names_path: n.txt, output: yolo-export}}\n")),
+      "models");
+  ASSERT_TRUE(dnn.ok()) << dnn.error().message;
+  EXPECT_EQ(dnn->find("cam-1")->camera->detector.dnn.model_path, (fs::path("models") / "m.onnx").string());
+  EXPECT_EQ(dnn->find("cam-1")->camera->detector.dnn.output, camera::DnnOutput::kYoloExport);
+  const auto dnn_again = parseTopology(toYaml(*dnn), "");
+  ASSERT_TRUE(dnn_again.ok()) << dnn_again.error().message;
+  EXPECT_EQ(dnn_again->find("cam-1")->camera->detector.dnn.names_path, (fs::path("models") / "n.txt").string());
+}
+
+TEST(Topology, DetectionAndTrackerMistakesAreNamed) {
+  const std::string cal = "calibration: {fx: 400, fy: 400, cx: 320, cy: 240, width: 640, height: 480}";
+  const std::string head = "  - {name: sink, id: 100, role: aggregator, port: 50000, metrics_port: 50200}\n"
+                           "  - {name: edge-1, id: 1, role: edge, parent: sink, metrics_port: 50101, sensor: {source: scans}}\n";
+  expectRejectedWith(topologyYaml("", "", head + "  - {name: c, id: 2, role: detection, parent: sink, metrics_port: 1, camera: {source: imgs, " + cal + "}}\n"),
+                     {"nodes[2] (c).parent", "'sink' is not a tracker"});
+  expectRejectedWith(topologyYaml("", "", head + "  - {name: t, id: 3, role: tracker, metrics_port: 2}\n"),
+                     {"nodes[2] (t)", "a tracker needs a port"});
+  expectRejectedWith(topologyYaml("", "", head + "  - {name: t, id: 3, role: tracker, parent: sink, port: 3, metrics_port: 2}\n"),
+                     {"nodes[2] (t).parent", "a tracker has no parent"});
+  expectRejectedWith(topologyYaml("", "", head + "  - {name: t, id: 3, role: tracker, port: 3, metrics_port: 2}\n"
+                                                 "  - {name: c, id: 2, role: detection, parent: t, metrics_port: 1}\n"),
+                     {"nodes[3] (c)", "needs a camera"});
+  expectRejectedWith(topologyYaml("", "", fusionNodes("      detector: {kind: yolo}\n")),
+                     {"nodes[3].camera.detector.kind", "hog, cascade, dnn or truth"});
+  expectRejectedWith(topologyYaml("", "", fusionNodes("      detector: {kind: truth, truth: {miss_rate: 1.5}}\n")),
+                     {"nodes[3].camera.detector.truth.miss_rate", "[0, 1]"});
+  expectRejectedWith(topologyYaml("", "", fusionNodes("", ", tracker: {association: greedy}")),
+                     {"nodes[2].tracker.association", "'greedy'"});
+  expectRejectedWith(topologyYaml("", "", fusionNodes("", ", tracker: {eps_sync_s: 0}")), {"nodes[2].tracker", "eps_sync_s"});
+  expectRejectedWith(topologyYaml("", "", fusionNodes("", ", tracker: {eps_sync: 0.1}")), {"nodes[2].tracker.eps_sync", "unknown key"});
+  // A camera without a calibration, and truth without a simulated scene.
+  expectRejectedWith(topologyYaml("", "", head + "  - {name: t, id: 3, role: tracker, port: 3, metrics_port: 2}\n"
+                                                 "  - {name: c, id: 2, role: detection, parent: t, metrics_port: 1, camera: {source: imgs}}\n"),
+                     {"nodes[3].camera.calibration", "is required"});
+  expectRejectedWith(topologyYaml("", "", head + "  - {name: t, id: 3, role: tracker, port: 3, metrics_port: 2}\n"
+                                                 "  - {name: c, id: 2, role: detection, parent: t, metrics_port: 1, camera: {source: imgs, detector: {kind: truth}, " + cal + "}}\n"),
+                     {"nodes[3].camera.detector.kind", "needs source sim"});
+  expectRejectedWith(topologyYaml("", "", head + "  - {name: t, id: 3, role: tracker, port: 3, metrics_port: 2}\n"
+                                                 "  - {name: c, id: 2, role: detection, parent: t, metrics_port: 1, camera: {source: imgs, calibration: {fx: -1}}}\n"),
+                     {"nodes[3].camera.calibration", "fx and fy must be positive"});
+  expectRejectedWith(topologyYaml("", "", head + "  - {name: e, id: 3, role: edge, parent: sink, metrics_port: 2, sensor: {source: s}, camera: {source: imgs, " + cal + "}}\n"),
+                     {"nodes[2] (e).camera", "only detection nodes"});
+}
+
 }  // namespace
 }  // namespace fogmap

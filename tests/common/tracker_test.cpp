@@ -395,5 +395,66 @@ TEST(KalmanAssociation, TwoCamerasSeeingOneObjectMakeOneTrackWhereThePaperMakesT
   }
 }
 
+
+// --- asynchronous fusion ---------------------------------------------------------------------------
+
+TEST(AsynchronousFusion, ALidarFrameWaitsForTheDetectionsThatArriveAfterItThenFusesThem) {
+  const auto front = forwardCamera("front");
+  const auto side = forwardCamera("side", {0.0, 0.5, 1.0});
+  TrackerConfig config;
+  config.max_detection_wait_s = 0.25;
+  auto tracker = makeTracker(config, {front, side});
+  // The LiDAR frame at 1 s comes first (LiDAR processing is faster than detection).
+  EXPECT_TRUE(tracker.offerCloud(cloudAt(1000 * kMs, {at(8, 0, 1)}), 1005 * kMs).empty());
+  EXPECT_EQ(tracker.waitingClouds(), 1U);
+  // 60 ms later the front camera's frame of the same instant arrives: the side camera is still due.
+  tracker.addDetections(detectionsAt("front", 1000 * kMs, {detectionOf(front, {8, 0, 1}, "person")}));
+  EXPECT_TRUE(tracker.advance(1060 * kMs).empty());
+  // The side camera's frame captured after the LiDAR frame: every camera has spoken, fuse.
+  tracker.addDetections(detectionsAt("side", 1010 * kMs, {detectionOf(side, {8, 0, 1}, "person")}));
+  const auto fused = tracker.advance(1080 * kMs);
+  ASSERT_EQ(fused.size(), 1U);
+  EXPECT_EQ(fused[0].time_ns, 1000 * kMs);
+  EXPECT_EQ(fused[0].detections_fused, 2U);
+  ASSERT_EQ(tracker.tracks().size(), 1U);
+  EXPECT_EQ(tracker.tracks()[0].label, "person");
+  EXPECT_EQ(tracker.counters().detection_frames_stale, 0U);
+}
+
+TEST(AsynchronousFusion, ACameraThatStaysSilentDelaysFusionByAtMostTheWaitAndOrderIsKept) {
+  const auto front = forwardCamera("front");
+  TrackerConfig config;
+  config.max_detection_wait_s = 0.25;
+  auto tracker = makeTracker(config, {front});
+  EXPECT_TRUE(tracker.offerCloud(cloudAt(1000 * kMs, {at(8, 0, 1)}), 1000 * kMs).empty());
+  EXPECT_TRUE(tracker.offerCloud(cloudAt(1100 * kMs, {at(8.1, 0, 1)}), 1100 * kMs).empty());
+  EXPECT_TRUE(tracker.advance(1249 * kMs).empty());
+  auto fused = tracker.advance(1250 * kMs);  // the first frame's wait is over, the second's not
+  ASSERT_EQ(fused.size(), 1U);
+  EXPECT_EQ(fused[0].time_ns, 1000 * kMs);
+  fused = tracker.advance(1400 * kMs);
+  ASSERT_EQ(fused.size(), 1U);
+  EXPECT_EQ(fused[0].time_ns, 1100 * kMs);
+  // A frame older than one already offered is out of order: dropped and counted.
+  EXPECT_TRUE(tracker.offerCloud(cloudAt(1050 * kMs, {}), 1400 * kMs).empty());
+  EXPECT_EQ(tracker.counters().cloud_frames_out_of_order, 1U);
+  EXPECT_EQ(tracker.waitingClouds(), 0U);
+}
+
+TEST(AsynchronousFusion, WithoutWaitingLateDetectionsAreStaleWhichIsWhyTheWaitExists) {
+  const auto front = forwardCamera("front");
+  TrackerConfig config;
+  config.max_detection_wait_s = 0.0;
+  auto tracker = makeTracker(config, {front});
+  for (int k = 0; k < 5; ++k) {
+    const std::int64_t t = 1000 * kMs + k * 100 * kMs;
+    tracker.offerCloud(cloudAt(t, {at(8, 0, 1)}), t + 5 * kMs);
+    // Each frame's detections come 20 ms after it, after the LiDAR frame was fused.
+    tracker.addDetections(detectionsAt("front", t, {detectionOf(front, {8, 0, 1}, "person")}));
+  }
+  EXPECT_EQ(tracker.counters().detections_fused, 0U);
+  EXPECT_GE(tracker.counters().detection_frames_stale, 3U);
+}
+
 }  // namespace
 }  // namespace fogmap::tracking

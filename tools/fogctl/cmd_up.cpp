@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -25,6 +26,7 @@
 #include "common/sim/scene.hpp"
 #include "common/sim/scene_topology.hpp"
 #include "common/topology.hpp"
+#include "common/tracking/tracker_config.hpp"
 #include "common/virtual_lidar.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "services/common/grpc_options.hpp"
@@ -73,7 +75,7 @@ struct RootConnection {
 // --cert, --key and --ca when given; else, when the topology has a tls section, the certificate of
 // --identity NAME (default: operator) in its cert_dir; else plaintext. Every file is read and
 // checked here, so a problem is reported before any connection is tried.
-Expected<RootConnection> rootConnection(const Args& args, const std::string& usage) {
+Expected<RootConnection> rootConnection(const Args& args, const std::string& usage, Role server = Role::kAggregator) {
   std::optional<TopologyConfig> topology;
   if (!args.has("target") || args.has("identity")) {
     if (args.positional().size() != 1) {
@@ -86,8 +88,19 @@ Expected<RootConnection> rootConnection(const Args& args, const std::string& usa
     topology = std::move(*loaded);
   }
   RootConnection connection;
-  connection.target = args.has("target") ? args.get("target")
-                                         : topology->root()->host + ":" + std::to_string(topology->root()->port);
+  if (args.has("target")) {
+    connection.target = args.get("target");
+  } else {
+    // The root, or the first tracker.
+    const NodeConfig* node = topology->root();
+    if (server == Role::kTracker) {
+      const auto tracker = std::find_if(topology->nodes.begin(), topology->nodes.end(),
+                                        [](const NodeConfig& n) { return n.role == Role::kTracker; });
+      if (tracker == topology->nodes.end()) return invalidArgument(args.positional()[0] + " has no tracker");
+      node = &*tracker;
+    }
+    connection.target = node->host + ":" + std::to_string(node->port);
+  }
   const auto now = std::chrono::system_clock::now();
   const bool explicit_files = args.has("cert") || args.has("key") || args.has("ca");
   if (explicit_files) {
@@ -155,8 +168,8 @@ int runUp(int argc, char** argv) {
   std::printf("%-14s %-11s %-22s %-8s %s\n", "node", "role", "listen", "metrics", "parent");
   for (const auto& n : topology->nodes) {
     const std::string listen = n.port ? n.host + ":" + std::to_string(n.port) : "-";
-    std::printf("%-14s %-11s %-22s %-8u %s\n", n.name.c_str(), n.role == Role::kEdge ? "edge" : "aggregator", listen.c_str(),
-                n.metrics_port, n.parent.empty() ? "(root)" : n.parent.c_str());
+    std::printf("%-14s %-11s %-22s %-8u %s\n", n.name.c_str(), roleName(n.role), listen.c_str(),
+                n.metrics_port, n.parent.empty() ? (n.role == Role::kAggregator ? "(root)" : "-") : n.parent.c_str());
   }
   std::printf("cluster '%s' is up (%zu services, mode %s, %s); logs in %s\n", topology->name.c_str(), topology->nodes.size(),
               modeName(topology->mode), topology->tls ? "mutual TLS" : "plaintext", (state / "logs").c_str());
@@ -212,7 +225,10 @@ std::filesystem::path relativeTo(const std::filesystem::path& file, const std::f
 
 int runTopology(int argc, char** argv) {
   const auto args = Args::parse(
-      argc, argv, 2, {"edges", "source", "scene", "base-port", "mode", "frames", "out", "fanout", "deadline-ms", "tls-ca"}, {});
+      argc, argv, 2,
+      {"edges", "source", "scene", "base-port", "mode", "frames", "out", "fanout", "deadline-ms", "tls-ca", "association",
+       "miss-rate", "box-jitter-px", "latency-ms"},
+      {"tracker"});
   if (!args) return fail(args.error());
   const bool from_scene = args->has("scene");
   std::string shape = from_scene ? "star" : "";  // a scene's topology is a star unless told
@@ -245,6 +261,22 @@ int runTopology(int argc, char** argv) {
     options.tree = shape == "tree";
     options.fanout = static_cast<int>(*fanout);
     options.base_port = static_cast<int>(*base);
+    options.tracker = args->has("tracker");
+    if (!options.tracker && (args->has("association") || args->has("miss-rate") || args->has("box-jitter-px") || args->has("latency-ms"))) {
+      return fail(invalidArgument("--association, --miss-rate, --box-jitter-px and --latency-ms go with --tracker"));
+    }
+    if (options.tracker) {
+      const auto association = tracking::parseAssociation(args->get("association", "kalman"));
+      if (!association) return fail(invalidArgument("--association: " + association.error().message));
+      options.tracking.association = *association;
+      const auto miss = args->getDouble("miss-rate", 0.0);
+      const auto jitter = args->getDouble("box-jitter-px", 0.0);
+      const auto latency = args->getDouble("latency-ms", 0.0);
+      if (!miss || !(*miss >= 0.0 && *miss <= 1.0)) return fail(invalidArgument("--miss-rate must be in [0, 1]"));
+      if (!jitter || !(*jitter >= 0.0 && *jitter <= 1000.0)) return fail(invalidArgument("--box-jitter-px must be in [0, 1000]"));
+      if (!latency || !(*latency >= 0.0 && *latency <= 60000.0)) return fail(invalidArgument("--latency-ms must be in [0, 60000]"));
+      options.truth = TruthReplayConfig{*miss, *jitter, *latency};
+    }
     // The topology names the scene relative to its own directory, as services resolve it.
     const std::filesystem::path topology_dir =
         args->has("out") ? std::filesystem::absolute(args->get("out")).parent_path() : std::filesystem::current_path();
@@ -276,6 +308,7 @@ int runTopology(int argc, char** argv) {
     if (!frames || *frames < 1) return fail(invalidArgument("--frames must be positive"));
     for (auto& n : t.nodes) {
       if (n.sensor) n.sensor->frames = static_cast<std::uint64_t>(*frames);
+      if (n.camera) n.camera->frames = static_cast<std::uint64_t>(*frames);
     }
   }
   std::string command = "fogctl topology";
@@ -398,35 +431,31 @@ void printGlobalMap(const v1::GlobalMap& message, long shown) {
 
 }  // namespace
 
-int runWatch(int argc, char** argv) {
-  const auto args =
-      Args::parse(argc, argv, 2, {"target", "count", "objects", "idle-s", "timeout-s", "identity", "cert", "key", "ca"}, {});
-  if (!args) return fail(args.error());
-  const auto connection =
-      rootConnection(*args, "fogctl watch TOPOLOGY.yaml | --target HOST:PORT [--count N] [--objects 10] [--idle-s 10] [--timeout-s 0]");
-  if (!connection) return fail(connection.error());
-  const std::string target = connection->target;
-  const auto count = args->getInt("count", 0);
-  const auto shown = args->getInt("objects", 10);
-  if (!count || *count < 0 || !shown || *shown < 0) return fail(invalidArgument("--count and --objects must be non-negative"));
-  const auto idle_s = args->getDouble("idle-s", 10.0);
-  if (!idle_s || !(*idle_s > 0.0)) return fail(invalidArgument("--idle-s must be a positive number of seconds"));
-  const auto timeout_s = args->getDouble("timeout-s", 0.0);
-  if (!timeout_s || *timeout_s < 0.0) return fail(invalidArgument("--timeout-s must be a non-negative number of seconds"));
-  installStopHandlers();
-  auto channel = makeChannel(target, connection->credentials, 64U << 20);
-  if (const std::string problem = connect(*channel, *timeout_s > 0.0 ? *timeout_s : kConnectTimeoutS); !problem.empty()) {
-    if (stopRequested()) return 0;
-    std::fprintf(stderr, "fogctl: cannot reach the root at %s: %s (is the cluster up?)\n", target.c_str(), problem.c_str());
-    return 1;
-  }
-  auto stub = v1::GlobalMapService::NewStub(channel);
-  grpc::ClientContext context;
-  v1::SubscribeRequest request;
-  auto reader = stub->Subscribe(&context, request);
+namespace {
 
-  // The watchdog ends the stream on Ctrl-C or after --timeout-s without a map, and says so after
-  // every --idle-s without one: a silent root is reported, never waited on silently.
+void printTrackList(const v1::TrackList& message) {
+  const double e2e_ms = static_cast<double>(message.published_time_ns() - message.lidar_time_ns()) / 1e6;
+  std::printf("tracks %d  association %s  e2e %.1f ms\n", message.tracks_size(), message.association().c_str(), e2e_ms);
+  for (const auto& proto : message.tracks()) {
+    const auto track = fromProto(proto);
+    if (!track) {
+      std::fprintf(stderr, "fogctl: malformed track: %s\n", track.error().message.c_str());
+      continue;
+    }
+    std::printf("  track %4lu  %-10s %-9s at (%7.2f, %7.2f) m  velocity (%5.2f, %5.2f) m/s  sigma %.2f m%s\n",
+                static_cast<unsigned long>(track->id), track->label.c_str(), tracking::trackStateName(track->state),
+                track->position.x(), track->position.y(), track->velocity.x(), track->velocity.y(),
+                std::sqrt(std::max(0.0, track->covariance.trace() / 2.0)), track->camera_confirmed ? "  camera" : "");
+  }
+  std::fflush(stdout);
+}
+
+// Reads a server stream until --count messages, Ctrl-C, --timeout-s without a message or the end
+// of the stream; says so after every --idle-s without one: a silent server is reported, never
+// waited on silently. `what` names the messages and `who` the server in what it prints.
+template <class Message>
+int follow(grpc::ClientContext& context, grpc::ClientReaderInterface<Message>& reader, const std::function<void(const Message&)>& print,
+           long count, double idle_s, double timeout_s, const std::string& what, const std::string& who) {
   using Clock = std::chrono::steady_clock;
   const auto seconds = [](double s) { return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s)); };
   std::atomic<long> received{0};
@@ -448,25 +477,24 @@ int runWatch(int argc, char** argv) {
         quiet_since = now;
         continue;
       }
-      if (*timeout_s > 0.0 && now - quiet_since >= seconds(*timeout_s)) {
+      if (timeout_s > 0.0 && now - quiet_since >= seconds(timeout_s)) {
         gave_up = true;
         break;
       }
-      if (now - quiet_since >= seconds(*idle_s * static_cast<double>(idle_periods + 1))) {
+      if (now - quiet_since >= seconds(idle_s * static_cast<double>(idle_periods + 1))) {
         ++idle_periods;
-        std::fprintf(stderr, "fogctl: no global map from the root at %s for %g s\n", target.c_str(),
-                     *idle_s * static_cast<double>(idle_periods));
+        std::fprintf(stderr, "fogctl: no %s from %s for %g s\n", what.c_str(), who.c_str(), idle_s * static_cast<double>(idle_periods));
       }
     }
     context.TryCancel();
   });
 
-  v1::GlobalMap message;
+  Message message;
   bool counted_out = false;
-  while (reader->Read(&message)) {
-    printGlobalMap(message, *shown);
+  while (reader.Read(&message)) {
+    print(message);
     ++received;
-    if (*count > 0 && received.load() >= *count) {
+    if (count > 0 && received.load() >= count) {
       counted_out = true;
       break;
     }
@@ -477,15 +505,58 @@ int runWatch(int argc, char** argv) {
   }
   finished_cv.notify_all();
   watchdog.join();
-  const grpc::Status status = reader->Finish();
+  const grpc::Status status = reader.Finish();
   if (counted_out || stopRequested()) return 0;
   if (gave_up) {
-    std::fprintf(stderr, "fogctl: no global map from the root at %s for %g s; giving up\n", target.c_str(), *timeout_s);
+    std::fprintf(stderr, "fogctl: no %s from %s for %g s; giving up\n", what.c_str(), who.c_str(), timeout_s);
     return 1;
   }
   const std::string why = status.ok() ? "it ended the stream" : status.error_message();
-  std::fprintf(stderr, "fogctl: lost the root at %s: %s\n", target.c_str(), why.empty() ? "the stream failed" : why.c_str());
+  std::fprintf(stderr, "fogctl: lost %s: %s\n", who.c_str(), why.empty() ? "the stream failed" : why.c_str());
   return 1;
+}
+
+}  // namespace
+
+int runWatch(int argc, char** argv) {
+  const auto args = Args::parse(argc, argv, 2, {"target", "count", "objects", "idle-s", "timeout-s", "identity", "cert", "key", "ca"},
+                                {"tracks"});
+  if (!args) return fail(args.error());
+  const bool tracks = args->has("tracks");
+  const auto connection = rootConnection(
+      *args, "fogctl watch TOPOLOGY.yaml | --target HOST:PORT [--tracks] [--count N] [--objects 10] [--idle-s 10] [--timeout-s 0]",
+      tracks ? Role::kTracker : Role::kAggregator);
+  if (!connection) return fail(connection.error());
+  const std::string target = connection->target;
+  const auto count = args->getInt("count", 0);
+  const auto shown = args->getInt("objects", 10);
+  if (!count || *count < 0 || !shown || *shown < 0) return fail(invalidArgument("--count and --objects must be non-negative"));
+  const auto idle_s = args->getDouble("idle-s", 10.0);
+  if (!idle_s || !(*idle_s > 0.0)) return fail(invalidArgument("--idle-s must be a positive number of seconds"));
+  const auto timeout_s = args->getDouble("timeout-s", 0.0);
+  if (!timeout_s || *timeout_s < 0.0) return fail(invalidArgument("--timeout-s must be a non-negative number of seconds"));
+  installStopHandlers();
+  const std::string who = std::string(tracks ? "the tracker" : "the root") + " at " + target;
+  auto channel = makeChannel(target, connection->credentials, 64U << 20);
+  if (const std::string problem = connect(*channel, *timeout_s > 0.0 ? *timeout_s : kConnectTimeoutS); !problem.empty()) {
+    if (stopRequested()) return 0;
+    std::fprintf(stderr, "fogctl: cannot reach %s: %s (is the cluster up?)\n", who.c_str(), problem.c_str());
+    return 1;
+  }
+  grpc::ClientContext context;
+  if (tracks) {
+    auto stub = v1::TrackerService::NewStub(channel);
+    v1::TrackSubscribeRequest request;
+    auto reader = stub->Subscribe(&context, request);
+    return follow<v1::TrackList>(context, *reader, printTrackList, *count, *idle_s, *timeout_s, "tracks", who);
+  }
+  auto stub = v1::GlobalMapService::NewStub(channel);
+  v1::SubscribeRequest request;
+  auto reader = stub->Subscribe(&context, request);
+  const long objects = *shown;
+  return follow<v1::GlobalMap>(
+      context, *reader, [objects](const v1::GlobalMap& m) { printGlobalMap(m, objects); }, *count, *idle_s, *timeout_s,
+      "global map", who);
 }
 
 int runGeofence(int argc, char** argv) {

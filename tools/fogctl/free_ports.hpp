@@ -46,12 +46,12 @@ inline std::vector<std::uint16_t> freePorts(std::size_t count) {
   return ports;
 }
 
-// Gives every node of the topology a free gRPC port (aggregators) and metrics port.
+// Gives every node of the topology a free gRPC port (aggregators, trackers) and metrics port.
 inline void useFreePorts(TopologyConfig& topology) {
   const auto ports = freePorts(2 * topology.nodes.size());
   std::size_t next = 0;
   for (auto& node : topology.nodes) {
-    if (node.role == Role::kAggregator) node.port = ports[next];
+    if (node.role == Role::kAggregator || node.role == Role::kTracker) node.port = ports[next];
     ++next;
     node.metrics_port = ports[next++];
   }

@@ -281,24 +281,27 @@ Expected<Cluster> startCluster(const std::filesystem::path& topology_file, const
   std::error_code ec;
   std::filesystem::create_directories(state_dir / "logs", ec);
   if (ec) return ioError("cannot create " + (state_dir / "logs").string() + ": " + ec.message());
+  // Servers (aggregators, trackers) before their clients (edges, cameras).
+  const auto serves = [](const NodeConfig* n) { return n->role == Role::kAggregator || n->role == Role::kTracker; };
   std::vector<const NodeConfig*> order;
   for (const auto& n : topology.nodes) {
-    if (n.role == Role::kAggregator) order.push_back(&n);
+    if (serves(&n)) order.push_back(&n);
   }
   for (const auto& n : topology.nodes) {
-    if (n.role == Role::kEdge) order.push_back(&n);
+    if (!serves(&n)) order.push_back(&n);
   }
   if (!options.journal_dir.empty()) {
     std::filesystem::create_directories(options.journal_dir, ec);
     if (ec) return ioError("cannot create " + options.journal_dir.string() + ": " + ec.message());
   }
   std::ofstream pids(state_dir / "pids");
-  // Aggregators first, ready (they listen before /metrics answers), then the edges: an edge then
+  // Aggregators and trackers first, ready (they listen before /metrics answers), then the edges and
+  // cameras: an edge then
   // reaches its parent at once instead of backing off, and whoever watches the root (the
   // aggregators_ready hook) is subscribed before the first map can come.
   // Ready = every service answers on /metrics (servers listen before metrics start).
   const auto deadline = std::chrono::steady_clock::now() + timeout;
-  const auto first_edge = std::find_if(order.begin(), order.end(), [](const NodeConfig* n) { return n->role == Role::kEdge; });
+  const auto first_edge = std::find_if(order.begin(), order.end(), [&](const NodeConfig* n) { return !serves(n); });
   for (const auto& [from, to] : {std::pair{order.begin(), first_edge}, std::pair{first_edge, order.end()}}) {
     for (auto n = from; n != to; ++n) {
       auto started = spawnNode(cluster, **n, options, /*append=*/false);

@@ -1,0 +1,56 @@
+#pragma once
+// What the tracker takes and gives, as plain types: LiDAR observations, camera detection frames and
+// tracks (common/tracking/tracker.hpp fuses them; services/common/proto_convert carries them).
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/camera/detection.hpp"
+
+namespace fogmap::tracking {
+
+// A LiDAR observation: a displacement centroid or a global-map object, in the common frame.
+struct CloudObservation {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity() * 0.01;  // m^2
+};
+
+// Every observation of one LiDAR frame (or one global map), with the sensor's timestamp and where
+// the sensor is (the overlay keeps the overlaid observation nearest to it).
+struct CloudFrame {
+  std::int64_t time_ns = 0;
+  Eigen::Vector3d sensor_position = Eigen::Vector3d::Zero();
+  std::vector<CloudObservation> observations;
+};
+
+// Every detection of one camera image, with the image's capture time.
+struct DetectionFrame {
+  std::string camera;
+  std::int64_t capture_time_ns = 0;
+  std::vector<camera::Detection> detections;
+};
+
+enum class TrackState { kTentative, kConfirmed, kLost };
+const char* trackStateName(TrackState state);
+
+inline constexpr const char* kUnknownLabel = "unknown";
+
+struct Track {
+  std::uint64_t id = 0;
+  std::string label = kUnknownLabel;
+  TrackState state = TrackState::kTentative;
+  Eigen::Vector2d position = Eigen::Vector2d::Zero();  // ground plane, m
+  Eigen::Vector2d velocity = Eigen::Vector2d::Zero();  // m/s (0 under the paper's association)
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Zero();  // of the position, m^2
+  std::int64_t created_ns = 0;
+  std::int64_t last_update_ns = 0;
+  bool camera_confirmed = false;  // a camera detection was fused into it at least once
+  int consecutive_hits = 0;
+};
+
+
+
+// What one step did: the counters the service exports.
+}  // namespace fogmap::tracking

@@ -1,0 +1,197 @@
+#include "services/detection/detection_runner.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <deque>
+#include <set>
+#include <thread>
+#include <utility>
+
+namespace fogmap {
+namespace {
+
+// Upper bound of one wait for a queued frame, so a stop is seen this soon even without a frame.
+constexpr std::chrono::milliseconds kPopSlice{100};
+
+// The unix time frame `n` of a camera at `rate_hz` is due: n / rate_hz, in long double so that
+// frame numbers since the epoch (about 1.7e10 at 10 Hz) keep their nanoseconds.
+std::int64_t frameTimeNs(std::uint64_t n, double rate_hz) {
+  return static_cast<std::int64_t>(std::llround(static_cast<long double>(n) * 1e9L / rate_hz));
+}
+
+// The frame current at `now_ns`: the last one due at or before it.
+std::uint64_t frameAt(std::int64_t now_ns, double rate_hz) {
+  if (now_ns <= 0) return 0;
+  const auto n = static_cast<std::uint64_t>(std::floor(static_cast<long double>(now_ns) * rate_hz / 1e9L));
+  // Rounding of the product can put n one past the frame whose time is <= now.
+  return frameTimeNs(n, rate_hz) > now_ns && n > 0 ? n - 1 : n;
+}
+
+}  // namespace
+
+DetectionRunner::DetectionRunner(std::string camera, FrameSource& source, camera::Detector& detector,
+                                 std::size_t queue_frames, DetectionRunnerHooks hooks)
+    : camera_(std::move(camera)),
+      source_(&source),
+      detector_(&detector),
+      hooks_(std::move(hooks)),
+      queue_(camera::FrameQueueConfig{queue_frames}) {}
+
+DetectionRunner::DetectionRunner(TruthCamera& truth, const ReplayConfig& replay, DetectionRunnerHooks hooks)
+    : truth_(&truth), replay_(replay), hooks_(std::move(hooks)), queue_(camera::FrameQueueConfig{1}) {}
+
+void DetectionRunner::log(const std::string& line) const {
+  if (hooks_.log) hooks_.log(line);
+}
+
+bool DetectionRunner::stopping() const {
+  return stop_.load() || (hooks_.stop_requested && hooks_.stop_requested());
+}
+
+void DetectionRunner::stop() {
+  stop_.store(true);
+  queue_.close();
+}
+
+void DetectionRunner::run() {
+  if (truth_ != nullptr) {
+    replayTruth();
+    return;
+  }
+  std::thread reader([this] { readFrames(); });
+  detectFrames();
+  // The detector ends only when the reader closed the queue, or on a stop the reader sees too.
+  reader.join();
+}
+
+void DetectionRunner::readFrames() {
+  std::set<std::string> reported;  // each unreadable file is logged once, counted every time
+  const std::int64_t start_ns = hooks_.now();
+  while (!stopping()) {
+    SourceFrame frame = source_->next();
+    if (frame.outcome == FrameOutcome::kDone) break;
+    if (frame.outcome == FrameOutcome::kUnreadable) {
+      frames_unreadable_.fetch_add(1);
+      if (hooks_.observer != nullptr) hooks_.observer->frameUnreadable();
+      if (reported.insert(frame.origin).second) log("skipping an unreadable frame: " + frame.problem);
+      continue;
+    }
+    std::int64_t capture_ns = 0;
+    if (frame.due_ns) {
+      capture_ns = start_ns + *frame.due_ns;
+      if (!hooks_.wait_until(capture_ns)) break;
+    } else {
+      capture_ns = frame.capture_time_ns ? *frame.capture_time_ns : hooks_.now();
+    }
+    if (stopping()) break;
+    // The reader is the only pusher, so the change of the total is this push's drop.
+    const std::uint64_t dropped_before = queue_.dropped();
+    if (!queue_.push({std::move(frame.image_bgr), camera_, capture_ns})) break;
+    const std::uint64_t dropped = queue_.dropped() - dropped_before;
+    frames_read_.fetch_add(1);
+    if (hooks_.observer != nullptr) hooks_.observer->frameRead();
+    if (dropped > 0) {
+      frames_dropped_.fetch_add(dropped);
+      if (hooks_.observer != nullptr) hooks_.observer->framesDropped(dropped);
+    }
+  }
+  queue_.close();
+}
+
+void DetectionRunner::detectFrames() {
+  std::set<std::string> reported;
+  while (!stopping()) {
+    std::optional<camera::CameraFrame> frame = queue_.pop(kPopSlice);
+    if (!frame) {
+      if (queue_.closed() && queue_.size() == 0) break;
+      continue;
+    }
+    const std::int64_t started = hooks_.now();
+    Expected<std::vector<camera::Detection>> detections =
+        detector_->detect(frame->image_bgr, camera_, frame->capture_time_ns);
+    const std::int64_t took_ns = hooks_.now() - started;
+    const double seconds = static_cast<double>(took_ns) * 1e-9;
+    detect_ns_.fetch_add(took_ns);
+    if (!detections) {
+      detect_failures_.fetch_add(1);
+      if (reported.insert(detections.error().message).second) {
+        log("the detector refused a frame: " + detections.error().message);
+      }
+      continue;
+    }
+    if (stopping()) break;
+    deliver({camera_, frame->capture_time_ns, std::move(*detections)}, seconds);
+  }
+}
+
+void DetectionRunner::deliver(tracking::DetectionFrame frame, double seconds) {
+  frames_detected_.fetch_add(1);
+  detections_.fetch_add(frame.detections.size());
+  if (hooks_.observer != nullptr) hooks_.observer->frameDetected(frame.detections.size(), seconds);
+  if (hooks_.deliver) hooks_.deliver(std::move(frame));
+}
+
+void DetectionRunner::replayTruth() {
+  struct Pending {
+    std::int64_t arrival_ns = 0;
+    tracking::DetectionFrame frame;
+    double seconds = 0.0;
+  };
+  const double rate_hz = truth_->rateHz();
+  const std::int64_t latency_ns = truth_->latencyNs();
+  std::optional<std::uint64_t> limit = replay_.frames;
+  if (!limit && !replay_.loop) limit = truth_->framesPerPass();
+
+  std::set<std::string> reported;
+  std::deque<Pending> pending;  // in arrival order: the latency is the same for every frame
+  std::uint64_t n = frameAt(hooks_.now(), rate_hz) + 1;
+  std::uint64_t produced = 0;
+  for (;;) {
+    const bool more = !stopping() && (!limit || produced < *limit);
+    if (!more && pending.empty()) break;
+    const std::int64_t capture_ns = frameTimeNs(n, rate_hz);
+    if (!pending.empty() && (!more || pending.front().arrival_ns <= capture_ns)) {
+      if (!hooks_.wait_until(pending.front().arrival_ns) || stopping()) break;
+      deliver(std::move(pending.front().frame), pending.front().seconds);
+      pending.pop_front();
+      continue;
+    }
+    if (!hooks_.wait_until(capture_ns) || stopping()) break;
+    const std::int64_t started = hooks_.now();
+    Expected<tracking::DetectionFrame> frame = truth_->frame(n, capture_ns);
+    const std::int64_t finished = hooks_.now();
+    detect_ns_.fetch_add(finished - started);
+    ++produced;
+    // After a stall, go on with the frame current now instead of a burst of stale ones.
+    const std::uint64_t current = frameAt(finished, rate_hz);
+    const std::uint64_t next = std::max(n + 1, current);
+    if (next > n + 1) {
+      frames_dropped_.fetch_add(next - n - 1);
+      if (hooks_.observer != nullptr) hooks_.observer->framesDropped(next - n - 1);
+    }
+    n = next;
+    if (!frame) {
+      detect_failures_.fetch_add(1);
+      if (reported.insert(frame.error().message).second) log("truth replay failed: " + frame.error().message);
+      continue;
+    }
+    frames_read_.fetch_add(1);
+    if (hooks_.observer != nullptr) hooks_.observer->frameRead();
+    pending.push_back({capture_ns + latency_ns, std::move(*frame), static_cast<double>(finished - started) * 1e-9});
+  }
+}
+
+DetectionRunnerStats DetectionRunner::stats() const {
+  DetectionRunnerStats s;
+  s.frames_read = frames_read_.load();
+  s.frames_dropped = frames_dropped_.load();
+  s.frames_unreadable = frames_unreadable_.load();
+  s.frames_detected = frames_detected_.load();
+  s.detections = detections_.load();
+  s.detect_failures = detect_failures_.load();
+  s.detect_seconds = static_cast<double>(detect_ns_.load()) * 1e-9;
+  return s;
+}
+
+}  // namespace fogmap

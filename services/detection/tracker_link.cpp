@@ -1,0 +1,254 @@
+#include "services/detection/tracker_link.hpp"
+
+#include <algorithm>
+#include <condition_variable>
+#include <deque>
+#include <mutex>
+#include <optional>
+#include <utility>
+#include <vector>
+
+#include <grpcpp/grpcpp.h>
+
+#include "fogmap/v1/fogmap.grpc.pb.h"
+#include "services/common/grpc_options.hpp"
+#include "services/common/proto_convert.hpp"
+
+namespace fogmap {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using Writer = grpc::ClientWriter<v1::DetectionFrame>;
+
+// Upper bound of every blocking wait, so that a stop request is seen within this long even when a
+// notification is missed.
+constexpr std::chrono::milliseconds kPollSlice{100};
+// How long the destructor lets the tracker answer a half-closed stream before cancelling it.
+constexpr std::chrono::milliseconds kCloseGrace{500};
+
+std::string describeEnd(const grpc::Status& status, const v1::DetectionSummary& summary) {
+  if (!status.ok()) {
+    return "the stream to the tracker ended: " + fromGrpcStatus(status, "PushDetections").message;
+  }
+  std::string why = "the tracker received " + std::to_string(summary.received()) + " frame(s), refused " +
+                    std::to_string(summary.refused());
+  if (!summary.last_refusal().empty()) why += " (last: " + summary.last_refusal() + ")";
+  return why;
+}
+
+}  // namespace
+
+struct TrackerLink::State {
+  struct Drop {
+    std::uint64_t total = 0;
+    bool first_of_burst = false;
+  };
+
+  TrackerLinkConfig config;
+  TrackerLinkHooks hooks;
+  std::shared_ptr<grpc::Channel> channel;
+  std::unique_ptr<v1::TrackerService::Stub> stub;
+
+  mutable std::mutex mu;
+  std::condition_variable cv;  // any change: a new frame, a write, a broken stream, a stop, the end
+  std::deque<std::shared_ptr<const v1::DetectionFrame>> queue;
+  std::uint64_t sent = 0;
+  std::uint64_t dropped = 0;
+  bool drop_burst = false;
+  bool writing = false;
+  bool connected = false;
+  bool stopping = false;
+  bool finished = false;  // the stream thread has returned
+  std::shared_ptr<grpc::ClientContext> context;  // the current stream's, for TryCancel
+
+  State(TrackerLinkConfig c, TrackerLinkHooks h)
+      : config(std::move(c)),
+        hooks(std::move(h)),
+        channel(config.credentials
+                    ? makeChannel(config.target, config.credentials, config.max_message_bytes, config.keepalive)
+                    : makeChannel(config.target, config.max_message_bytes, config.keepalive)),
+        stub(v1::TrackerService::NewStub(channel)) {
+    config.queue_frames = std::max<std::size_t>(1, config.queue_frames);
+  }
+
+  // Counts a drop; under the lock.
+  Drop noteDrop() {
+    const Drop drop{++dropped, !drop_burst};
+    drop_burst = true;
+    return drop;
+  }
+
+  void reportDrops(const std::vector<Drop>& drops) const {
+    if (!hooks.on_dropped) return;
+    for (const Drop& d : drops) hooks.on_dropped(d.total, d.first_of_burst);
+  }
+
+  bool stopRequested() const {
+    std::lock_guard lock(mu);
+    return stopping;
+  }
+
+  // Waits until the backoff has passed or a stop is requested; true when stopping.
+  bool sleepFor(std::chrono::milliseconds d) {
+    std::unique_lock lock(mu);
+    return cv.wait_for(lock, d, [&] { return stopping; });
+  }
+
+  // In short slices, so that the destructor never waits on a tracker that is down.
+  bool waitConnected() {
+    while (!stopRequested()) {
+      if (channel->WaitForConnected(std::chrono::system_clock::now() + kPollSlice)) return true;
+    }
+    return false;
+  }
+
+  // Writes queued frames, oldest first, until a write fails or a stop is requested; true when it
+  // wrote at least one.
+  bool writeFrames(Writer& writer) {
+    bool wrote = false;
+    for (;;) {
+      std::shared_ptr<const v1::DetectionFrame> next;
+      {
+        std::unique_lock lock(mu);
+        cv.wait_for(lock, kPollSlice, [&] { return stopping || !queue.empty(); });
+        if (stopping) return wrote;
+        if (queue.empty()) continue;
+        // Taken out of the queue: a frame is written once or dropped, never both.
+        next = std::move(queue.front());
+        queue.pop_front();
+        writing = true;
+      }
+      const std::size_t bytes = next->ByteSizeLong();
+      // Blocks under flow control; TryCancel (destructor) unblocks it.
+      const bool written = writer.Write(*next);
+      std::vector<Drop> drops;
+      {
+        std::lock_guard lock(mu);
+        if (written) {
+          ++sent;
+          drop_burst = false;
+        } else {
+          drops.push_back(noteDrop());
+        }
+      }
+      // The hooks run before the frame stops counting as in progress, so a flush() that returned
+      // has seen them.
+      if (written && hooks.on_sent) hooks.on_sent(bytes);
+      reportDrops(drops);
+      {
+        std::lock_guard lock(mu);
+        writing = false;
+      }
+      cv.notify_all();
+      if (!written) return wrote;
+      wrote = true;
+    }
+  }
+
+  void run() {
+    auto backoff = config.backoff_initial;
+    bool had_stream = false;
+    while (waitConnected()) {
+      auto context = std::make_shared<grpc::ClientContext>();
+      {
+        std::lock_guard lock(mu);
+        if (stopping) break;
+        this->context = context;
+      }
+      v1::DetectionSummary summary;
+      // No deadline: the stream lives as long as the link; keepalive detects a dead tracker.
+      std::unique_ptr<Writer> writer = stub->PushDetections(context.get(), &summary);
+      const auto opened = Clock::now();
+      {
+        std::lock_guard lock(mu);
+        connected = true;
+      }
+      if (had_stream && hooks.on_reconnect) hooks.on_reconnect();
+      had_stream = true;
+
+      const bool wrote = writeFrames(*writer);
+      // A stop half-closes the stream so the tracker ends it cleanly and answers; a failed write
+      // means the call is over already.
+      if (stopRequested()) writer->WritesDone();
+      const grpc::Status status = writer->Finish();
+      {
+        std::lock_guard lock(mu);
+        connected = false;
+        this->context.reset();
+      }
+      if (hooks.on_stream_ended) hooks.on_stream_ended(describeEnd(status, summary));
+
+      // A tracker that accepts streams and fails them at once must not be hammered; one that
+      // took frames a while gets a quick reconnect.
+      if (wrote || Clock::now() - opened >= config.backoff_max) backoff = config.backoff_initial;
+      if (sleepFor(backoff)) break;
+      backoff = std::min(backoff * 2, config.backoff_max);
+    }
+    {
+      std::lock_guard lock(mu);
+      finished = true;
+    }
+    cv.notify_all();
+  }
+};
+
+TrackerLink::TrackerLink(TrackerLinkConfig config, TrackerLinkHooks hooks)
+    : state_(std::make_unique<State>(std::move(config), std::move(hooks))) {
+  thread_ = std::thread([state = state_.get()] { state->run(); });
+}
+
+TrackerLink::~TrackerLink() {
+  {
+    std::unique_lock lock(state_->mu);
+    state_->stopping = true;
+    state_->cv.notify_all();
+    // The tracker gets a moment to answer the half-close; then the stream is cancelled, which
+    // also ends a write blocked under flow control.
+    if (!state_->cv.wait_for(lock, kCloseGrace, [&] { return state_->finished; }) && state_->context) {
+      state_->context->TryCancel();
+    }
+  }
+  thread_.join();
+}
+
+void TrackerLink::send(const tracking::DetectionFrame& frame) {
+  auto message = std::make_shared<const v1::DetectionFrame>(toProto(frame));
+  std::vector<State::Drop> drops;
+  {
+    std::lock_guard lock(state_->mu);
+    state_->queue.push_back(std::move(message));
+    while (state_->queue.size() > state_->config.queue_frames) {
+      state_->queue.pop_front();
+      drops.push_back(state_->noteDrop());
+    }
+  }
+  state_->cv.notify_all();
+  state_->reportDrops(drops);
+}
+
+bool TrackerLink::flush(std::chrono::milliseconds timeout) {
+  std::unique_lock lock(state_->mu);
+  return state_->cv.wait_for(lock, timeout, [&] { return state_->queue.empty() && !state_->writing; });
+}
+
+std::uint64_t TrackerLink::sent() const {
+  std::lock_guard lock(state_->mu);
+  return state_->sent;
+}
+
+std::uint64_t TrackerLink::dropped() const {
+  std::lock_guard lock(state_->mu);
+  return state_->dropped;
+}
+
+std::size_t TrackerLink::queued() const {
+  std::lock_guard lock(state_->mu);
+  return state_->queue.size();
+}
+
+bool TrackerLink::connected() const {
+  std::lock_guard lock(state_->mu);
+  return state_->connected;
+}
+
+}  // namespace fogmap

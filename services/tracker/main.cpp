@@ -1,0 +1,191 @@
+// tracker: the composition root. Reads the topology, builds the tracker core, its adapter, the
+// feed of the root's global maps and the metrics, and runs until SIGINT or SIGTERM.
+//   tracker --topology FILE --node NAME
+#include <pthread.h>
+#include <signal.h>
+
+#include <atomic>
+#include <chrono>
+#include <thread>
+#include <cstdlib>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <grpcpp/grpcpp.h>
+
+#include "common/certs.hpp"
+#include "common/topology.hpp"
+#include "services/common/grpc_options.hpp"
+#include "services/common/metrics.hpp"
+#include "services/tracker/global_map_feed.hpp"
+#include "services/tracker/tracker_metrics.hpp"
+#include "services/tracker/tracker_node.hpp"
+#include "services/tracker/tracker_service.hpp"
+
+namespace {
+
+using namespace std::chrono_literals;
+
+constexpr int kBadConfig = 2;
+constexpr int kRuntimeFailure = 1;
+constexpr auto kSubscriberDrain = 500ms;
+constexpr auto kCallGrace = 500ms;
+constexpr auto kTick = 10ms;
+
+struct Args {
+  std::string topology;
+  std::string node;
+};
+
+void usage(std::ostream& out) {
+  out << "usage: tracker --topology FILE --node NAME\n"
+         "Fuses the root's global maps with the detections of the tracker's cameras (the detection nodes\n"
+         "whose parent it is) into tracks, served on TrackerService.Subscribe; settings in the node's\n"
+         "tracker: section (association paper|kalman, eps_sync_s, thresholds, track life cycle).\n";
+}
+
+std::optional<Args> parseArgs(int argc, char** argv) {
+  Args args;
+  for (int i = 1; i < argc; ++i) {
+    const std::string_view arg = argv[i];
+    if (arg == "-h" || arg == "--help") {
+      usage(std::cout);
+      std::exit(EXIT_SUCCESS);
+    }
+    if ((arg == "--topology" || arg == "--node") && i + 1 < argc) {
+      (arg == "--topology" ? args.topology : args.node) = argv[++i];
+    } else {
+      std::cerr << "tracker: unexpected argument '" << arg << "'\n";
+      return std::nullopt;
+    }
+  }
+  if (args.topology.empty() || args.node.empty()) {
+    std::cerr << "tracker: --topology and --node are required\n";
+    return std::nullopt;
+  }
+  return args;
+}
+
+int run(const Args& args, const sigset_t& stop_signals) {
+  using namespace fogmap;
+  const auto topology = loadTopology(args.topology);
+  if (!topology) {
+    std::cerr << "tracker: " << topology.error().message << "\n";
+    return kBadConfig;
+  }
+  const NodeConfig* self = topology->find(args.node);
+  if (self == nullptr || self->role != Role::kTracker) {
+    std::cerr << "tracker: " << args.topology << " has no tracker named '" << args.node << "'\n";
+    return kBadConfig;
+  }
+  const auto tls = loadTls(*topology, self->name, std::chrono::system_clock::now());
+  if (!tls) {
+    std::cerr << "tracker " << self->name << ": tls: " << tls.error().message << "\n";
+    return kBadConfig;
+  }
+  std::vector<camera::PinholeCamera> cameras;
+  std::vector<std::string> camera_names;
+  for (const NodeConfig* c : topology->camerasOf(self->name)) {
+    cameras.push_back(c->camera->calibration);
+    camera_names.push_back(c->name);
+  }
+  auto tracker = tracking::Tracker::create(self->tracker->tracking, cameras);
+  if (!tracker) {
+    std::cerr << "tracker " << self->name << ": " << tracker.error().message << "\n";
+    return kBadConfig;
+  }
+
+  Metrics metrics(self->host + ":" + std::to_string(self->metrics_port), serviceName(Role::kTracker), self->name);
+  metrics.periodSeconds(topology->period_ms / 1000.0);
+  TrackerMetrics tracker_metrics(metrics, self->name, camera_names);
+
+  std::unique_ptr<TrackerService> service;
+  TrackerNode node(std::move(*tracker), topology->madc.alpha, systemNowNs,
+                   [&service, &tracker_metrics](const TrackSnapshot& snapshot, const FusionReport& report) {
+                     tracker_metrics.fused(report);
+                     service->publish(snapshot);
+                   });
+  TrackerServiceHooks hooks;
+  hooks.on_detections = [&metrics](const std::string& camera, std::size_t bytes) { metrics.bytesReceived(camera, "detections", bytes); };
+  hooks.on_refused = [&tracker_metrics, name = self->name](const std::string& why) {
+    tracker_metrics.refused();
+    std::cerr << "tracker " << name << ": refused a detection frame: " << why << "\n";
+  };
+  hooks.on_subscriber_drops = [&metrics](std::uint64_t n) { metrics.subscriberDrops(n); };
+  service = std::make_unique<TrackerService>(node, camera_names, tls->has_value(), std::move(hooks));
+
+  grpc::ServerBuilder builder;
+  configureServer(builder, topology->max_message_bytes);
+  int bound_port = 0;
+  const std::string address = self->host + ":" + std::to_string(self->port);
+  builder.AddListeningPort(address, serverCredentials(*tls), &bound_port);
+  builder.RegisterService(service.get());
+  const std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
+  if (!server || bound_port == 0) {
+    std::cerr << "tracker: cannot listen on " << address << "\n";
+    return kRuntimeFailure;
+  }
+
+  const NodeConfig* root = topology->root();
+  const std::string root_name = root->name;
+  GlobalMapFeedHooks feed_hooks;
+  feed_hooks.on_map = [&](const GlobalMapMessage& global, std::size_t bytes) {
+    metrics.bytesReceived(root_name, "global_map", bytes);
+    node.addGlobalMap(global);
+  };
+  feed_hooks.on_malformed = [&metrics, name = self->name](const std::string& why) {
+    metrics.malformed("global_map");
+    std::cerr << "tracker " << name << ": malformed global map: " << why << "\n";
+  };
+  feed_hooks.on_reconnect = [&metrics] { metrics.reconnects(); };
+  GlobalMapFeed feed(makeChannel(root->host + ":" + std::to_string(root->port), channelCredentials(*tls), topology->max_message_bytes),
+                     std::move(feed_hooks));
+  // LiDAR frames waiting for late detections are fused when their wait ends, even if nothing
+  // else arrives (a camera that stopped).
+  std::atomic<bool> stopping{false};
+  std::thread ticker([&] {
+    while (!stopping.load()) {
+      node.tick();
+      std::this_thread::sleep_for(kTick);
+    }
+  });
+  std::cerr << "ready" << std::endl;
+
+  int signal = 0;
+  sigwait(&stop_signals, &signal);
+  const auto signalled = std::chrono::steady_clock::now();
+  stopping = true;
+  ticker.join();
+  feed.stop();
+  service->shutdown(kSubscriberDrain);
+  server->Shutdown(std::chrono::system_clock::now() + kCallGrace);
+  server->Wait();
+  const auto took = std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - signalled);
+  std::cerr << "tracker " << self->name << ": stopped " << took.count() << " ms after the signal\n";
+  return EXIT_SUCCESS;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  sigset_t stop_signals;
+  sigemptyset(&stop_signals);
+  sigaddset(&stop_signals, SIGINT);
+  sigaddset(&stop_signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+  const auto args = parseArgs(argc, argv);
+  if (!args) {
+    usage(std::cerr);
+    return kBadConfig;
+  }
+  try {
+    return run(*args, stop_signals);
+  } catch (const std::exception& e) {
+    std::cerr << "tracker: " << e.what() << "\n";
+    return kRuntimeFailure;
+  }
+}

@@ -1,0 +1,78 @@
+#include "services/tracker/tracker_metrics.hpp"
+
+#include <prometheus/registry.h>
+
+#include "common/topology.hpp"
+
+namespace fogmap {
+
+namespace {
+
+void addDelta(prometheus::Counter& counter, std::uint64_t now, std::uint64_t before) {
+  if (now > before) counter.Increment(static_cast<double>(now - before));
+}
+
+}  // namespace
+
+TrackerMetrics::TrackerMetrics(Metrics& metrics, const std::string& node, const std::vector<std::string>& cameras)
+    : metrics_(metrics) {
+  prometheus::Registry& r = metrics.registry();
+  const prometheus::Labels c{{"service", serviceName(Role::kTracker)}, {"node", node}};
+  tracks_ = &prometheus::BuildGauge().Name("fogmap_tracks").Help("Tracks by state (tentative, confirmed, lost).").Labels(c).Register(r);
+  for (const char* state : {"tentative", "confirmed", "lost"}) tracks_->Add({{"state", state}});
+  created_ = &prometheus::BuildCounter().Name("fogmap_tracks_created_total").Help("Tracks created.").Labels(c).Register(r).Add({});
+  deleted_ = &prometheus::BuildCounter()
+                  .Name("fogmap_tracks_deleted_total")
+                  .Help("Tracks deleted after going unobserved too long.")
+                  .Labels(c)
+                  .Register(r)
+                  .Add({});
+  updates_ = &prometheus::BuildCounter()
+                  .Name("fogmap_track_updates_total")
+                  .Help("Track updates by kind: overlay (a camera detection fused with LiDAR) or cloud_only (LiDAR alone).")
+                  .Labels(c)
+                  .Register(r);
+  for (const char* kind : {"overlay", "cloud_only"}) updates_->Add({{"kind", kind}});
+  dropped_ = &prometheus::BuildCounter()
+                  .Name("fogmap_detection_frames_dropped_total")
+                  .Help("Detection frames never fused, by reason: stale (older than eps_sync before every LiDAR frame "
+                        "still to come), overflow (beyond the per-camera buffer), refused (malformed, unknown camera, "
+                        "another camera's identity).")
+                  .Labels(c)
+                  .Register(r);
+  for (const char* reason : {"stale", "overflow", "refused"}) dropped_->Add({{"reason", reason}});
+  staleness_ = &prometheus::BuildGauge()
+                    .Name("fogmap_camera_staleness_seconds")
+                    .Help("Seconds since the camera's newest capture, at the latest fusion step (a camera that stopped grows).")
+                    .Labels(c)
+                    .Register(r);
+  for (const auto& camera : cameras) staleness_->Add({{"camera", camera}});
+  fusion_seconds_ = &prometheus::BuildHistogram()
+                         .Name("fogmap_fusion_seconds")
+                         .Help("Time of one fusion step: synchronise, associate, update, spawn, prune.")
+                         .Labels(c)
+                         .Register(r)
+                         .Add({}, prometheus::Histogram::BucketBoundaries{1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 0.1});
+}
+
+void TrackerMetrics::fused(const FusionReport& report) {
+  const auto& counters = report.counters;
+  fusion_seconds_->Observe(report.fusion_seconds);
+  metrics_.endToEndSeconds(report.end_to_end_seconds);
+  for (std::size_t i = 0; i < report.steps.size(); ++i) metrics_.framesProcessed();
+  addDelta(*created_, counters.tracks_created, last_.tracks_created);
+  addDelta(*deleted_, counters.tracks_deleted, last_.tracks_deleted);
+  addDelta(updates_->Add({{"kind", "overlay"}}), counters.updates_overlay, last_.updates_overlay);
+  addDelta(updates_->Add({{"kind", "cloud_only"}}), counters.updates_cloud_only, last_.updates_cloud_only);
+  addDelta(dropped_->Add({{"reason", "stale"}}), counters.detection_frames_stale, last_.detection_frames_stale);
+  addDelta(dropped_->Add({{"reason", "overflow"}}), counters.detection_frames_overflow, last_.detection_frames_overflow);
+  last_ = counters;
+  std::map<std::string, double> by_state{{"tentative", 0.0}, {"confirmed", 0.0}, {"lost", 0.0}};
+  for (const auto& t : report.tracks) by_state[tracking::trackStateName(t.state)] += 1.0;
+  for (const auto& [state, n] : by_state) tracks_->Add({{"state", state}}).Set(n);
+  for (const auto& [camera, seconds] : report.camera_staleness_s) staleness_->Add({{"camera", camera}}).Set(seconds);
+}
+
+void TrackerMetrics::refused() { dropped_->Add({{"reason", "refused"}}).Increment(); }
+
+}  // namespace fogmap

@@ -1,0 +1,43 @@
+#pragma once
+// The tracker's observations as Prometheus metrics, beside the shared ones (bytes, end-to-end
+// latency, reconnects): tracks by state, tracks created and deleted, updates by kind (a camera's
+// detection fused with LiDAR, or LiDAR alone), detection frames dropped by reason, per-camera
+// staleness and the fusion step's time.
+#include <map>
+#include <string>
+#include <vector>
+
+#include <prometheus/counter.h>
+#include <prometheus/gauge.h>
+#include <prometheus/histogram.h>
+
+#include "common/tracking/tracker.hpp"
+#include "services/common/metrics.hpp"
+#include "services/tracker/tracker_node.hpp"
+
+namespace fogmap {
+
+class TrackerMetrics {
+ public:
+  // Adds the tracker's families to `metrics`' registry with its constant labels; `cameras` get a
+  // staleness series from the start.
+  TrackerMetrics(Metrics& metrics, const std::string& node, const std::vector<std::string>& cameras);
+
+  // After frames were fused: what the report says.
+  void fused(const FusionReport& report);
+  // A detection frame the adapter refused (malformed, unknown camera, forged).
+  void refused();
+
+ private:
+  Metrics& metrics_;
+  prometheus::Family<prometheus::Gauge>* tracks_;
+  prometheus::Counter* created_;
+  prometheus::Counter* deleted_;
+  prometheus::Family<prometheus::Counter>* updates_;
+  prometheus::Family<prometheus::Counter>* dropped_;
+  prometheus::Family<prometheus::Gauge>* staleness_;
+  prometheus::Histogram* fusion_seconds_;
+  tracking::TrackerCounters last_;  // counters already exported
+};
+
+}  // namespace fogmap

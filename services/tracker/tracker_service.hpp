@@ -1,0 +1,69 @@
+#pragma once
+// gRPC adapter for TrackerService: detection services push their cameras' detections (validated by
+// proto_convert, refusals counted), subscribers read the tracks. Every subscriber has its own
+// bounded queue: a slow one loses its oldest track lists (counted), never slows fusion.
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "fogmap/v1/fogmap.grpc.pb.h"
+#include "services/tracker/tracker_node.hpp"
+
+namespace fogmap {
+
+// What the adapter saw, for the metrics.
+struct TrackerServiceHooks {
+  std::function<void(const std::string& camera, std::size_t bytes)> on_detections;  // a frame accepted
+  std::function<void(const std::string& why)> on_refused;                            // a frame refused
+  std::function<void(std::uint64_t n)> on_subscriber_drops;
+};
+
+class TrackerService final : public v1::TrackerService::Service {
+ public:
+  // With TLS (`identify_by_certificate`) a stream may speak only for the camera its certificate
+  // names. `cameras`: the detection nodes whose frames are accepted.
+  TrackerService(TrackerNode& node, std::vector<std::string> cameras, bool identify_by_certificate, TrackerServiceHooks hooks,
+                 std::size_t queue_capacity = 16, std::chrono::milliseconds poll_wait = std::chrono::milliseconds(100));
+
+  // Queues the tracks for every subscriber (TrackerNode's publish sink).
+  void publish(const TrackSnapshot& snapshot);
+  // Ends every Subscribe call once it has written what is queued, or after `drain`.
+  void shutdown(std::chrono::milliseconds drain);
+  std::size_t subscriberCount() const;
+
+  grpc::Status PushDetections(grpc::ServerContext* context, grpc::ServerReader<v1::DetectionFrame>* reader,
+                              v1::DetectionSummary* summary) override;
+  grpc::Status Subscribe(grpc::ServerContext* context, const v1::TrackSubscribeRequest* request,
+                         grpc::ServerWriter<v1::TrackList>* writer) override;
+
+ private:
+  struct Subscriber {
+    bool include_tentative = false;
+    std::deque<std::shared_ptr<const TrackSnapshot>> queue;
+  };
+
+  TrackerNode& node_;
+  std::vector<std::string> cameras_;
+  bool identify_by_certificate_;
+  TrackerServiceHooks hooks_;
+  std::size_t queue_capacity_;
+  std::chrono::milliseconds poll_wait_;
+  mutable std::mutex mutex_;
+  std::condition_variable published_;
+  std::condition_variable drained_;
+  std::vector<std::shared_ptr<Subscriber>> subscribers_;
+  bool shutting_down_ = false;
+  bool drain_expired_ = false;
+};
+
+// The tracks a subscriber sees: confirmed and lost ones, and tentative ones when asked.
+v1::TrackList toTrackList(const TrackSnapshot& snapshot, bool include_tentative);
+
+}  // namespace fogmap

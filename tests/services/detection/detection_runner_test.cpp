@@ -1,0 +1,418 @@
+#include "services/detection/detection_runner.hpp"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <mutex>
+#include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "common/camera/kitti.hpp"
+#include "common/sim/camera_truth.hpp"
+#include "common/sim/generators.hpp"
+#include "common/sim/raycaster.hpp"
+#include "common/sim/sensor_frames.hpp"
+
+namespace fogmap {
+namespace {
+
+using namespace std::chrono_literals;
+
+const std::filesystem::path kSourceDir = FOGMAP_SOURCE_DIR;
+// About 2023-11-14 in unix ns: frame numbers since the epoch are as large as in service.
+constexpr std::int64_t kStartNs = 1'700'000'000'000'000'000;
+
+// A clock the test drives: a wait moves it to the awaited instant at once, and every wait is
+// recorded.
+class ManualClock {
+ public:
+  std::int64_t now() const { return now_.load(); }
+  bool waitUntil(std::int64_t until_ns) {
+    std::lock_guard lock(mu_);
+    waits_.push_back(until_ns);
+    if (until_ns > now_.load()) now_.store(until_ns);
+    return true;
+  }
+  void set(std::int64_t ns) { now_.store(ns); }
+  std::vector<std::int64_t> waits() const {
+    std::lock_guard lock(mu_);
+    return waits_;
+  }
+
+ private:
+  std::atomic<std::int64_t> now_{kStartNs};
+  mutable std::mutex mu_;
+  std::vector<std::int64_t> waits_;
+};
+
+// A one-shot event a test waits on, bounded.
+class Signal {
+ public:
+  void set() {
+    {
+      std::lock_guard lock(mu_);
+      set_ = true;
+    }
+    cv_.notify_all();
+  }
+  bool wait(std::chrono::milliseconds timeout = 10s) {
+    std::unique_lock lock(mu_);
+    return cv_.wait_for(lock, timeout, [&] { return set_; });
+  }
+
+ private:
+  std::mutex mu_;
+  std::condition_variable cv_;
+  bool set_ = false;
+};
+
+// Frames from memory, due every 100 ms; hooks let a test hold the reader at a frame.
+class ListSource final : public FrameSource {
+ public:
+  explicit ListSource(std::size_t frames, std::function<void(std::size_t)> before_frame = {})
+      : frames_(frames), before_frame_(std::move(before_frame)) {}
+  SourceFrame next() override {
+    if (next_ == frames_) {
+      done_.set();
+      return {};
+    }
+    if (before_frame_) before_frame_(next_);
+    SourceFrame f;
+    f.outcome = FrameOutcome::kFrame;
+    // The frame's number in the pixel values, so the detector can tell which frame it saw.
+    f.image_bgr = cv::Mat(48, 64, CV_8UC3, cv::Scalar(static_cast<double>(next_), 0, 0));
+    f.due_ns = static_cast<std::int64_t>(next_) * 100'000'000;
+    f.origin = "frame " + std::to_string(next_);
+    ++next_;
+    return f;
+  }
+  std::string describe() const override { return "list"; }
+  Signal& done() { return done_; }
+
+ private:
+  std::size_t frames_;
+  std::function<void(std::size_t)> before_frame_;
+  std::size_t next_ = 0;
+  Signal done_;
+};
+
+// Reports one "frame-N" detection per image, N read back from the pixels; a hook may hold it.
+class NumberingDetector final : public camera::Detector {
+ public:
+  explicit NumberingDetector(std::function<void(int)> on_detect = {}) : on_detect_(std::move(on_detect)) {}
+  Expected<std::vector<camera::Detection>> detect(const cv::Mat& image_bgr, const std::string& camera,
+                                                  std::int64_t capture_time_ns) override {
+    const int number = image_bgr.at<cv::Vec3b>(0, 0)[0];
+    if (on_detect_) on_detect_(number);
+    camera::Detection d;
+    d.box = {1, 2, 30, 40};
+    d.label = "frame-" + std::to_string(number);
+    d.score = 1.0;
+    d.camera = camera;
+    d.capture_time_ns = capture_time_ns;
+    return std::vector<camera::Detection>{d};
+  }
+
+ private:
+  std::function<void(int)> on_detect_;
+};
+
+class CountingObserver final : public DetectionObserver {
+ public:
+  void frameRead() override { ++read; }
+  void frameUnreadable() override { ++unreadable; }
+  void framesDropped(std::uint64_t frames) override { dropped += frames; }
+  void frameDetected(std::size_t n, double /*seconds*/) override {
+    ++detected;
+    detections += n;
+  }
+  std::atomic<std::uint64_t> read{0}, unreadable{0}, dropped{0}, detected{0}, detections{0};
+};
+
+// What reached the sink, thread-safe.
+struct Delivered {
+  std::mutex mu;
+  std::vector<tracking::DetectionFrame> frames;
+  std::vector<std::int64_t> clock_at_delivery;
+  std::vector<std::string> log;
+};
+
+DetectionRunnerHooks hooksFor(ManualClock& clock, Delivered& out, DetectionObserver* observer = nullptr) {
+  DetectionRunnerHooks hooks;
+  hooks.now = [&clock] { return clock.now(); };
+  hooks.wait_until = [&clock](std::int64_t t) { return clock.waitUntil(t); };
+  hooks.deliver = [&clock, &out](tracking::DetectionFrame frame) {
+    std::lock_guard lock(out.mu);
+    out.frames.push_back(std::move(frame));
+    out.clock_at_delivery.push_back(clock.now());
+  };
+  hooks.log = [&out](const std::string& line) {
+    std::lock_guard lock(out.mu);
+    out.log.push_back(line);
+  };
+  hooks.observer = observer;
+  return hooks;
+}
+
+TEST(DetectionRunner, StampsEveryFrameWithTheCameraAndItsScheduledTime) {
+  ManualClock clock;
+  Delivered out;
+  auto source = openImageDirectory(kSourceDir / "data/kitti_raw_seq_a/image_02", ReplayConfig{10.0, false, std::nullopt});
+  ASSERT_TRUE(source.ok()) << source.error().message;
+  NumberingDetector detector;
+  CountingObserver observer;
+  DetectionRunner runner("cam-front", **source, detector, 8, hooksFor(clock, out, &observer));
+  runner.run();
+
+  ASSERT_EQ(out.frames.size(), 3u);
+  for (std::size_t i = 0; i < out.frames.size(); ++i) {
+    const std::int64_t scheduled = kStartNs + static_cast<std::int64_t>(i) * 100'000'000;
+    EXPECT_EQ(out.frames[i].camera, "cam-front");
+    EXPECT_EQ(out.frames[i].capture_time_ns, scheduled) << "frame " << i;
+    ASSERT_EQ(out.frames[i].detections.size(), 1u);
+    EXPECT_EQ(out.frames[i].detections[0].camera, "cam-front");
+    EXPECT_EQ(out.frames[i].detections[0].capture_time_ns, scheduled);
+  }
+  EXPECT_EQ(clock.waits(), (std::vector<std::int64_t>{kStartNs, kStartNs + 100'000'000, kStartNs + 200'000'000}));
+  const DetectionRunnerStats stats = runner.stats();
+  EXPECT_EQ(stats.frames_read, 3u);
+  EXPECT_EQ(stats.frames_detected, 3u);
+  EXPECT_EQ(stats.detections, 3u);
+  EXPECT_EQ(stats.frames_dropped, 0u);
+  EXPECT_EQ(observer.read.load(), 3u);
+  EXPECT_EQ(observer.detected.load(), 3u);
+}
+
+TEST(DetectionRunner, AnUnreadableImageIsSkippedCountedAndLoggedWithItsPath) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "fogmap_runner_unreadable";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  std::filesystem::copy_file(kSourceDir / "data/kitti_raw_seq_a/image_02/0000000000.png", dir / "a.png");
+  std::ofstream(dir / "b.png") << "not an image";
+  auto source = openImageDirectory(dir, ReplayConfig{10.0, false, std::nullopt});
+  ASSERT_TRUE(source.ok()) << source.error().message;
+  ManualClock clock;
+  Delivered out;
+  NumberingDetector detector;
+  CountingObserver observer;
+  DetectionRunner runner("cam", **source, detector, 4, hooksFor(clock, out, &observer));
+  runner.run();
+  std::filesystem::remove_all(dir);
+
+  EXPECT_EQ(out.frames.size(), 1u);
+  EXPECT_EQ(runner.stats().frames_unreadable, 1u);
+  EXPECT_EQ(runner.stats().frames_read, 1u);
+  EXPECT_EQ(observer.unreadable.load(), 1u);
+  ASSERT_EQ(out.log.size(), 1u);
+  EXPECT_NE(out.log[0].find((dir / "b.png").string()), std::string::npos) << out.log[0];
+}
+
+TEST(DetectionRunner, HogFindsTheKittiPedestrianAndStampsItWithCameraAndCaptureTime) {
+  const cv::Mat image = cv::imread((kSourceDir / "data/kitti_object/image_2/000000.png").string(), cv::IMREAD_COLOR);
+  ASSERT_FALSE(image.empty());
+  std::ifstream label_file(kSourceDir / "data/kitti_object/label_2/000000.txt");
+  std::stringstream label_text;
+  label_text << label_file.rdbuf();
+  const auto labels = camera::parseKittiLabels(label_text.str());
+  ASSERT_TRUE(labels.ok() && labels->size() == 1u);
+
+  // One frame: the KITTI image, due at once.
+  class OneImage final : public FrameSource {
+   public:
+    explicit OneImage(cv::Mat image) : image_(std::move(image)) {}
+    SourceFrame next() override {
+      if (given_) return {};
+      given_ = true;
+      SourceFrame f;
+      f.outcome = FrameOutcome::kFrame;
+      f.image_bgr = image_;
+      f.due_ns = 0;
+      return f;
+    }
+    std::string describe() const override { return "one image"; }
+
+   private:
+    cv::Mat image_;
+    bool given_ = false;
+  } source(image);
+
+  camera::DetectorConfig config;
+  config.kind = camera::DetectorKind::kHog;
+  config.hog.upscale = 1.5;
+  auto detector = camera::makeDetector(config);
+  ASSERT_TRUE(detector.ok()) << detector.error().message;
+  ManualClock clock;
+  Delivered out;
+  DetectionRunner runner("cam-kitti", source, **detector, 2, hooksFor(clock, out));
+  runner.run();
+
+  ASSERT_EQ(out.frames.size(), 1u);
+  const tracking::DetectionFrame& frame = out.frames[0];
+  EXPECT_EQ(frame.camera, "cam-kitti");
+  EXPECT_EQ(frame.capture_time_ns, kStartNs);
+  double best = 0.0;
+  for (const camera::Detection& d : frame.detections) {
+    EXPECT_EQ(d.label, "person");
+    EXPECT_EQ(d.camera, "cam-kitti");
+    EXPECT_EQ(d.capture_time_ns, kStartNs);
+    best = std::max(best, camera::iou(d.box, labels->front().box));
+  }
+  EXPECT_GE(best, 0.5) << frame.detections.size() << " detection(s), none on the labelled pedestrian";
+  EXPECT_GT(runner.stats().detect_seconds, -1.0);
+}
+
+TEST(DetectionRunner, AQueueFullBehindASlowDetectorDropsTheOldestFramesAndCountsThem) {
+  ManualClock clock;
+  Delivered out;
+  Signal detecting_first;
+  // The reader waits for the detector to be busy with frame 0 before it reads frame 1, and the
+  // detector stays busy until the reader has read all five: frames 1..4 meet a queue of 2.
+  ListSource source(5, [&](std::size_t frame) {
+    if (frame == 1) {
+      ASSERT_TRUE(detecting_first.wait());
+    }
+  });
+  NumberingDetector detector([&](int number) {
+    if (number == 0) {
+      detecting_first.set();
+      ASSERT_TRUE(source.done().wait());
+    }
+  });
+  CountingObserver observer;
+  DetectionRunner runner("cam", source, detector, 2, hooksFor(clock, out, &observer));
+  runner.run();
+
+  std::vector<std::string> seen;
+  for (const auto& f : out.frames) seen.push_back(f.detections.at(0).label);
+  EXPECT_EQ(seen, (std::vector<std::string>{"frame-0", "frame-3", "frame-4"}));
+  EXPECT_EQ(out.frames.at(1).capture_time_ns, kStartNs + 300'000'000);
+  const DetectionRunnerStats stats = runner.stats();
+  EXPECT_EQ(stats.frames_read, 5u);
+  EXPECT_EQ(stats.frames_dropped, 2u);
+  EXPECT_EQ(stats.frames_detected, 3u);
+  EXPECT_EQ(observer.dropped.load(), 2u);
+}
+
+TEST(DetectionRunner, StopEndsBothLoopsWithoutDeliveringMore) {
+  ManualClock clock;
+  Delivered out;
+  DetectionRunner* running = nullptr;
+  ListSource source(1000, [&](std::size_t frame) {
+    if (frame == 3) running->stop();
+  });
+  NumberingDetector detector;
+  DetectionRunner runner("cam", source, detector, 2, hooksFor(clock, out));
+  running = &runner;
+  runner.run();
+  EXPECT_TRUE(runner.stopped());
+  EXPECT_LE(runner.stats().frames_read, 3u);
+  EXPECT_LE(out.frames.size(), 3u);
+}
+
+// ---- Truth replay ----------------------------------------------------------------------------
+
+// One person walking to and fro across the view of one camera.
+sim::Scene walkingPersonScene() {
+  sim::Scene scene;
+  scene.name = "walk";
+  scene.duration_s = 60.0;
+  sim::SceneObject person;
+  person.id = 1;
+  person.name = "walker";
+  person.label = "person";
+  person.parts.push_back({sim::Shape::kBox, Eigen::Vector3d::Zero(), Eigen::Vector3d(0.5, 0.5, 1.8), 0.0});
+  person.motion.waypoints = {Eigen::Vector2d(8.0, -2.0), Eigen::Vector2d(8.0, 2.0)};
+  person.motion.speed_mps = 0.5;
+  person.motion.loop = true;
+  scene.objects.push_back(person);
+  sim::CameraConfig camera;
+  camera.name = "cam0";
+  camera.pose = sim::lookAt(Eigen::Vector3d(0.0, 0.0, 1.5), Eigen::Vector3d(8.0, 0.0, 0.9));
+  scene.cameras.push_back(camera);
+  return scene;
+}
+
+TEST(DetectionRunner, TruthReplayShowsTheLidarsInstantAndDeliversAfterTheLatency) {
+  const sim::Scene scene = walkingPersonScene();
+  CameraNodeConfig config;
+  config.source = kSimSource;
+  config.scene = "walk.yaml";
+  config.camera = "cam0";
+  config.rate_hz = 10.0;
+  config.loop = false;
+  config.frames = 3;
+  config.truth = true;
+  config.truth_replay.latency_ms = 40.0;
+  auto truth = TruthCamera::create(scene, config, "cam-sim");
+  ASSERT_TRUE(truth.ok()) << truth.error().message;
+
+  ManualClock clock;
+  clock.set(kStartNs + 30'000'000);  // between frames: the first is the next one
+  Delivered out;
+  DetectionRunner runner(*truth, ReplayConfig{10.0, false, 3}, hooksFor(clock, out));
+  runner.run();
+
+  const std::uint64_t first = static_cast<std::uint64_t>(kStartNs / 100'000'000) + 1;
+  ASSERT_EQ(out.frames.size(), 3u);
+  const sim::CameraConfig& cam = scene.cameras[0];
+  const camera::PinholeCamera pinhole = sim::pinholeOf(cam);
+  for (std::size_t i = 0; i < out.frames.size(); ++i) {
+    const std::uint64_t n = first + i;
+    const std::int64_t capture = static_cast<std::int64_t>(n) * 100'000'000;
+    const tracking::DetectionFrame& frame = out.frames[i];
+    EXPECT_EQ(frame.camera, "cam-sim");
+    EXPECT_EQ(frame.capture_time_ns, capture);
+    EXPECT_EQ(out.clock_at_delivery[i], capture + 40'000'000) << "frame " << i << " not delivered after the latency";
+    ASSERT_EQ(frame.detections.size(), 1u) << "frame " << i;
+    const camera::Detection& d = frame.detections[0];
+    EXPECT_EQ(d.label, "person");
+    EXPECT_EQ(d.camera, "cam-sim");
+    EXPECT_EQ(d.capture_time_ns, capture);
+
+    // The scene instant of the simulated LiDARs' scan n: the same truth, box for box.
+    const double time_s = sim::sceneTime(scene, n, 10.0);
+    auto raycaster = sim::SceneRaycaster::build(scene, time_s);
+    ASSERT_TRUE(raycaster.ok());
+    auto expected = sim::truthDetections(scene, *raycaster, cam, sim::cycleFrame(scene, n, 10.0),
+                                         sim::TruthReplayConfig{0.0, 0.0, 40.0, scene.seed});
+    ASSERT_TRUE(expected.ok());
+    ASSERT_EQ(expected->detections.size(), 1u);
+    EXPECT_EQ(d.box.left, expected->detections[0].box.left);
+    EXPECT_EQ(d.box.right, expected->detections[0].box.right);
+
+    // The box holds the projection of the person's true centre at that instant.
+    const sim::ObjectPose pose = sim::poseAt(scene.objects[0], time_s);
+    const auto pixel = pinhole.project(Eigen::Vector3d(pose.xy.x(), pose.xy.y(), 0.9));
+    ASSERT_TRUE(pixel.has_value());
+    EXPECT_GE(pixel->x(), d.box.left);
+    EXPECT_LE(pixel->x(), d.box.right);
+    EXPECT_GE(pixel->y(), d.box.top);
+    EXPECT_LE(pixel->y(), d.box.bottom);
+  }
+  // The person moves: the frames are of different instants.
+  EXPECT_NE(out.frames[0].detections[0].box.left, out.frames[2].detections[0].box.left);
+  EXPECT_EQ(runner.stats().frames_detected, 3u);
+}
+
+TEST(TruthCamera, NamesTheSceneCamerasWhenTheCameraIsMissing) {
+  CameraNodeConfig config;
+  config.source = kSimSource;
+  config.scene = "walk.yaml";
+  config.camera = "cam9";
+  config.truth = true;
+  auto truth = TruthCamera::create(walkingPersonScene(), config, "cam-sim");
+  ASSERT_FALSE(truth.ok());
+  EXPECT_NE(truth.error().message.find("'cam0'"), std::string::npos) << truth.error().message;
+}
+
+}  // namespace
+}  // namespace fogmap

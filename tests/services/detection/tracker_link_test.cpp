@@ -1,0 +1,275 @@
+#include "services/detection/tracker_link.hpp"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <grpcpp/grpcpp.h>
+
+#include "fogmap/v1/fogmap.grpc.pb.h"
+#include "services/common/grpc_options.hpp"
+#include "services/common/proto_convert.hpp"
+
+namespace fogmap {
+namespace {
+
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+
+// Polls a condition that has no notification to wait on (state inside the link), bounded.
+bool eventually(const std::function<bool()>& condition, std::chrono::milliseconds timeout = 10s) {
+  const auto deadline = Clock::now() + timeout;
+  while (Clock::now() < deadline) {
+    if (condition()) return true;
+    std::this_thread::sleep_for(5ms);
+  }
+  return condition();
+}
+
+// The tracker's side of PushDetections, recording every frame it receives (through the same
+// conversion a tracker uses) and how each stream ended.
+class RecordingTracker final : public v1::TrackerService::Service {
+ public:
+  grpc::Status PushDetections(grpc::ServerContext* /*context*/, grpc::ServerReader<v1::DetectionFrame>* reader,
+                              v1::DetectionSummary* summary) override {
+    v1::DetectionFrame message;
+    std::uint64_t received = 0;
+    while (reader->Read(&message)) {
+      Expected<tracking::DetectionFrame> frame = fromProto(message);
+      {
+        std::lock_guard lock(mu_);
+        if (frame) {
+          frames_.push_back(std::move(*frame));
+        } else {
+          errors_.push_back(frame.error().message);
+        }
+      }
+      ++received;
+      cv_.notify_all();
+    }
+    summary->set_received(received);
+    {
+      std::lock_guard lock(mu_);
+      ++streams_ended_;
+    }
+    cv_.notify_all();
+    return grpc::Status::OK;
+  }
+
+  // Waits until `n` frames have arrived; bounded.
+  bool waitFrames(std::size_t n, std::chrono::milliseconds timeout = 10s) {
+    std::unique_lock lock(mu_);
+    return cv_.wait_for(lock, timeout, [&] { return frames_.size() >= n; });
+  }
+  bool waitStreamsEnded(int n, std::chrono::milliseconds timeout = 10s) {
+    std::unique_lock lock(mu_);
+    return cv_.wait_for(lock, timeout, [&] { return streams_ended_ >= n; });
+  }
+  std::vector<tracking::DetectionFrame> frames() const {
+    std::lock_guard lock(mu_);
+    return frames_;
+  }
+  std::vector<std::string> errors() const {
+    std::lock_guard lock(mu_);
+    return errors_;
+  }
+
+ private:
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  std::vector<tracking::DetectionFrame> frames_;
+  std::vector<std::string> errors_;
+  int streams_ended_ = 0;
+};
+
+// A real gRPC server on 127.0.0.1; port 0 picks a free port.
+class TestTracker {
+ public:
+  explicit TestTracker(RecordingTracker& service, int port = 0) {
+    grpc::ServerBuilder builder;
+    configureServer(builder, 64U << 20);
+    builder.AddListeningPort("127.0.0.1:" + std::to_string(port), grpc::InsecureServerCredentials(), &port_);
+    builder.RegisterService(&service);
+    server_ = builder.BuildAndStart();
+  }
+  ~TestTracker() { stop(); }
+  bool started() const { return server_ != nullptr && port_ > 0; }
+  int port() const { return port_; }
+  std::string target() const { return "127.0.0.1:" + std::to_string(port_); }
+  // Cancels open streams at once: a PushDetections handler would otherwise keep Shutdown waiting.
+  void stop() {
+    if (!server_) return;
+    server_->Shutdown(std::chrono::system_clock::now());
+    server_->Wait();
+    server_.reset();
+  }
+
+ private:
+  int port_ = 0;
+  std::unique_ptr<grpc::Server> server_;
+};
+
+// A port that was free a moment ago and now has no listener.
+int closedPort() {
+  RecordingTracker service;
+  TestTracker tracker(service);
+  return tracker.port();
+}
+
+tracking::DetectionFrame frameAt(std::int64_t capture_time_ns, int detections = 1) {
+  tracking::DetectionFrame frame;
+  frame.camera = "cam-front";
+  frame.capture_time_ns = capture_time_ns;
+  for (int i = 0; i < detections; ++i) {
+    camera::Detection d;
+    d.box = {10.0 + i, 20.0, 50.0 + i, 120.0};
+    d.label = i % 2 == 0 ? "person" : "car";
+    d.score = 0.5 + 0.1 * i;
+    d.camera = frame.camera;
+    d.capture_time_ns = capture_time_ns;
+    frame.detections.push_back(d);
+  }
+  return frame;
+}
+
+// Counts what the hooks report.
+struct LinkCounts {
+  std::atomic<std::uint64_t> sent{0}, bytes{0}, reconnects{0}, drops{0}, bursts{0};
+  TrackerLinkHooks hooks() {
+    TrackerLinkHooks h;
+    h.on_sent = [this](std::size_t b) {
+      ++sent;
+      bytes += b;
+    };
+    h.on_reconnect = [this] { ++reconnects; };
+    h.on_dropped = [this](std::uint64_t /*total*/, bool first) {
+      ++drops;
+      if (first) ++bursts;
+    };
+    return h;
+  }
+};
+
+TrackerLinkConfig configFor(const std::string& target, std::size_t queue_frames = 4) {
+  TrackerLinkConfig config;
+  config.target = target;
+  config.queue_frames = queue_frames;
+  return config;
+}
+
+TEST(TrackerLink, DeliversEveryFrameWithItsCameraAndDetections) {
+  RecordingTracker service;
+  TestTracker tracker(service);
+  ASSERT_TRUE(tracker.started());
+  LinkCounts counts;
+  TrackerLink link(configFor(tracker.target(), 8), counts.hooks());
+  for (int i = 0; i < 3; ++i) link.send(frameAt(1'000 + i, i + 1));
+  ASSERT_TRUE(service.waitFrames(3));
+
+  const std::vector<tracking::DetectionFrame> got = service.frames();
+  ASSERT_EQ(got.size(), 3u);
+  EXPECT_TRUE(service.errors().empty());
+  for (int i = 0; i < 3; ++i) {
+    const tracking::DetectionFrame sent = frameAt(1'000 + i, i + 1);
+    EXPECT_EQ(got[i].camera, "cam-front");
+    EXPECT_EQ(got[i].capture_time_ns, 1'000 + i);
+    ASSERT_EQ(got[i].detections.size(), sent.detections.size());
+    for (std::size_t k = 0; k < sent.detections.size(); ++k) {
+      EXPECT_EQ(got[i].detections[k].label, sent.detections[k].label);
+      EXPECT_FLOAT_EQ(got[i].detections[k].box.left, sent.detections[k].box.left);
+      EXPECT_FLOAT_EQ(got[i].detections[k].box.bottom, sent.detections[k].box.bottom);
+      EXPECT_FLOAT_EQ(got[i].detections[k].score, sent.detections[k].score);
+      EXPECT_EQ(got[i].detections[k].camera, "cam-front");
+    }
+  }
+  ASSERT_TRUE(link.flush(5s));
+  EXPECT_EQ(link.sent(), 3u);
+  EXPECT_EQ(link.dropped(), 0u);
+  EXPECT_EQ(counts.sent.load(), 3u);
+  EXPECT_GT(counts.bytes.load(), 0u);
+}
+
+TEST(TrackerLink, WhileTheTrackerIsDownTheOldestFramesAreDroppedThenItReconnectsAndDelivers) {
+  const int port = closedPort();
+  ASSERT_GT(port, 0);
+  LinkCounts counts;
+  TrackerLink link(configFor("127.0.0.1:" + std::to_string(port), 3), counts.hooks());
+  for (int i = 1; i <= 8; ++i) link.send(frameAt(i));
+  EXPECT_FALSE(link.connected());
+  EXPECT_EQ(link.dropped(), 5u);
+  EXPECT_EQ(link.queued(), 3u);
+  EXPECT_EQ(counts.drops.load(), 5u);
+  EXPECT_EQ(counts.bursts.load(), 1u) << "one burst of drops, logged once";
+
+  RecordingTracker service;
+  TestTracker tracker(service, port);
+  ASSERT_TRUE(tracker.started()) << "port " << port << " could not be bound again";
+  ASSERT_TRUE(service.waitFrames(3));
+  std::vector<std::int64_t> captures;
+  for (const auto& f : service.frames()) captures.push_back(f.capture_time_ns);
+  EXPECT_EQ(captures, (std::vector<std::int64_t>{6, 7, 8})) << "the newest frames, in order";
+
+  link.send(frameAt(9));
+  ASSERT_TRUE(service.waitFrames(4));
+  EXPECT_EQ(service.frames().back().capture_time_ns, 9);
+  EXPECT_TRUE(link.connected());
+  EXPECT_EQ(link.dropped(), 5u);
+}
+
+TEST(TrackerLink, ReconnectsToARestartedTracker) {
+  RecordingTracker first_service;
+  auto first = std::make_unique<TestTracker>(first_service);
+  ASSERT_TRUE(first->started());
+  const int port = first->port();
+  LinkCounts counts;
+  TrackerLink link(configFor(first->target()), counts.hooks());
+  link.send(frameAt(1));
+  ASSERT_TRUE(first_service.waitFrames(1));
+  first->stop();
+
+  RecordingTracker second_service;
+  TestTracker second(second_service, port);
+  ASSERT_TRUE(second.started()) << "port " << port << " could not be bound again";
+  // Frames written into the dead stream are lost (and counted); keep sending until one arrives.
+  std::int64_t capture = 2;
+  ASSERT_TRUE(eventually([&] {
+    link.send(frameAt(capture++));
+    return second_service.waitFrames(1, 20ms);
+  }));
+  EXPECT_GE(counts.reconnects.load(), 1u);
+  ASSERT_TRUE(link.flush(5s));
+  EXPECT_EQ(link.sent() + link.dropped() + link.queued(), static_cast<std::uint64_t>(capture - 1));
+}
+
+TEST(TrackerLink, DestroyingTheLinkEndsTheStreamCleanly) {
+  RecordingTracker service;
+  TestTracker tracker(service);
+  ASSERT_TRUE(tracker.started());
+  {
+    TrackerLink link(configFor(tracker.target()), {});
+    link.send(frameAt(1));
+    ASSERT_TRUE(service.waitFrames(1));
+  }
+  EXPECT_TRUE(service.waitStreamsEnded(1, 2s)) << "the tracker should see the stream half-closed";
+}
+
+TEST(TrackerLink, DestructorReturnsPromptlyWhenTheTrackerIsGone) {
+  const int port = closedPort();
+  const auto started = Clock::now();
+  {
+    TrackerLink link(configFor("127.0.0.1:" + std::to_string(port)), {});
+    link.send(frameAt(1));
+  }
+  EXPECT_LT(Clock::now() - started, 2s);
+}
+
+}  // namespace
+}  // namespace fogmap

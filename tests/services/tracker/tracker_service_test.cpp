@@ -1,0 +1,353 @@
+// The tracker service: a global map's objects as LiDAR observations (against the closed form), the
+// adapter over real gRPC on loopback (detections in, refusals counted, tracks out to a
+// subscriber), and the feed that follows a root which goes away and comes back.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <grpcpp/grpcpp.h>
+
+#include "services/common/grpc_options.hpp"
+#include "services/common/proto_convert.hpp"
+#include "services/tracker/global_map_feed.hpp"
+#include "services/tracker/tracker_node.hpp"
+#include "services/tracker/tracker_service.hpp"
+
+namespace fogmap {
+namespace {
+
+using namespace std::chrono_literals;
+
+constexpr std::int64_t kMs = 1'000'000;
+
+Ellipsoid ellipsoidAt(std::uint32_t node, std::uint32_t index, const Eigen::Vector3d& centre, const Eigen::Matrix3d& shape,
+                      std::uint64_t points) {
+  Ellipsoid e;
+  e.id = {node, 1, index};
+  e.center = centre;
+  e.shape = shape;
+  e.point_count = points;
+  return e;
+}
+
+GlobalMapMessage globalMapWith(std::int64_t sensor_time_ns, const std::vector<Eigen::Vector3d>& centres) {
+  GlobalMapMessage g;
+  g.header.epoch = 1;
+  g.header.sensor_time_ns = sensor_time_ns;
+  std::vector<Ellipsoid> ellipsoids;
+  std::uint32_t index = 0;
+  for (const auto& c : centres) ellipsoids.push_back(ellipsoidAt(1, index++, c, Eigen::Matrix3d::Identity() * 0.09, 50));
+  g.map = localMap(std::move(ellipsoids));  // one object each, boxes from the ellipsoids
+  return g;
+}
+
+// A camera at (0, 0, 1) looking along +x.
+camera::PinholeCamera frontCamera() {
+  camera::PinholeCamera cam;
+  cam.name = "cam-1";
+  Eigen::Matrix3d r;
+  r << 0, -1, 0, 0, 0, -1, 1, 0, 0;
+  cam.world_to_camera.linear() = r;
+  cam.world_to_camera.translation() = -r * Eigen::Vector3d(0, 0, 1);
+  return cam;
+}
+
+TEST(TrackerNode, AnObjectsObservationIsThePointWeightedCentroidAndTheMixtureCovariance) {
+  // Two ellipsoids of shapes alpha^2 Sigma_i: 30 points at (0,0,0), 10 at (4,0,0), alpha 2.
+  const double alpha = 2.0;
+  const Eigen::Matrix3d sigma1 = Eigen::Vector3d(0.1, 0.2, 0.3).asDiagonal();
+  const Eigen::Matrix3d sigma2 = Eigen::Vector3d(0.5, 0.1, 0.1).asDiagonal();
+  GlobalMapMessage g;
+  g.header.sensor_time_ns = 42;
+  const std::vector<Ellipsoid> parts{ellipsoidAt(1, 0, {0, 0, 0}, alpha * alpha * sigma1, 30),
+                                     ellipsoidAt(2, 0, {4, 0, 0}, alpha * alpha * sigma2, 10)};
+  const std::vector<std::size_t> one_object{0, 0};
+  g.map = mapFromGroups(parts, one_object);
+  const auto frame = observationsOf(g, alpha);
+  EXPECT_EQ(frame.time_ns, 42);
+  ASSERT_EQ(frame.observations.size(), 1U);
+  EXPECT_LT((frame.observations[0].position - Eigen::Vector3d(1, 0, 0)).norm(), 1e-12);
+  // Within: (30 sigma1 + 10 sigma2) / 40; between: (30 * 1^2 + 10 * 3^2) / 40 = 3 along x.
+  Eigen::Matrix3d expected = (30.0 * sigma1 + 10.0 * sigma2) / 40.0;
+  expected(0, 0) += 3.0;
+  EXPECT_LT((frame.observations[0].covariance - expected).cwiseAbs().maxCoeff(), 1e-12);
+}
+
+TEST(TrackerNode, ObjectsStackedOrTouchingOnTheGroundAreOneObstacleAndSeparateOnesStayApart) {
+  // A person cut into three slices by the LiDAR's rings (one above the other), a car's two halves
+  // with 0.12 m between their boxes, and a pole 1.76 m from the car.
+  const Eigen::Matrix3d small = Eigen::Vector3d(0.04, 0.04, 0.01).asDiagonal() * 2.25;
+  const Eigen::Matrix3d half_car = Eigen::Vector3d(0.8, 0.3, 0.1).asDiagonal() * 2.25;
+  const std::vector<Ellipsoid> parts{
+      ellipsoidAt(1, 0, {5, 0, 0.4}, small, 20),   ellipsoidAt(1, 1, {5, 0, 0.8}, small, 20),
+      ellipsoidAt(1, 2, {5.05, 0, 1.2}, small, 20), ellipsoidAt(1, 3, {10, 0, 0.5}, half_car, 40),
+      ellipsoidAt(1, 4, {12.8, 0, 0.5}, half_car, 40), ellipsoidAt(1, 5, {16.2, 0, 0.5}, small, 10)};
+  GlobalMapMessage g;
+  g.map = localMap(parts);
+  ASSERT_EQ(g.map.objects.size(), 6U);
+  const auto frame = observationsOf(g, 1.5, 0.3);
+  ASSERT_EQ(frame.observations.size(), 3U);
+  std::vector<double> xs;
+  for (const auto& o : frame.observations) xs.push_back(o.position.x());
+  std::sort(xs.begin(), xs.end());
+  EXPECT_NEAR(xs[0], (5 + 5 + 5.05) / 3.0, 1e-9);
+  EXPECT_NEAR(xs[1], 11.4, 1e-9);
+  EXPECT_NEAR(xs[2], 16.2, 1e-9);
+  // Without growing, the slices (whose footprints overlap) are still one; the car's halves are two.
+  EXPECT_EQ(observationsOf(g, 1.5, 0.0).observations.size(), 4U);
+}
+
+TEST(TrackerNode, LateRevisionsAreNotFusedTwice) {
+  auto tracker = tracking::Tracker::create({}, {});
+  ASSERT_TRUE(tracker.ok());
+  int published = 0;
+  TrackerNode node(std::move(*tracker), 1.5, [] { return std::int64_t{1000} * kMs; },
+                   [&](const TrackSnapshot&, const FusionReport& report) {
+                     ++published;
+                     EXPECT_EQ(report.steps.size(), 1U);
+                     EXPECT_DOUBLE_EQ(report.end_to_end_seconds, 0.1);
+                   });
+  node.addGlobalMap(globalMapWith(900 * kMs, {{5, 0, 0.5}}));  // no cameras: nothing to wait for
+  auto late = globalMapWith(950 * kMs, {{5, 0, 0.5}});
+  late.late = true;
+  node.addGlobalMap(late);
+  EXPECT_EQ(published, 1);
+  EXPECT_EQ(node.counters().steps, 1U);
+}
+
+// A tracker core behind its adapter on a loopback server.
+class TrackerServer {
+ public:
+  explicit TrackerServer(std::vector<camera::PinholeCamera> cameras) {
+    auto tracker = tracking::Tracker::create({}, cameras);
+    EXPECT_TRUE(tracker.ok());
+    std::vector<std::string> names;
+    for (const auto& c : cameras) names.push_back(c.name);
+    node_ = std::make_unique<TrackerNode>(std::move(*tracker), 1.5, [this] { return now_ns.load(); },
+                                          [this](const TrackSnapshot& s, const FusionReport&) { service_->publish(s); });
+    TrackerServiceHooks hooks;
+    hooks.on_detections = [this](const std::string&, std::size_t) {
+      std::lock_guard lock(mutex_);
+      ++accepted_;
+      changed_.notify_all();
+    };
+    hooks.on_refused = [this](const std::string& why) {
+      std::lock_guard lock(mutex_);
+      refusals_.push_back(why);
+      changed_.notify_all();
+    };
+    service_ = std::make_unique<TrackerService>(*node_, names, false, hooks, 16, 20ms);
+    grpc::ServerBuilder builder;
+    configureServer(builder, 4U << 20);
+    builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port_);
+    builder.RegisterService(service_.get());
+    server_ = builder.BuildAndStart();
+  }
+  ~TrackerServer() {
+    service_->shutdown(200ms);
+    server_->Shutdown(std::chrono::system_clock::now() + 500ms);
+  }
+  std::string target() const { return "127.0.0.1:" + std::to_string(port_); }
+  TrackerNode& node() { return *node_; }
+  TrackerService& service() { return *service_; }
+  // Waits (bounded) until `accepted` frames were taken and `refused` refused.
+  bool waitFor(int accepted, std::size_t refused) {
+    std::unique_lock lock(mutex_);
+    return changed_.wait_for(lock, 5s, [&] { return accepted_ >= accepted && refusals_.size() >= refused; });
+  }
+  std::vector<std::string> refusals() {
+    std::lock_guard lock(mutex_);
+    return refusals_;
+  }
+  std::atomic<std::int64_t> now_ns{0};
+
+ private:
+  std::unique_ptr<TrackerNode> node_;
+  std::unique_ptr<TrackerService> service_;
+  std::unique_ptr<grpc::Server> server_;
+  int port_ = 0;
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  int accepted_ = 0;
+  std::vector<std::string> refusals_;
+};
+
+TEST(TrackerService, DetectionsPushedOverGrpcAreFusedAndBadFramesAreRefusedAndCounted) {
+  const auto cam = frontCamera();
+  TrackerServer server({cam});
+  auto channel = makeChannel(server.target(), 4U << 20);
+  auto stub = v1::TrackerService::NewStub(channel);
+
+  // A subscriber first, so it sees the first tracks.
+  grpc::ClientContext sub_context;
+  v1::TrackSubscribeRequest request;
+  request.set_include_tentative(true);
+  auto tracks = stub->Subscribe(&sub_context, request);
+  for (int i = 0; i < 100 && server.service().subscriberCount() == 0; ++i) std::this_thread::sleep_for(10ms);
+  ASSERT_EQ(server.service().subscriberCount(), 1U);
+
+  grpc::ClientContext context;
+  v1::DetectionSummary summary;
+  auto writer = stub->PushDetections(&context, &summary);
+  // A person 8 m ahead: the pixel of (8, 0, 0.5) is (320, 271.25).
+  tracking::DetectionFrame good{"cam-1", 1000 * kMs, {}};
+  camera::Detection person;
+  person.box = {300, 250, 340, 290};
+  person.label = "person";
+  person.score = 0.9;
+  good.detections.push_back(person);
+  ASSERT_TRUE(writer->Write(toProto(good)));
+  v1::DetectionFrame bad = toProto(good);
+  bad.mutable_detections(0)->set_left(std::nanf(""));
+  ASSERT_TRUE(writer->Write(bad));
+  v1::DetectionFrame stranger = toProto(good);
+  stranger.set_camera("cam-9");
+  ASSERT_TRUE(writer->Write(stranger));
+  ASSERT_TRUE(server.waitFor(1, 2));
+  const auto refusals = server.refusals();
+  EXPECT_NE(refusals[0].find("detections[0]: box coordinates must be finite"), std::string::npos) << refusals[0];
+  EXPECT_NE(refusals[1].find("'cam-9' is not a camera of this tracker"), std::string::npos) << refusals[1];
+  ASSERT_TRUE(writer->WritesDone());
+  ASSERT_TRUE(writer->Finish().ok());
+  EXPECT_EQ(summary.received(), 3U);
+  EXPECT_EQ(summary.refused(), 2U);
+
+  // The global map of the same instant: the person is fused, the track is published.
+  server.now_ns = 1010 * kMs;
+  server.node().addGlobalMap(globalMapWith(1000 * kMs, {{8, 0, 0.5}, {20, 10, 0.5}}));
+  v1::TrackList list;
+  ASSERT_TRUE(tracks->Read(&list));
+  EXPECT_EQ(list.lidar_time_ns(), 1000 * kMs);
+  EXPECT_EQ(list.published_time_ns(), 1010 * kMs);
+  EXPECT_EQ(list.association(), "kalman");
+  ASSERT_EQ(list.tracks_size(), 2);
+  int labelled = 0;
+  for (const auto& proto : list.tracks()) {
+    const auto t = fromProto(proto);
+    ASSERT_TRUE(t.ok()) << t.error().message;
+    if (t->label == "person") {
+      ++labelled;
+      EXPECT_TRUE(t->camera_confirmed);
+      EXPECT_EQ(t->state, tracking::TrackState::kConfirmed);
+      EXPECT_LT((t->position - Eigen::Vector2d(8, 0)).norm(), 1e-9);
+    } else {
+      EXPECT_EQ(t->state, tracking::TrackState::kTentative);  // LiDAR alone: not confirmed yet
+    }
+  }
+  EXPECT_EQ(labelled, 1);
+  sub_context.TryCancel();
+}
+
+// A fake root: publishes the global maps the test gives it to every subscriber.
+class FakeRoot final : public v1::GlobalMapService::Service {
+ public:
+  grpc::Status Subscribe(grpc::ServerContext* context, const v1::SubscribeRequest* request,
+                         grpc::ServerWriter<v1::GlobalMap>* writer) override {
+    EXPECT_TRUE(request->on_time_only());
+    {
+      std::lock_guard lock(mutex_);
+      ++subscriptions_;
+      changed_.notify_all();
+    }
+    while (!context->IsCancelled()) {
+      std::unique_lock lock(mutex_);
+      changed_.wait_for(lock, 20ms, [&] { return !pending_.empty() || closing_; });
+      if (closing_) break;
+      if (pending_.empty()) continue;
+      const v1::GlobalMap next = pending_.front();
+      pending_.erase(pending_.begin());
+      lock.unlock();
+      if (!writer->Write(next)) break;
+    }
+    return grpc::Status::OK;
+  }
+  void send(const GlobalMapMessage& g) {
+    std::lock_guard lock(mutex_);
+    pending_.push_back(toProto(g));
+    changed_.notify_all();
+  }
+  bool waitForSubscriptions(int n) {
+    std::unique_lock lock(mutex_);
+    return changed_.wait_for(lock, 10s, [&] { return subscriptions_ >= n; });
+  }
+  void close() {
+    std::lock_guard lock(mutex_);
+    closing_ = true;
+    changed_.notify_all();
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  std::vector<v1::GlobalMap> pending_;
+  int subscriptions_ = 0;
+  bool closing_ = false;
+};
+
+std::unique_ptr<grpc::Server> serve(FakeRoot& root, int& port) {
+  grpc::ServerBuilder builder;
+  builder.AddListeningPort("127.0.0.1:" + std::to_string(port), grpc::InsecureServerCredentials(), &port);
+  builder.RegisterService(&root);
+  return builder.BuildAndStart();
+}
+
+TEST(GlobalMapFeed, FollowsTheRootAcrossARestartAndSkipsMalformedMaps) {
+  int port = 0;
+  auto root = std::make_unique<FakeRoot>();
+  auto server = serve(*root, port);
+  ASSERT_NE(port, 0);
+  std::mutex mutex;
+  std::condition_variable got;
+  std::vector<std::int64_t> times;
+  std::atomic<int> malformed{0};
+  std::atomic<int> reconnects{0};
+  GlobalMapFeedHooks hooks;
+  hooks.on_map = [&](const GlobalMapMessage& g, std::size_t bytes) {
+    EXPECT_GT(bytes, 0U);
+    std::lock_guard lock(mutex);
+    times.push_back(g.header.sensor_time_ns);
+    got.notify_all();
+  };
+  hooks.on_malformed = [&](const std::string&) { ++malformed; };
+  hooks.on_reconnect = [&] { ++reconnects; };
+  GlobalMapFeed feed(makeChannel("127.0.0.1:" + std::to_string(port), 4U << 20), hooks, 20ms, 100ms);
+  ASSERT_TRUE(root->waitForSubscriptions(1));
+  root->send(globalMapWith(1, {{1, 1, 1}}));
+  {
+    std::unique_lock lock(mutex);
+    ASSERT_TRUE(got.wait_for(lock, 5s, [&] { return times.size() == 1; }));
+  }
+  // The root goes away and a new one comes up on the same port.
+  root->close();
+  server->Shutdown(std::chrono::system_clock::now() + 200ms);
+  server.reset();
+  auto second = std::make_unique<FakeRoot>();
+  auto server2 = serve(*second, port);
+  ASSERT_TRUE(server2 != nullptr);
+  ASSERT_TRUE(second->waitForSubscriptions(1));
+  GlobalMapMessage broken = globalMapWith(2, {{1, 1, 1}});
+  broken.map.objects[0].ellipsoids[0].shape(0, 0) = -1.0;  // not positive definite
+  second->send(broken);
+  second->send(globalMapWith(3, {{1, 1, 1}}));
+  {
+    std::unique_lock lock(mutex);
+    ASSERT_TRUE(got.wait_for(lock, 5s, [&] { return times.size() == 2; }));
+  }
+  EXPECT_EQ(times, (std::vector<std::int64_t>{1, 3}));
+  EXPECT_EQ(malformed.load(), 1);
+  EXPECT_GE(reconnects.load(), 1);
+  feed.stop();
+  second->close();
+  server2->Shutdown(std::chrono::system_clock::now() + 200ms);
+}
+
+}  // namespace
+}  // namespace fogmap
