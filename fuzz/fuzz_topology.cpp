@@ -24,6 +24,21 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       fuzz::check(node.sensor.has_value() && topology->children(node.name).empty(), "an edge is a leaf with a sensor");
       continue;
     }
+    if (node.role == Role::kDetection) {
+      const NodeConfig* parent = topology->find(node.parent);
+      fuzz::check(node.camera.has_value() && parent != nullptr && parent->role == Role::kTracker,
+                  "a detection node has a camera and sends to a tracker");
+      fuzz::check(camera::validate(node.camera->calibration).ok(), "a detection node's calibration is valid");
+      continue;
+    }
+    if (node.role == Role::kTracker) {
+      fuzz::check(node.tracker.has_value() && node.parent.empty(), "a tracker has its settings and no parent");
+      fuzz::check(tracking::validate(node.tracker->tracking).ok(), "a tracker's settings are valid");
+      for (const NodeConfig* c : topology->camerasOf(node.name)) {
+        fuzz::check(c->camera.has_value(), "a tracker's cameras have calibrations");
+      }
+      continue;
+    }
     fuzz::check(topology->aggregatorLevels(node.name) >= 1, "an aggregator is at least one level");
     const Expected<AggregatorConfig> config = aggregatorConfigFor(*topology, node.name);
     fuzz::check(config.ok(), "every aggregator of a valid topology has a configuration");
@@ -39,6 +54,18 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     fuzz::check(a.name == b.name && a.id == b.id && a.role == b.role && a.parent == b.parent && a.host == b.host &&
                     a.port == b.port && a.metrics_port == b.metrics_port,
                 "a node written back as YAML reads the same");
+    fuzz::check(a.camera.has_value() == b.camera.has_value() && a.tracker.has_value() == b.tracker.has_value(),
+                "a node's camera and tracker sections survive YAML");
+    if (a.tracker) {
+      fuzz::check(a.tracker->tracking.association == b.tracker->tracking.association &&
+                      a.tracker->tracking.confirm_hits == b.tracker->tracking.confirm_hits,
+                  "a tracker's settings survive YAML");
+    }
+    if (a.camera) {
+      fuzz::check(a.camera->truth == b.camera->truth && a.camera->detector.kind == b.camera->detector.kind &&
+                      a.camera->calibration.width == b.camera->calibration.width,
+                  "a camera's settings survive YAML");
+    }
   }
   return 0;
 }

@@ -16,5 +16,6 @@ int runCerts(int argc, char** argv);
 int runCompose(int argc, char** argv);
 int runScene(int argc, char** argv);
 int runEval(int argc, char** argv);
+int runTrackEval(int argc, char** argv);
 
 }  // namespace fogmap::cli

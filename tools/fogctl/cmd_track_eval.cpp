@@ -1,0 +1,50 @@
+// fogctl track-eval: the fusion tracker on a simulated moving scene, scored against its truth
+// (tools/fogctl/tracking_eval.hpp).
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+#include "tools/fogctl/args.hpp"
+#include "tools/fogctl/commands.hpp"
+#include "tools/fogctl/tracking_eval.hpp"
+
+namespace fogmap::cli {
+
+int runTrackEval(int argc, char** argv) {
+  const std::string who = "fogctl track-eval";
+  const auto args = Args::parse(argc, argv, 2, {"people", "vehicles", "lidars", "cameras", "frames", "seed", "json"}, {});
+  if (!args) return fail(args.error(), who);
+  TrackingEvalConfig config;
+  const auto count = [&](const std::string& flag, int fallback) -> Expected<int> {
+    const auto v = args->getInt(flag, fallback);
+    if (!v) return v.error();
+    if (*v < 0 || *v > 100000) return invalidArgument("--" + flag + " must be a count from 0 to 100000");
+    return static_cast<int>(*v);
+  };
+  for (auto [flag, field] : {std::pair{"people", &config.people}, std::pair{"vehicles", &config.vehicles},
+                             std::pair{"lidars", &config.lidars}, std::pair{"cameras", &config.cameras},
+                             std::pair{"frames", &config.frames}}) {
+    const auto v = count(flag, *field);
+    if (!v) return fail(v.error(), who);
+    *field = *v;
+  }
+  const auto seed = args->getInt("seed", static_cast<long>(config.seed));
+  if (!seed || *seed < 0) return fail(invalidArgument("--seed must be a non-negative integer"), who);
+  config.seed = static_cast<std::uint64_t>(*seed);
+
+  auto result = runTrackingEval(config);
+  if (!result) return fail(result.error(), "fogctl");  // its errors say "track-eval: ..." already
+  std::fputs(trackingTableMarkdown(*result).c_str(), stdout);
+  std::printf("\n%s", who.c_str());
+  for (int i = 2; i < argc; ++i) std::printf(" %s", argv[i]);
+  std::printf(": %.1f s\n", result->seconds);
+  if (args->has("json")) {
+    const std::string path = args->get("json");
+    std::ofstream out(path);
+    out << trackingJson(*result);
+    if (!out) return fail(ioError("cannot write " + path), who);
+  }
+  return 0;
+}
+
+}  // namespace fogmap::cli
