@@ -23,6 +23,7 @@
 #include "services/common/delivery_journal.hpp"
 #include "services/common/grpc_options.hpp"
 #include "services/common/metrics.hpp"
+#include "services/common/service_process.hpp"
 #include "services/common/parent_link.hpp"
 #include "services/common/proto_convert.hpp"
 #include "services/edge_cluster/edge_metrics.hpp"
@@ -45,24 +46,9 @@ constexpr std::int64_t kStopPollNs = 50'000'000;
 constexpr auto kStopFlush = 1s;
 constexpr auto kDoneFlush = 5s;
 
-// The one global: a signal handler can reach nothing else. Lock-free, so safe to set there.
-std::atomic<bool> g_stop{false};
-static_assert(std::atomic<bool>::is_always_lock_free);
+using fogmap::stopRequested;
 
-void requestStop(int /*signal*/) { g_stop.store(true); }
-
-bool stopRequested() { return g_stop.load(); }
-
-// Sleeps until the system clock reaches `until_ns`, waking every 50 ms so that a stop request is
-// honoured promptly; false when a stop was requested.
-bool waitUntil(std::int64_t until_ns) {
-  while (!stopRequested()) {
-    const std::int64_t now_ns = fogmap::systemNowNs();
-    if (now_ns >= until_ns) return true;
-    std::this_thread::sleep_for(std::chrono::nanoseconds(std::min(until_ns - now_ns, kStopPollNs)));
-  }
-  return false;
-}
+bool waitUntil(std::int64_t until_ns) { return fogmap::sleepUntilUnlessStopped(until_ns, kStopPollNs); }
 
 void usage() {
   std::cerr << "usage: edge-cluster --topology FILE --node NAME [--journal FILE]\n"
@@ -74,25 +60,6 @@ struct Flags {
   std::string node;
   std::filesystem::path journal;  // empty: none
 };
-
-// "--name value" pairs only; anything else is a usage error.
-bool parseFlags(int argc, char** argv, Flags& flags) {
-  for (int i = 1; i < argc; ++i) {
-    const std::string flag = argv[i];
-    if (i + 1 >= argc) return false;
-    const std::string value = argv[++i];
-    if (flag == "--topology") {
-      flags.topology = value;
-    } else if (flag == "--node") {
-      flags.node = value;
-    } else if (flag == "--journal") {
-      flags.journal = value;
-    } else {
-      return false;
-    }
-  }
-  return !flags.topology.empty() && !flags.node.empty();
-}
 
 int badConfig(const std::string& message) {
   std::cerr << "edge-cluster: " << message << "\n";
@@ -232,17 +199,20 @@ int run(const Flags& flags) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc == 2 && (std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0)) {
+  if (fogmap::wantsHelp(argc, argv)) {
     usage();
     return 0;
   }
-  Flags flags;
-  if (!parseFlags(argc, argv, flags)) {
+  const auto args = fogmap::parseServiceArgs(argc, argv, {"journal"});
+  if (!args) {
     usage();
     return kExitBadConfig;
   }
-  std::signal(SIGINT, requestStop);
-  std::signal(SIGTERM, requestStop);
+  Flags flags;
+  flags.topology = args->topology;
+  flags.node = args->node;
+  if (const auto journal = args->extra.find("journal"); journal != args->extra.end()) flags.journal = journal->second;
+  fogmap::installStopFlag();
   try {
     return run(flags);
   } catch (const std::exception& e) {

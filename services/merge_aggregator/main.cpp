@@ -19,6 +19,7 @@
 #include "common/topology.hpp"
 #include "services/common/grpc_options.hpp"
 #include "services/common/metrics.hpp"
+#include "services/common/service_process.hpp"
 #include "services/common/parent_link.hpp"
 #include "services/merge_aggregator/aggregator_runtime.hpp"
 #include "services/merge_aggregator/global_map_service.hpp"
@@ -53,25 +54,16 @@ void usage(std::ostream& out) {
 }
 
 std::optional<Args> parseArgs(int argc, char** argv) {
-  Args args;
-  for (int i = 1; i < argc; ++i) {
-    const std::string_view arg = argv[i];
-    if (arg == "--help" || arg == "-h") {
-      usage(std::cout);
-      std::exit(EXIT_SUCCESS);
-    }
-    if ((arg == "--topology" || arg == "--node") && i + 1 < argc) {
-      (arg == "--topology" ? args.topology : args.node) = argv[++i];
-    } else {
-      std::cerr << "merge-aggregator: unexpected argument '" << arg << "'\n";
-      return std::nullopt;
-    }
+  if (fogmap::wantsHelp(argc, argv)) {
+    usage(std::cout);
+    std::exit(EXIT_SUCCESS);
   }
-  if (args.topology.empty() || args.node.empty()) {
-    std::cerr << "merge-aggregator: --topology and --node are required\n";
+  const auto args = fogmap::parseServiceArgs(argc, argv);
+  if (!args) {
+    std::cerr << "merge-aggregator: --topology FILE and --node NAME are required, and nothing else\n";
     return std::nullopt;
   }
-  return args;
+  return Args{args->topology, args->node};
 }
 
 int run(const Args& args, const sigset_t& stop_signals) {

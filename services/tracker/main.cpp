@@ -21,6 +21,7 @@
 #include "common/topology.hpp"
 #include "services/common/grpc_options.hpp"
 #include "services/common/metrics.hpp"
+#include "services/common/service_process.hpp"
 #include "services/tracker/global_map_feed.hpp"
 #include "services/tracker/tracker_metrics.hpp"
 #include "services/tracker/tracker_node.hpp"
@@ -49,25 +50,16 @@ void usage(std::ostream& out) {
 }
 
 std::optional<Args> parseArgs(int argc, char** argv) {
-  Args args;
-  for (int i = 1; i < argc; ++i) {
-    const std::string_view arg = argv[i];
-    if (arg == "-h" || arg == "--help") {
-      usage(std::cout);
-      std::exit(EXIT_SUCCESS);
-    }
-    if ((arg == "--topology" || arg == "--node") && i + 1 < argc) {
-      (arg == "--topology" ? args.topology : args.node) = argv[++i];
-    } else {
-      std::cerr << "tracker: unexpected argument '" << arg << "'\n";
-      return std::nullopt;
-    }
+  if (fogmap::wantsHelp(argc, argv)) {
+    usage(std::cout);
+    std::exit(EXIT_SUCCESS);
   }
-  if (args.topology.empty() || args.node.empty()) {
-    std::cerr << "tracker: --topology and --node are required\n";
+  const auto args = fogmap::parseServiceArgs(argc, argv);
+  if (!args) {
+    std::cerr << "tracker: --topology FILE and --node NAME are required, and nothing else\n";
     return std::nullopt;
   }
-  return args;
+  return Args{args->topology, args->node};
 }
 
 int run(const Args& args, const sigset_t& stop_signals) {
