@@ -17,5 +17,6 @@ int runCompose(int argc, char** argv);
 int runScene(int argc, char** argv);
 int runEval(int argc, char** argv);
 int runTrackEval(int argc, char** argv);
+int runOverlay(int argc, char** argv);
 
 }  // namespace fogmap::cli
