@@ -13,6 +13,7 @@
 
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "services/common/grpc_options.hpp"
+#include "services/common/backoff.hpp"
 
 namespace fogmap {
 namespace {
@@ -226,7 +227,7 @@ struct ParentLink::State {
   }
 
   void run() {
-    auto backoff = config.backoff_initial;
+    Backoff backoff(config.backoff_initial, config.backoff_max);
     bool had_stream = false;
     while (waitConnected()) {
       auto context = std::make_shared<grpc::ClientContext>();
@@ -273,9 +274,8 @@ struct ParentLink::State {
 
       // A parent that accepts streams and fails them at once must not be hammered; one that
       // served a while gets a quick reconnect.
-      if (got_answer || Clock::now() - opened >= config.backoff_max) backoff = config.backoff_initial;
-      if (sleepFor(backoff)) break;
-      backoff = std::min(backoff * 2, config.backoff_max);
+      if (got_answer || Clock::now() - opened >= config.backoff_max) backoff.reset();
+      if (sleepFor(backoff.next())) break;
     }
   }
 };

@@ -13,6 +13,7 @@
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "services/common/grpc_options.hpp"
 #include "services/common/proto_convert.hpp"
+#include "services/common/backoff.hpp"
 
 namespace fogmap {
 namespace {
@@ -146,7 +147,7 @@ struct TrackerLink::State {
   }
 
   void run() {
-    auto backoff = config.backoff_initial;
+    Backoff backoff(config.backoff_initial, config.backoff_max);
     bool had_stream = false;
     while (waitConnected()) {
       auto context = std::make_shared<grpc::ClientContext>();
@@ -180,9 +181,8 @@ struct TrackerLink::State {
 
       // A tracker that accepts streams and fails them at once must not be hammered; one that
       // took frames a while gets a quick reconnect.
-      if (wrote || Clock::now() - opened >= config.backoff_max) backoff = config.backoff_initial;
-      if (sleepFor(backoff)) break;
-      backoff = std::min(backoff * 2, config.backoff_max);
+      if (wrote || Clock::now() - opened >= config.backoff_max) backoff.reset();
+      if (sleepFor(backoff.next())) break;
     }
     {
       std::lock_guard lock(mu);

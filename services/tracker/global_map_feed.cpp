@@ -4,6 +4,7 @@
 #include <utility>
 
 #include "fogmap/v1/fogmap.grpc.pb.h"
+#include "services/common/backoff.hpp"
 #include "services/common/proto_convert.hpp"
 
 namespace fogmap {
@@ -30,7 +31,7 @@ void GlobalMapFeed::stop() {
 
 void GlobalMapFeed::run() {
   auto stub = v1::GlobalMapService::NewStub(channel_);
-  auto backoff = backoff_initial_;
+  Backoff backoff(backoff_initial_, backoff_max_);
   bool first = true;
   while (true) {
     grpc::ClientContext context;
@@ -47,7 +48,7 @@ void GlobalMapFeed::run() {
     v1::GlobalMap message;
     while (reader->Read(&message)) {
       connected_ = true;
-      backoff = backoff_initial_;  // the root answers: the next failure starts from the first step
+      backoff.reset();  // the root answers: the next failure starts from the first step
       auto global = fromProto(message);
       if (!global) {
         if (hooks_.on_malformed) hooks_.on_malformed(global.error().message);
@@ -59,8 +60,7 @@ void GlobalMapFeed::run() {
     (void)reader->Finish();
     std::unique_lock lock(mutex_);
     context_ = nullptr;
-    if (wake_.wait_for(lock, backoff, [&] { return stopping_; })) return;
-    backoff = std::min(backoff * 2, backoff_max_);
+    if (wake_.wait_for(lock, backoff.next(), [&] { return stopping_; })) return;
   }
 }
 
