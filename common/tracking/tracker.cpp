@@ -307,10 +307,14 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
   // a camera has told apart.
   const double inf = std::numeric_limits<double>::infinity();
   std::vector<std::vector<double>> cost(tracks_.size(), std::vector<double>(measurements.size(), inf));
+  std::vector<std::string> measured_label(measurements.size());
+  for (std::size_t m = 0; m < measurements.size(); ++m) {
+    if (!measurements[m].votes.empty()) measured_label[m] = bestLabel(measurements[m].votes);
+  }
   for (std::size_t t = 0; t < tracks_.size(); ++t) {
     for (std::size_t m = 0; m < measurements.size(); ++m) {
       const auto& meas = measurements[m];
-      if (!meas.votes.empty() && tracks_[t].label != kUnknownLabel && bestLabel(meas.votes) != tracks_[t].label) continue;
+      if (!measured_label[m].empty() && tracks_[t].label != kUnknownLabel && measured_label[m] != tracks_[t].label) continue;
       const double d2 = filters_[t].mahalanobis2(meas.position, meas.covariance);
       if (d2 <= config_.gate_chi2) cost[t][m] = d2;
     }
