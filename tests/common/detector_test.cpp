@@ -23,12 +23,15 @@
 #include "common/camera/frame_queue.hpp"
 #include "common/camera/kitti.hpp"
 #include "tests/common/test_data.hpp"
+#include "tests/support/tiny_detector.hpp"
 
 namespace fogmap::camera {
 namespace {
 
 namespace fs = std::filesystem;
 using fogmap::testing::dataDir;
+using test_support::makeTinyDetector;
+using test_support::pythonWithOnnx;
 
 // Debian's opencv-data (tools/install-deps.sh); the library itself takes cascades only from config.
 const fs::path kHaarDir = "/usr/share/opencv4/haarcascades";
@@ -62,31 +65,6 @@ class TempDir {
  private:
   fs::path path_;
 };
-
-// A Python that can import onnx. Debian's python3-onnx installs for the system interpreter, which
-// a python3 earlier on PATH (a virtualenv, pyenv) may not see.
-std::optional<std::string> pythonWithOnnx() {
-  for (const std::string candidate : {"python3", "/usr/bin/python3"}) {
-    if (std::system((candidate + " -c 'import onnx' >/dev/null 2>&1").c_str()) == 0) return candidate;
-  }
-  return std::nullopt;
-}
-
-// Builds a network whose output is `rows` (see make_tiny_detector.py) with an input of
-// height x width, and returns its path; empty on failure.
-fs::path makeTinyDetector(const std::string& python, const fs::path& dir, const std::string& layout, int height, int width,
-                          const std::vector<std::string>& rows) {
-  const fs::path model = dir / (layout + ".onnx");
-  std::string command = python + " '" + (fs::path(FOGMAP_SOURCE_DIR) / "tests/data/make_tiny_detector.py").string() + "' '" +
-                        model.string() + "' " + layout + " " + std::to_string(height) + " " + std::to_string(width);
-  for (const std::string& row : rows) command += " " + row;
-  if (std::system(command.c_str()) != 0) return {};
-  return model;
-}
-
-#define SKIP_WITHOUT_ONNX(python)                                                                                  \
-  const std::optional<std::string> python = pythonWithOnnx();                                                      \
-  if (!python) GTEST_SKIP() << "no python3 with the onnx module (Debian: python3-onnx); the dnn path is untested"
 
 DnnConfig tinyDnn(const fs::path& model, const fs::path& names, DnnOutput output) {
   DnnConfig c;

@@ -283,12 +283,18 @@ Expected<Cluster> startCluster(const std::filesystem::path& topology_file, const
   if (ec) return ioError("cannot create " + (state_dir / "logs").string() + ": " + ec.message());
   // Servers (aggregators, trackers) before their clients (edges, cameras).
   const auto serves = [](const NodeConfig* n) { return n->role == Role::kAggregator || n->role == Role::kTracker; };
+  const auto starts = [&](const NodeConfig& n) {
+    return options.only.empty() || std::find(options.only.begin(), options.only.end(), n.name) != options.only.end();
+  };
+  for (const std::string& name : options.only) {
+    if (topology.find(name) == nullptr) return notFound("no node '" + name + "' in " + topology_file.string());
+  }
   std::vector<const NodeConfig*> order;
   for (const auto& n : topology.nodes) {
-    if (serves(&n)) order.push_back(&n);
+    if (serves(&n) && starts(n)) order.push_back(&n);
   }
   for (const auto& n : topology.nodes) {
-    if (!serves(&n)) order.push_back(&n);
+    if (!serves(&n) && starts(n)) order.push_back(&n);
   }
   if (!options.journal_dir.empty()) {
     std::filesystem::create_directories(options.journal_dir, ec);

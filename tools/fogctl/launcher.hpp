@@ -45,6 +45,9 @@ struct StartOptions {
   std::map<std::string, std::vector<std::string>> prefixes;
   // Called once every aggregator is ready and before any edge starts (e.g. to subscribe to the root).
   std::function<void()> aggregators_ready;
+  // When not empty, only these nodes start: the others run elsewhere (another host, or a test's
+  // in-process server standing in for them).
+  std::vector<std::string> only;
 };
 
 // Starts every node of the topology (the aggregators, and once they are ready the edges), logs under state_dir/logs, records the
