@@ -47,6 +47,14 @@ std::vector<const NodeConfig*> TopologyConfig::camerasOf(const std::string& node
   return out;
 }
 
+std::vector<const NodeConfig*> TopologyConfig::centroidEdgesOf(const std::string& node_name) const {
+  std::vector<const NodeConfig*> out;
+  for (const auto& n : nodes) {
+    if (n.role == Role::kEdge && n.displacement && n.displacement->tracker == node_name) out.push_back(&n);
+  }
+  return out;
+}
+
 std::vector<const NodeConfig*> TopologyConfig::children(const std::string& node_name) const {
   std::vector<const NodeConfig*> out;
   for (const auto& n : nodes) {
@@ -424,7 +432,7 @@ Expected<CameraNodeConfig> parseCamera(const YAML::Node& node, const std::string
 }
 
 Expected<TrackerNodeConfig> parseTracker(const YAML::Node& node, const std::string& where) {
-  if (const Status st = checkSection(node, where, {"association", "eps_sync_s", "rho_overlay_m", "rho_purecloud_m", "gate_chi2",
+  if (const Status st = checkSection(node, where, {"input", "centroid_merge_m", "association", "eps_sync_s", "rho_overlay_m", "rho_purecloud_m", "gate_chi2",
                                                     "acceleration_sigma", "initial_speed_sigma", "min_measurement_sigma_m",
                                                     "confirm_hits", "tentative_timeout_s", "track_timeout_s",
                                                     "max_buffered_frames", "max_detection_wait_s"});
@@ -432,6 +440,20 @@ Expected<TrackerNodeConfig> parseTracker(const YAML::Node& node, const std::stri
     return st.error();
   }
   TrackerNodeConfig t;
+  const auto input = scalar<std::string>(node, "input", where, trackerInputName(t.input));
+  if (!input) return input.error();
+  const auto parsed_input = parseTrackerInput(*input);
+  if (!parsed_input) return bad(where + ".input", parsed_input.error().message);
+  t.input = *parsed_input;
+  if (node["centroid_merge_m"]) {
+    if (t.input != TrackerInput::kCentroids) return bad(where + ".centroid_merge_m", "goes with input: centroids only");
+    const auto merge = scalar<double>(node, "centroid_merge_m", where, t.centroid_merge_m);
+    if (!merge) return merge.error();
+    if (!(*merge >= 0.0 && *merge <= 100.0)) {
+      return bad(where + ".centroid_merge_m", "must be in [0, 100] metres (0: every centroid its own observation)");
+    }
+    t.centroid_merge_m = *merge;
+  }
   auto& c = t.tracking;
   const auto association = scalar<std::string>(node, "association", where, tracking::associationName(c.association));
   if (!association) return association.error();
@@ -461,6 +483,46 @@ Expected<TrackerNodeConfig> parseTracker(const YAML::Node& node, const std::stri
   c.max_buffered_frames = static_cast<std::size_t>(*buffered);
   if (const Status st = tracking::validate(c); !st) return bad(where, st.error().message);
   return t;
+}
+
+// `displacement:` of an edge: {tracker, preset, voxel_m, neighbour_m, min_neighbours, min_points,
+// min_z_variance_m2}; the preset gives the starting values, the keys given override them.
+Expected<DisplacementNodeConfig> parseDisplacement(const YAML::Node& node, const std::string& where) {
+  if (const Status st = checkSection(node, where, {"tracker", "preset", "voxel_m", "neighbour_m", "min_neighbours",
+                                                    "min_points", "min_z_variance_m2"});
+      !st) {
+    return st.error();
+  }
+  DisplacementNodeConfig d;
+  const auto tracker = scalar<std::string>(node, "tracker", where, "");
+  if (!tracker) return tracker.error();
+  if (tracker->empty()) return bad(where + ".tracker", "is required (the tracker node that fuses this edge's centroids)");
+  d.tracker = *tracker;
+  const auto preset = scalar<std::string>(node, "preset", where, "indoor");
+  if (!preset) return preset.error();
+  if (*preset == "indoor") {
+    d.params = tracking::DisplacementParams::indoor();
+  } else if (*preset == "outdoor") {
+    d.params = tracking::DisplacementParams::outdoor();
+  } else {
+    return bad(where + ".preset", "must be indoor (0.1 m voxels) or outdoor (1.0 m voxels), got '" + *preset + "'");
+  }
+  auto& p = d.params;
+  for (auto [key, value] : std::initializer_list<std::pair<const char*, double*>>{
+           {"voxel_m", &p.voxel_m}, {"neighbour_m", &p.neighbour_m}, {"min_z_variance_m2", &p.min_z_variance_m2}}) {
+    const auto v = scalar<double>(node, key, where, *value);
+    if (!v) return v.error();
+    *value = *v;
+  }
+  for (auto [key, value] : std::initializer_list<std::pair<const char*, std::size_t*>>{
+           {"min_neighbours", &p.min_neighbours}, {"min_points", &p.min_points}}) {
+    const auto v = scalar<long long>(node, key, where, static_cast<long long>(*value));
+    if (!v) return v.error();
+    if (*v < 0 || *v > 1'000'000) return bad(where + "." + key, "must be in [0, 1000000], got " + std::to_string(*v));
+    *value = static_cast<std::size_t>(*v);
+  }
+  if (const Status st = tracking::validateDisplacementParams(p); !st) return bad(where, st.error().message);
+  return d;
 }
 
 std::filesystem::path resolve(const std::string& path, const std::filesystem::path& base_dir) {
@@ -566,6 +628,7 @@ Status validate(const TopologyConfig& t) {
     if (n.role == Role::kDetection && !n.camera) return bad(where, "a detection node needs a camera");
     if (n.role != Role::kDetection && n.camera) return bad(where + ".camera", "only detection nodes have a camera");
     if (n.role != Role::kTracker && n.tracker) return bad(where + ".tracker", "only tracker nodes have a tracker section");
+    if (n.role != Role::kEdge && n.displacement) return bad(where + ".displacement", "only edges have a displacement section");
     if (n.role == Role::kEdge && n.parent.empty()) return bad(where, "an edge needs a parent aggregator");
     if (n.role == Role::kDetection && n.parent.empty()) return bad(where, "a detection node needs a parent tracker");
     if (n.role == Role::kTracker) {
@@ -595,6 +658,28 @@ Status validate(const TopologyConfig& t) {
   }
   if (roots != 1) return bad("nodes", "exactly one node (the root aggregator) must have no parent, found " + std::to_string(roots));
   if (t.root() == nullptr) return bad("nodes", "the node without a parent must be an aggregator (the root)");
+  // Centroids go to a tracker that takes them, and a tracker that takes them gets some.
+  for (std::size_t i = 0; i < t.nodes.size(); ++i) {
+    const auto& n = t.nodes[i];
+    const std::string where = "nodes[" + std::to_string(i) + "] (" + n.name + ")";
+    if (n.displacement) {
+      const std::string& name = n.displacement->tracker;
+      const NodeConfig* tracker = t.find(name);
+      if (tracker == nullptr) return bad(where + ".displacement.tracker", "no node named '" + name + "'");
+      if (tracker->role != Role::kTracker) {
+        return bad(where + ".displacement.tracker", "'" + name + "' is not a tracker (role " +
+                                                        roleName(tracker->role) + ")");
+      }
+      if (tracker->tracker->input != TrackerInput::kCentroids) {
+        return bad(where + ".displacement.tracker", "tracker '" + name + "' reads the root's global map; give it "
+                                                    "tracker: {input: centroids} to fuse this edge's centroids");
+      }
+    }
+    if (n.role == Role::kTracker && n.tracker->input == TrackerInput::kCentroids && t.centroidEdgesOf(n.name).empty()) {
+      return bad(where + ".tracker.input", "is centroids, but no edge sends this tracker any (give edges "
+                                           "displacement: {tracker: " + n.name + "})");
+    }
+  }
   for (std::size_t i = 0; i < t.nodes.size(); ++i) {
     const auto& n = t.nodes[i];
     const std::string where = "nodes[" + std::to_string(i) + "] (" + n.name + ")";
@@ -756,7 +841,8 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
     const std::string where = "nodes[" + std::to_string(i) + "]";
     if (!n.IsMap()) return bad(where, "each node must be a mapping");
     if (const Status s =
-            checkSection(n, where, {"name", "id", "role", "parent", "host", "port", "metrics_port", "sensor", "camera", "tracker", "tls"});
+            checkSection(n, where, {"name", "id", "role", "parent", "host", "port", "metrics_port", "sensor", "camera", "tracker",
+                                    "displacement", "tls"});
         !s) {
       return s.error();
     }
@@ -814,6 +900,11 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
     } else if (node.role == Role::kTracker) {
       node.tracker = TrackerNodeConfig{};
     }
+    if (const YAML::Node displacement = n["displacement"]) {
+      auto d = parseDisplacement(displacement, where + ".displacement");
+      if (!d) return d.error();
+      node.displacement = std::move(*d);
+    }
     if (const YAML::Node tls = n["tls"]) {
       auto files = parseNodeTls(tls, where + ".tls", base_dir);
       if (!files) return files.error();
@@ -857,6 +948,23 @@ const char* serviceName(Role role) {
       return "tracker";
   }
   return "unknown";
+}
+
+const char* trackerInputName(TrackerInput input) {
+  switch (input) {
+    case TrackerInput::kGlobalMap:
+      return "global_map";
+    case TrackerInput::kCentroids:
+      return "centroids";
+  }
+  return "unknown";
+}
+
+Expected<TrackerInput> parseTrackerInput(const std::string& name) {
+  if (name == "global_map") return TrackerInput::kGlobalMap;
+  if (name == "centroids") return TrackerInput::kCentroids;
+  return invalidArgument("must be global_map (the root's global map) or centroids (its edges' displacement centroids), got '" +
+                         name + "'");
 }
 
 const char* roleName(Role role) {
@@ -950,6 +1058,30 @@ TopologyConfig makeTreeTopology(int edges, const std::filesystem::path& source, 
   return t;
 }
 
+NodeConfig trackerNode(int base_port, const tracking::TrackerConfig& tracking) {
+  NodeConfig n;
+  n.id = 300;
+  n.name = kTrackerNodeName;
+  n.role = Role::kTracker;
+  n.port = static_cast<std::uint16_t>(base_port + 300);
+  n.metrics_port = static_cast<std::uint16_t>(base_port + 301);
+  n.tracker = TrackerNodeConfig{tracking};
+  return n;
+}
+
+NodeConfig detectionNode(int number, const std::string& name, const std::string& tracker, int base_port,
+                         CameraNodeConfig camera) {
+  NodeConfig n;
+  n.id = static_cast<std::uint32_t>(400 + number);
+  n.name = name;
+  n.role = Role::kDetection;
+  n.parent = tracker;
+  n.metrics_port = static_cast<std::uint16_t>(base_port + 400 + number);
+  camera.calibration.name = name;
+  n.camera = std::move(camera);
+  return n;
+}
+
 std::string toYaml(const TopologyConfig& t) {
   YAML::Emitter out;
   out.SetDoublePrecision(12);  // 0.35, not 0.34999999999999998
@@ -1036,6 +1168,14 @@ std::string toYaml(const TopologyConfig& t) {
       }
       out << YAML::EndMap;
     }
+    if (n.displacement) {
+      const auto& d = *n.displacement;
+      out << YAML::Key << "displacement" << YAML::Value << YAML::BeginMap << YAML::Key << "tracker" << YAML::Value
+          << d.tracker << YAML::Key << "voxel_m" << YAML::Value << d.params.voxel_m << YAML::Key << "neighbour_m"
+          << YAML::Value << d.params.neighbour_m << YAML::Key << "min_neighbours" << YAML::Value << d.params.min_neighbours
+          << YAML::Key << "min_points" << YAML::Value << d.params.min_points << YAML::Key << "min_z_variance_m2"
+          << YAML::Value << d.params.min_z_variance_m2 << YAML::EndMap;
+    }
     if (n.camera) {
       const auto& c = *n.camera;
       out << YAML::Key << "camera" << YAML::Value << YAML::BeginMap;
@@ -1106,7 +1246,12 @@ std::string toYaml(const TopologyConfig& t) {
     }
     if (n.tracker) {
       const auto& c = n.tracker->tracking;
-      out << YAML::Key << "tracker" << YAML::Value << YAML::BeginMap << YAML::Key << "association" << YAML::Value
+      out << YAML::Key << "tracker" << YAML::Value << YAML::BeginMap;
+      if (n.tracker->input == TrackerInput::kCentroids) {
+        out << YAML::Key << "input" << YAML::Value << trackerInputName(n.tracker->input) << YAML::Key << "centroid_merge_m"
+            << YAML::Value << n.tracker->centroid_merge_m;
+      }
+      out << YAML::Key << "association" << YAML::Value
           << tracking::associationName(c.association) << YAML::Key << "eps_sync_s" << YAML::Value << c.eps_sync_s
           << YAML::Key << "rho_overlay_m" << YAML::Value << c.rho_overlay_m << YAML::Key << "rho_purecloud_m" << YAML::Value
           << c.rho_purecloud_m << YAML::Key << "gate_chi2" << YAML::Value << c.gate_chi2 << YAML::Key

@@ -17,12 +17,14 @@
 #include "common/preprocess.hpp"
 #include "common/cloud_io.hpp"
 #include "common/status.hpp"
+#include "common/tracking/displacement_config.hpp"
 #include "common/tracking/tracker_config.hpp"
 
 namespace fogmap {
 
 // Edges and aggregators make the map; a detection node (one per camera) sends its camera's 2D
-// detections to a tracker, which fuses them with the root's global map into tracks.
+// detections to a tracker, which fuses them with the root's global map (or with the displacement
+// centroids its edges send) into tracks.
 enum class Role { kEdge, kAggregator, kDetection, kTracker };
 // The service (and binary) that runs a node of this role: "edge-cluster", "merge-aggregator",
 // "detection", "tracker".
@@ -89,10 +91,39 @@ struct CameraNodeConfig {
   bool simulated() const { return source == kSimSource; }
 };
 
-// A tracker node's settings (`tracker:`): its LiDAR input is the root's global map (every object
-// a measurement: the centroid of its ellipsoids, their spread as covariance).
+// Which LiDAR observations a tracker fuses with its cameras' detections (`tracker: {input: ...}`).
+// One input, not both: the global map and the centroids see the same objects at the same instants,
+// so together they would give each object two measurements a frame.
+enum class TrackerInput {
+  // The root's global map (every obstacle a measurement: the centroid of its ellipsoids, their
+  // spread as covariance). Sees parked and moving objects alike; works with moving sensors.
+  kGlobalMap,
+  // The displacement centroids its edges stream (the edges whose displacement.tracker names it),
+  // merged per epoch across edges. Moving objects only, from static sensors; needs no root.
+  kCentroids,
+};
+// "global_map" or "centroids", as the topology writes it.
+const char* trackerInputName(TrackerInput input);
+Expected<TrackerInput> parseTrackerInput(const std::string& name);
+
+// A tracker node's settings (`tracker:`): the fusion (common/tracking/tracker_config.hpp) and its
+// LiDAR input.
 struct TrackerNodeConfig {
   tracking::TrackerConfig tracking;
+  TrackerInput input = TrackerInput::kGlobalMap;
+  // Input centroids: centroids of one epoch (from any edges) closer than this on the ground are one
+  // observation (common/tracking/centroid_merge.hpp); 0 keeps every centroid. Only with centroids.
+  double centroid_merge_m = 1.0;
+};
+
+// An edge's displacement centroids (`displacement:`, DESIGN.md 2.4): the edge runs the displacement
+// detector on each scan it cleaned (in the common frame) and streams the centroids to `tracker`,
+// whose input must be centroids. The sensor must stand still.
+struct DisplacementNodeConfig {
+  std::string tracker;  // the tracker node that fuses them
+  // `preset: indoor` (the default; 0.1 m voxels) or `outdoor` (1.0 m voxels, KITTI's HDL-64E),
+  // then every key given: voxel_m, neighbour_m, min_neighbours, min_points, min_z_variance_m2.
+  tracking::DisplacementParams params;
 };
 
 // A node's own certificate and private key (PEM files), when they are not <cert_dir>/<name>.crt
@@ -129,7 +160,8 @@ struct NodeConfig {
   std::uint16_t metrics_port = 0;      // Prometheus /metrics
   std::optional<SensorConfig> sensor;  // edges only
   std::optional<CameraNodeConfig> camera;  // detection nodes only; their parent is a tracker
-  std::optional<TrackerNodeConfig> tracker;  // tracker nodes only (no parent; they read the root)
+  std::optional<TrackerNodeConfig> tracker;  // tracker nodes only (no parent; they read the root or edges)
+  std::optional<DisplacementNodeConfig> displacement;  // edges only: displacement centroids to a tracker
   std::optional<TlsFiles> tls;         // overrides <cert_dir>/<name>.crt and .key (TLS on only)
 };
 
@@ -158,6 +190,8 @@ struct TopologyConfig {
   const NodeConfig* root() const;
   // Detection nodes whose detections go to tracker `name`.
   std::vector<const NodeConfig*> camerasOf(const std::string& name) const;
+  // Edges whose displacement centroids go to tracker `name`.
+  std::vector<const NodeConfig*> centroidEdgesOf(const std::string& name) const;
   std::vector<const NodeConfig*> children(const std::string& name) const;
   // Levels of aggregators in the subtree of `name`: 1 when its children are edges, 0 for an edge.
   int aggregatorLevels(const std::string& name) const;
@@ -184,7 +218,8 @@ bool isCertificateName(const std::string& name);
 // Hosts must be IPv4 addresses; madc and admission values are checked by common/admission.hpp.
 // The optional tls section: `ca` is required, `cert_dir` and `geofence_clients` optional; a node's
 // `tls: {cert, key}` needs both keys and the top-level section. TLS files are read when a service
-// starts, not here.
+// starts, not here. An edge's `displacement:` names a tracker whose input is centroids, and such a
+// tracker has at least one edge sending to it.
 Expected<TopologyConfig> parseTopology(const std::string& yaml_text, const std::filesystem::path& base_dir);
 Expected<TopologyConfig> loadTopology(const std::filesystem::path& path);
 
@@ -194,6 +229,15 @@ Expected<TopologyConfig> loadTopology(const std::filesystem::path& path);
 // four and three edges).
 TopologyConfig makeStarTopology(int edges, const std::filesystem::path& source, int base_port);
 TopologyConfig makeTreeTopology(int edges, const std::filesystem::path& source, int base_port, int fanout = 2);
+// The tracker of a ready-made topology: named kTrackerNodeName, id 300, gRPC port base_port + 300,
+// metrics base_port + 301 (after the aggregators' ports and the edges' and aggregators' metrics).
+inline constexpr const char* kTrackerNodeName = "tracker";
+NodeConfig trackerNode(int base_port, const tracking::TrackerConfig& tracking);
+// Camera `number` (1, 2, ...) of a ready-made topology: a detection node named `name` sending to
+// the tracker `tracker`, id 400 + number, metrics base_port + 400 + number; its calibration takes
+// the node's name.
+NodeConfig detectionNode(int number, const std::string& name, const std::string& tracker, int base_port,
+                         CameraNodeConfig camera);
 std::string toYaml(const TopologyConfig& topology);
 
 }  // namespace fogmap

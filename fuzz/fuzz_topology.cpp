@@ -1,6 +1,8 @@
 // libFuzzer target: parseTopology over arbitrary text. A document it accepts must describe a
 // tree every service can start from: one root, every node's subtree answerable, every aggregator's
-// core created from it, and the document it writes back (toYaml) accepted again.
+// core created from it, every edge's centroids going to a tracker that takes them, and the document
+// it writes back (toYaml) accepted again with the same settings.
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -22,8 +24,17 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     fuzz::check(topology->find(node.id) == &node && topology->find(node.name) == &node, "ids and names are unique");
     if (node.role == Role::kEdge) {
       fuzz::check(node.sensor.has_value() && topology->children(node.name).empty(), "an edge is a leaf with a sensor");
+      if (node.displacement) {
+        const NodeConfig* tracker = topology->find(node.displacement->tracker);
+        fuzz::check(tracker != nullptr && tracker->role == Role::kTracker && tracker->tracker.has_value() &&
+                        tracker->tracker->input == TrackerInput::kCentroids,
+                    "an edge's centroids go to a tracker whose input is centroids");
+        fuzz::check(tracking::validateDisplacementParams(node.displacement->params).ok(),
+                    "an edge's displacement settings are valid");
+      }
       continue;
     }
+    fuzz::check(!node.displacement.has_value(), "only edges have a displacement section");
     if (node.role == Role::kDetection) {
       const NodeConfig* parent = topology->find(node.parent);
       fuzz::check(node.camera.has_value() && parent != nullptr && parent->role == Role::kTracker,
@@ -37,6 +48,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       for (const NodeConfig* c : topology->camerasOf(node.name)) {
         fuzz::check(c->camera.has_value(), "a tracker's cameras have calibrations");
       }
+      const bool centroids = node.tracker->input == TrackerInput::kCentroids;
+      fuzz::check(centroids != topology->centroidEdgesOf(node.name).empty(),
+                  "a tracker gets centroids from some edge exactly when its input is centroids");
       continue;
     }
     fuzz::check(topology->aggregatorLevels(node.name) >= 1, "an aggregator is at least one level");
@@ -54,12 +68,24 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     fuzz::check(a.name == b.name && a.id == b.id && a.role == b.role && a.parent == b.parent && a.host == b.host &&
                     a.port == b.port && a.metrics_port == b.metrics_port,
                 "a node written back as YAML reads the same");
-    fuzz::check(a.camera.has_value() == b.camera.has_value() && a.tracker.has_value() == b.tracker.has_value(),
-                "a node's camera and tracker sections survive YAML");
+    fuzz::check(a.camera.has_value() == b.camera.has_value() && a.tracker.has_value() == b.tracker.has_value() &&
+                    a.displacement.has_value() == b.displacement.has_value(),
+                "a node's camera, tracker and displacement sections survive YAML");
+    // Numbers are written with 12 significant digits.
+    const auto close = [](double x, double y) { return std::abs(x - y) <= 1e-11 * std::abs(x); };
     if (a.tracker) {
       fuzz::check(a.tracker->tracking.association == b.tracker->tracking.association &&
-                      a.tracker->tracking.confirm_hits == b.tracker->tracking.confirm_hits,
+                      a.tracker->tracking.confirm_hits == b.tracker->tracking.confirm_hits &&
+                      a.tracker->input == b.tracker->input && close(a.tracker->centroid_merge_m, b.tracker->centroid_merge_m),
                   "a tracker's settings survive YAML");
+    }
+    if (a.displacement) {
+      const auto& p = a.displacement->params;
+      const auto& q = b.displacement->params;
+      fuzz::check(a.displacement->tracker == b.displacement->tracker && p.min_neighbours == q.min_neighbours &&
+                      p.min_points == q.min_points && close(p.voxel_m, q.voxel_m) && close(p.neighbour_m, q.neighbour_m) &&
+                      close(p.min_z_variance_m2, q.min_z_variance_m2),
+                  "an edge's displacement settings survive YAML");
     }
     if (a.camera) {
       fuzz::check(a.camera->truth == b.camera->truth && a.camera->detector.kind == b.camera->detector.kind &&

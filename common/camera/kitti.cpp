@@ -77,6 +77,34 @@ Expected<KittiCalibration> parseKittiCalibration(const std::string& text) {
   return calib;
 }
 
+Expected<PinholeCamera> pinholeCamera(const KittiCalibration& calibration, int index, int width, int height) {
+  if (index < 0 || index > 3) return invalidArgument("calib: camera " + std::to_string(index) + " does not exist (P0..P3)");
+  const std::string p = "calib: P" + std::to_string(index);
+  const Eigen::Matrix<double, 3, 4>& projection = calibration.projection[static_cast<std::size_t>(index)];
+  const Eigen::Matrix3d k = projection.leftCols<3>();
+  // K [I | t]: intrinsics on the left (no skew), the rectified frame's offset to this camera in t.
+  constexpr double kTolerance = 1e-9;
+  if (std::abs(k(0, 1)) > kTolerance || std::abs(k(1, 0)) > kTolerance || std::abs(k(2, 0)) > kTolerance ||
+      std::abs(k(2, 1)) > kTolerance || std::abs(k(2, 2) - 1.0) > kTolerance) {
+    return invalidArgument(p + " is not of the form K [I | t] with K = [fx 0 cx; 0 fy cy; 0 0 1]");
+  }
+  PinholeCamera camera;
+  camera.name = "P" + std::to_string(index);
+  camera.fx = k(0, 0);
+  camera.fy = k(1, 1);
+  camera.cx = k(0, 2);
+  camera.cy = k(1, 2);
+  camera.width = width;
+  camera.height = height;
+  const Eigen::Vector3d offset = k.inverse() * projection.col(3);
+  Eigen::Isometry3d velodyne_to_camera = Eigen::Isometry3d::Identity();
+  velodyne_to_camera.linear() = calibration.rectification * calibration.velodyne_to_camera.linear();
+  velodyne_to_camera.translation() = calibration.rectification * calibration.velodyne_to_camera.translation() + offset;
+  camera.world_to_camera = velodyne_to_camera;
+  if (const Status valid = validate(camera); !valid) return invalidArgument(p + ": " + valid.error().message);
+  return camera;
+}
+
 Expected<std::vector<KittiLabel>> parseKittiLabels(const std::string& text) {
   std::vector<KittiLabel> labels;
   std::istringstream lines(text);

@@ -14,6 +14,7 @@
 #include <Eigen/Geometry>
 
 #include "common/camera/detection.hpp"  // Box2d
+#include "common/camera/pinhole.hpp"
 #include "common/status.hpp"
 
 namespace fogmap::camera {
@@ -26,6 +27,13 @@ struct KittiCalibration {
   // A LiDAR point in the rectified camera frame.
   Eigen::Vector3d velodyneToRectified(const Eigen::Vector3d& point) const;
 };
+
+// Camera `index` (0..3) of a calibration as a pinhole camera whose common frame is the Velodyne's
+// (KITTI's rectified images: no distortion), for a width x height image: it projects a LiDAR point
+// to the same pixel as projectPoint(projection[index], velodyneToRectified(point)). An error when
+// the index is out of range or P_index is not K [I | t] with K upper triangular and focal lengths
+// positive.
+Expected<PinholeCamera> pinholeCamera(const KittiCalibration& calibration, int index, int width, int height);
 
 // Parses a calib file ("P0: 12 numbers" ... "R0_rect: 9", "Tr_velo_to_cam: 12"; other keys are
 // ignored). Errors name the missing key or the line that does not parse.

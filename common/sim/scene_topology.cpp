@@ -100,26 +100,19 @@ TopologyConfig sceneTopology(const Scene& scene, const std::filesystem::path& sc
     n.sensor = s;
   }
   if (options.tracker) {
-    // Ports after the aggregators (base + i), the edges' metrics (base + 100 + i) and the
-    // aggregators' metrics (base + 200 + i).
-    NodeConfig tracker;
-    tracker.id = 300;
-    tracker.name = "tracker";
-    tracker.role = Role::kTracker;
-    tracker.port = static_cast<std::uint16_t>(options.base_port + 300);
-    tracker.metrics_port = static_cast<std::uint16_t>(options.base_port + 301);
-    tracker.tracker = TrackerNodeConfig{options.tracking};
+    NodeConfig tracker = trackerNode(options.base_port, options.tracking);
+    tracker.tracker->input = options.tracker_input;
+    if (options.tracker_input == TrackerInput::kCentroids) {
+      for (NodeConfig& n : t.nodes) {
+        if (n.role == Role::kEdge) n.displacement = DisplacementNodeConfig{tracker.name, options.displacement};
+      }
+    }
     t.nodes.push_back(tracker);
     for (std::size_t k = 0; k < scene.cameras.size(); ++k) {
       const CameraConfig& cam = scene.cameras[k];
-      NodeConfig n;
-      n.id = static_cast<std::uint32_t>(400 + k + 1);
-      n.name = cameraNodeFor(cam.name);
-      if (taken.count(n.name) > 0) n.name = n.name.substr(0, kMaxNameChars - 4) + "-" + std::to_string(k + 1);
-      taken.insert(n.name);
-      n.role = Role::kDetection;
-      n.parent = tracker.name;
-      n.metrics_port = static_cast<std::uint16_t>(options.base_port + 400 + k + 1);
+      std::string name = cameraNodeFor(cam.name);
+      if (taken.count(name) > 0) name = name.substr(0, kMaxNameChars - 4) + "-" + std::to_string(k + 1);
+      taken.insert(name);
       CameraNodeConfig c;
       c.source = kSimSource;
       c.scene = scene_file;
@@ -127,7 +120,6 @@ TopologyConfig sceneTopology(const Scene& scene, const std::filesystem::path& sc
       c.rate_hz = cam.rate_hz;
       c.truth = true;
       c.truth_replay = options.truth;
-      c.calibration.name = n.name;
       c.calibration.fx = cam.fx;
       c.calibration.fy = cam.fy;
       c.calibration.cx = cam.cx;
@@ -135,8 +127,7 @@ TopologyConfig sceneTopology(const Scene& scene, const std::filesystem::path& sc
       c.calibration.width = cam.width;
       c.calibration.height = cam.height;
       c.calibration.world_to_camera = cam.pose.inverse();
-      n.camera = c;
-      t.nodes.push_back(n);
+      t.nodes.push_back(detectionNode(static_cast<int>(k + 1), name, tracker.name, options.base_port, std::move(c)));
     }
   }
   return t;  // edges are leaves: renaming them leaves every parent link as it was

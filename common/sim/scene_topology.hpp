@@ -17,10 +17,15 @@ struct SceneTopologyOptions {
   double rate_hz = 10.0;   // every simulated LiDAR's scan rate
   // A tracker (named "tracker") and one detection node per camera of the scene (named
   // cameraNodeFor(camera)), each replaying the scene's objects as its detections with `truth`;
-  // the tracker reads the root's global maps.
+  // the tracker reads the root's global maps, or with tracker_input centroids every edge streams it
+  // the displacement centroids of its scans, found with `displacement`.
   bool tracker = false;
-  TruthReplayConfig truth;
+  // The topology's (not sim::TruthReplayConfig, which a file that includes camera_truth.hpp first
+  // would find here: two layouts of one struct).
+  fogmap::TruthReplayConfig truth;
   tracking::TrackerConfig tracking;
+  TrackerInput tracker_input = TrackerInput::kGlobalMap;
+  tracking::DisplacementParams displacement;
 };
 
 // The detection node of scene camera `camera_name`: "cam-" + the name as edgeNameFor cleans it.

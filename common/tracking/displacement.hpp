@@ -13,32 +13,10 @@
 
 #include "common/cloud.hpp"
 #include "common/status.hpp"
+#include "common/tracking/displacement_config.hpp"
+#include "common/tracking/track.hpp"
 
 namespace fogmap::tracking {
-
-// The defaults are the paper's indoor settings (its Table 1).
-struct DisplacementParams {
-  double voxel_m = 0.1;             // octree voxel edge l_voxel; voxels are aligned to the sensor origin
-  double neighbour_m = 0.05;        // DBSCAN d_neighbor: points closer than this (strictly) are neighbours
-  std::size_t min_neighbours = 5;   // DBSCAN n_dense: a core point has this many neighbours, itself included
-  std::size_t min_points = 10;      // N_cluster: smaller clusters are noise (at least 2: a covariance needs two)
-  double min_z_variance_m2 = 0.01;  // sigma_zfilter: clusters whose z sample variance is at most this are dropped
-
-  // The paper's indoor setting (the defaults above).
-  static DisplacementParams indoor();
-  // Outdoors with a Velodyne HDL-64E (KITTI): 1 m voxels and a DBSCAN that connects its rings.
-  static DisplacementParams outdoor();
-};
-
-// Ok, or kInvalidArgument naming the first field out of range.
-Status validateDisplacementParams(const DisplacementParams& params);
-
-// One moving (or newly seen) object's points, summarised.
-struct DisplacementCentroid {
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();      // mean of the cluster's points, sensor frame, m
-  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();    // sample covariance (n - 1) of those points, m^2
-  std::size_t point_count = 0;
-};
 
 struct DisplacementResult {
   std::vector<DisplacementCentroid> centroids;  // kept clusters, in the order of their first point in the frame

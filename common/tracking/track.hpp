@@ -1,6 +1,7 @@
 #pragma once
 // What the tracker takes and gives, as plain types: LiDAR observations, camera detection frames and
 // tracks (common/tracking/tracker.hpp fuses them; services/common/proto_convert carries them).
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -15,6 +16,24 @@ namespace fogmap::tracking {
 struct CloudObservation {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity() * 0.01;  // m^2
+};
+
+// One moving (or newly seen) object's points, summarised (displacement centroids, DESIGN.md 2.4).
+struct DisplacementCentroid {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();    // mean of the cluster's points, in their frame, m
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  // sample covariance (n - 1) of those points, m^2
+  std::size_t point_count = 0;
+};
+
+// One edge's displacement centroids of one scan, in the common frame: what an edge streams to the
+// tracker whose input is centroids. The tracker merges the frames of one epoch from all its edges
+// into one CloudFrame (services/tracker/centroid_collector.hpp).
+struct CentroidFrame {
+  std::string edge;          // the edge node's name
+  std::uint64_t epoch = 0;   // the cluster epoch the scan was shipped in (common/epochs.hpp)
+  std::int64_t time_ns = 0;  // the scan's sensor time (unix epoch)
+  Eigen::Vector3d sensor_position = Eigen::Vector3d::Zero();  // the LiDAR, common frame
+  std::vector<DisplacementCentroid> centroids;
 };
 
 // Every observation of one LiDAR frame (or one global map), with the sensor's timestamp and where

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <google/protobuf/io/coded_stream.h>
 
 #include "common/topology.hpp"
@@ -468,6 +469,72 @@ Expected<tracking::DetectionFrame> fromProto(const v1::DetectionFrame& frame) {
     detection.camera = out.camera;
     detection.capture_time_ns = out.capture_time_ns;
     out.detections.push_back(std::move(detection));
+  }
+  return out;
+}
+
+v1::CentroidFrame toProto(const tracking::CentroidFrame& frame) {
+  v1::CentroidFrame out;
+  out.set_edge(frame.edge);
+  out.set_epoch(frame.epoch);
+  out.set_sensor_time_ns(frame.time_ns);
+  toProto(frame.sensor_position, out.mutable_sensor_position());
+  for (const auto& c : frame.centroids) {
+    auto* p = out.add_centroids();
+    for (int i = 0; i < 3; ++i) p->add_position(static_cast<float>(c.position(i)));
+    const Eigen::Matrix3d& m = c.covariance;
+    for (const double v : {m(0, 0), m(0, 1), m(0, 2), m(1, 1), m(1, 2), m(2, 2)}) p->add_covariance(static_cast<float>(v));
+    p->set_point_count(c.point_count);
+  }
+  return out;
+}
+
+Expected<tracking::CentroidFrame> fromProto(const v1::CentroidFrame& frame) {
+  if (!isName(frame.edge())) return invalidArgument("centroid frame: edge '" + frame.edge().substr(0, 64) + "' is not a node name");
+  if (frame.centroids_size() > kMaxCentroidsPerFrame) {
+    return invalidArgument("centroid frame: " + std::to_string(frame.centroids_size()) + " centroids, more than " +
+                           std::to_string(kMaxCentroidsPerFrame));
+  }
+  const auto within = [](const Eigen::Vector3d& v) { return v.allFinite() && v.cwiseAbs().maxCoeff() <= kMaxCentroidCoordinateM; };
+  tracking::CentroidFrame out;
+  out.edge = frame.edge();
+  out.epoch = frame.epoch();
+  out.time_ns = frame.sensor_time_ns();
+  out.sensor_position = fromProto(frame.sensor_position());
+  if (!within(out.sensor_position)) return invalidArgument("centroid frame: sensor_position must be finite, within 1e6 m");
+  out.centroids.reserve(static_cast<std::size_t>(frame.centroids_size()));
+  for (int i = 0; i < frame.centroids_size(); ++i) {
+    const auto& c = frame.centroids(i);
+    const std::string where = "centroid frame: centroids[" + std::to_string(i) + "]";
+    if (c.position_size() != 3) {
+      return invalidArgument(where + ": position has " + std::to_string(c.position_size()) + " values, expected 3 (x y z)");
+    }
+    if (c.covariance_size() != 6) {
+      return invalidArgument(where + ": covariance has " + std::to_string(c.covariance_size()) +
+                             " values, expected 6 (upper triangle xx xy xz yy yz zz)");
+    }
+    tracking::DisplacementCentroid centroid;
+    centroid.position = {c.position(0), c.position(1), c.position(2)};
+    if (!within(centroid.position)) return invalidArgument(where + ": position must be finite, within 1e6 m");
+    const auto& v = c.covariance();
+    centroid.covariance << v[0], v[1], v[2],  //
+        v[1], v[3], v[4],                     //
+        v[2], v[4], v[5];
+    if (!centroid.covariance.allFinite()) return invalidArgument(where + ": covariance is not finite");
+    if (centroid.covariance.diagonal().maxCoeff() > kMaxCentroidVarianceM2) {
+      return invalidArgument(where + ": covariance has a variance above 1e8 m^2");
+    }
+    // Positive semi-definite, up to the float rounding of the wire.
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(centroid.covariance, Eigen::EigenvaluesOnly);
+    if (eigen.eigenvalues()(0) < -1e-6 * std::max(eigen.eigenvalues()(2), 1e-12)) {
+      return invalidArgument(where + ": covariance is not positive semi-definite");
+    }
+    if (c.point_count() < 2) {
+      return invalidArgument(where + ": point_count " + std::to_string(c.point_count()) +
+                             ", a centroid summarises at least 2 points");
+    }
+    centroid.point_count = static_cast<std::size_t>(c.point_count());
+    out.centroids.push_back(centroid);
   }
   return out;
 }

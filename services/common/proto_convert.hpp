@@ -21,6 +21,8 @@ v1::Geofence toProto(const Geofence& fence);
 v1::Containment toProto(Containment containment);
 v1::DetectionFrame toProto(const tracking::DetectionFrame& frame);
 v1::Track toProto(const tracking::Track& track);
+// Centroid geometry travels as float32, as ellipsoids do.
+v1::CentroidFrame toProto(const tracking::CentroidFrame& frame);
 
 // The serialised size of the uploads (v1::Upload, as ParentLink counts them) that would carry
 // `points` pre-processed points of a frame with `header` in baseline mode, cut into chunks of at
@@ -55,6 +57,14 @@ Expected<Containment> fromProto(v1::Containment containment);  // rejects UNSPEC
 // printable characters. Each detection is stamped with the frame's camera and capture time.
 inline constexpr int kMaxDetectionsPerFrame = 10000;
 Expected<tracking::DetectionFrame> fromProto(const v1::DetectionFrame& frame);
+// An edge's displacement centroids: the edge a name, at most kMaxCentroidsPerFrame centroids, each
+// a position of 3 finite values within kMaxCentroidCoordinateM, a covariance of 6 finite values
+// (upper triangle) that is positive semi-definite with variances at most kMaxCentroidVarianceM2,
+// and at least 2 points; the sensor position finite and within the same bound.
+inline constexpr int kMaxCentroidsPerFrame = 10000;
+inline constexpr double kMaxCentroidCoordinateM = 1e6;
+inline constexpr double kMaxCentroidVarianceM2 = 1e8;
+Expected<tracking::CentroidFrame> fromProto(const v1::CentroidFrame& frame);
 // A track (what fogctl watch and the tests read): finite state, a known state value.
 Expected<tracking::Track> fromProto(const v1::Track& track);
 

@@ -1,6 +1,6 @@
 // detection: one camera's 2D detector. Reads the camera's frames, detects objects in them and
 // streams every frame's detections to the node's tracker (TrackerService.PushDetections).
-// Composition root only: the loops and their policy are DetectionRunner's, the stream TrackerLink's.
+// Composition root only: the loops and their policy are DetectionRunner's, the stream DetectionLink's.
 //
 // A detection node in a topology file (its parent is a tracker):
 //
@@ -47,10 +47,10 @@
 #include "services/common/grpc_options.hpp"
 #include "services/common/metrics.hpp"
 #include "services/common/service_process.hpp"
+#include "services/common/tracker_link.hpp"
 #include "services/detection/detection_metrics.hpp"
 #include "services/detection/detection_runner.hpp"
 #include "services/detection/frame_source.hpp"
-#include "services/detection/tracker_link.hpp"
 #include "services/detection/truth_camera.hpp"
 
 namespace {
@@ -148,7 +148,7 @@ int run(const Flags& flags) {
   };
   link_hooks.on_stream_ended = [prefix](const std::string& why) { std::cerr << prefix << why << "\n"; };
   // Declared after the metrics, so destroyed (and its thread stopped) before the hooks' targets go.
-  fogmap::TrackerLink link(link_config, std::move(link_hooks));
+  fogmap::DetectionLink link(link_config, std::move(link_hooks));
 
   fogmap::DetectionRunnerHooks hooks;
   hooks.now = fogmap::systemNowNs;

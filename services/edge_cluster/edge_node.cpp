@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <limits>
+#include <optional>
 #include <span>
 #include <string>
 #include <utility>
@@ -65,18 +66,38 @@ EdgeConfig edgeConfigFor(const TopologyConfig& topology, const NodeConfig& node)
   // Half the limit leaves room for the header and protobuf framing whatever the limit is.
   const std::size_t by_limit = topology.max_message_bytes / 2 / kMaxBytesPerPoint;
   config.max_points_per_chunk = std::clamp<std::size_t>(by_limit, 1, kDefaultMaxPointsPerChunk);
+  config.name = node.name;
+  if (node.displacement) config.displacement = node.displacement->params;
   return config;
 }
 
 EdgeNode::EdgeNode(EdgeConfig config) : config_(std::move(config)) {
   // Zero would mean "no chunk can hold a point"; one point a chunk is the least that works.
   config_.max_points_per_chunk = std::max<std::size_t>(config_.max_points_per_chunk, 1);
+  if (config_.displacement) detector_.emplace(tracking::DisplacementDetector::create(*config_.displacement));
+}
+
+Expected<std::optional<tracking::CentroidFrame>> EdgeNode::displacementOf(const Cloud& cleaned, std::uint64_t frame,
+                                                                          std::int64_t sensor_time_ns) {
+  Expected<tracking::DisplacementDetector>& detector = *detector_;
+  if (!detector) return detector.error();
+  tracking::DisplacementResult found = detector->push(cleaned);
+  const bool first = !has_previous_scan_;
+  has_previous_scan_ = true;
+  if (first) return std::optional<tracking::CentroidFrame>{};
+  tracking::CentroidFrame centroids;
+  centroids.edge = config_.name;
+  centroids.epoch = frame;
+  centroids.time_ns = sensor_time_ns;
+  centroids.sensor_position = config_.preprocess.sensor_to_common.translation();
+  centroids.centroids = std::move(found.centroids);
+  return std::optional<tracking::CentroidFrame>(std::move(centroids));
 }
 
 Expected<Cloud> EdgeNode::preprocessScan(const Cloud& scan) const { return fogmap::preprocessScan(scan, config_.preprocess); }
 
 Expected<EdgeOutput> EdgeNode::processFrame(const Cloud& scan_in_sensor_frame, std::uint64_t frame,
-                                            std::int64_t sensor_time_ns) const {
+                                            std::int64_t sensor_time_ns) {
   EdgeOutput output;
   output.points_in = scan_in_sensor_frame.size();
 
@@ -94,6 +115,22 @@ Expected<EdgeOutput> EdgeNode::processFrame(const Cloud& scan_in_sensor_frame, s
   if (points.size() > std::numeric_limits<std::uint32_t>::max()) {
     return invalidArgument("frame " + std::to_string(frame) + " has " + std::to_string(points.size()) +
                            " points after pre-processing, more than a point chunk can index (2^32 - 1)");
+  }
+
+  if (detector_) {
+    const SteadyClock::time_point displacement_start = SteadyClock::now();
+    // A baseline that ships raw scans cleans a copy for the detector: ground flicker and what lies
+    // outside the crop would be displacement.
+    std::optional<Cloud> cleaned_copy;
+    if (whole) {
+      Expected<Cloud> cleaned = preprocessScan(scan_in_sensor_frame);
+      if (!cleaned) return cleaned.error();
+      cleaned_copy = std::move(*cleaned);
+    }
+    auto centroids = displacementOf(cleaned_copy ? *cleaned_copy : points, frame, sensor_time_ns);
+    if (!centroids) return centroids.error();
+    output.centroids = std::move(*centroids);
+    output.displacement_seconds = secondsSince(displacement_start);
   }
 
   MapHeader header;

@@ -151,6 +151,8 @@ void EdgeRunner::restamp(std::uint64_t epoch) {
     }
   }
   for (PointChunk& chunk : output.chunks) chunk.header.epoch = epoch;
+  // Centroids go to the tracker once per scan: a re-used scan shows nothing that moved since.
+  output.centroids.reset();
 }
 
 void EdgeRunner::logFailure(std::uint64_t epoch, std::uint64_t scan_number, const std::string& message) {
@@ -178,7 +180,12 @@ void EdgeRunner::logStatus(std::uint64_t epoch, const EdgeOutput& output, bool f
   } else {
     line << output.points_in << " points in, " << output.points_out << " after pre-processing ("
          << output.preprocess_seconds * 1e3 << " ms), " << output.clusters << " clusters ("
-         << output.clustering_seconds * 1e3 << " ms)" << (reused ? ", re-used from the previous epoch" : "");
+         << output.clustering_seconds * 1e3 << " ms)";
+    if (output.displacement_seconds) {
+      line << ", " << (output.centroids ? output.centroids->centroids.size() : 0U) << " displacement centroids ("
+           << *output.displacement_seconds * 1e3 << " ms)";
+    }
+    line << (reused ? ", re-used from the previous epoch" : "");
   }
   line << ", " << uploadsOf(output) << " upload(s)";
   if (stats_.skipped_epochs > 0) line << ", " << stats_.skipped_epochs << " epoch(s) skipped after stalls";

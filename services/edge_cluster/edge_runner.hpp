@@ -27,7 +27,8 @@ namespace fogmap {
 class EdgeObserver {
  public:
   virtual ~EdgeObserver() = default;
-  // A scan was read and processed (once per scan, not again when its result is re-used).
+  // A scan was read and processed (once per scan, not again when its result is re-used; with
+  // displacement, the output holds the detector's time and centroids).
   virtual void scanProcessed(const EdgeOutput& /*output*/) {}
   // An epoch's output was handed to the sink (failed frames included).
   virtual void shipped(const EdgeOutput& /*output*/) {}
@@ -86,8 +87,9 @@ class EdgeRunner {
   // Ships one epoch: the first call chooses the epoch after the current one; each call waits for
   // its epoch's start, reads and processes the scan current then (or re-uses the previous
   // result, re-stamped with this epoch's header and ellipsoid ids, when the scan number did not
-  // change), ships it, and chooses the next epoch: the following one, or after a stall the
-  // current one (epochs in between are skipped, never shipped in a burst).
+  // change; a re-used output carries no displacement centroids: they are shipped once per scan),
+  // ships it, and chooses the next epoch: the following one, or after a stall the current one
+  // (epochs in between are skipped, never shipped in a burst).
   EdgeStep step();
   // step() until it stops or the scans are done; returns the last step (kStopped or kDone).
   EdgeStep run();

@@ -1,6 +1,7 @@
 // edge-cluster: replays one sensor's scans, clusters them at the edge (MAD-C, baseline or ext) and
-// pushes what the mode ships up the stream to its parent aggregator. Composition root only: the
-// replay loop and its policy are EdgeRunner's.
+// pushes what the mode ships up the stream to its parent aggregator; with a displacement section,
+// also streams each scan's displacement centroids to its tracker. Composition root only: the
+// replay loop and its policy are EdgeRunner's, the centroids EdgeNode's.
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -26,6 +27,7 @@
 #include "services/common/service_process.hpp"
 #include "services/common/parent_link.hpp"
 #include "services/common/proto_convert.hpp"
+#include "services/common/tracker_link.hpp"
 #include "services/edge_cluster/edge_metrics.hpp"
 #include "services/edge_cluster/edge_node.hpp"
 #include "services/edge_cluster/edge_runner.hpp"
@@ -66,8 +68,11 @@ int badConfig(const std::string& message) {
   return kExitBadConfig;
 }
 
-// Queues everything an epoch produced on the link; with a journal, records how each upload ends.
-void ship(const fogmap::EdgeOutput& output, fogmap::ParentLink& link, fogmap::DeliveryJournal* journal) {
+// Queues everything an epoch produced on the links (the centroids, when there are any, on the
+// tracker's); with a journal, records how each upload ends.
+void ship(const fogmap::EdgeOutput& output, fogmap::ParentLink& link, fogmap::DeliveryJournal* journal,
+          fogmap::CentroidLink* centroid_link) {
+  if (output.centroids && centroid_link != nullptr) centroid_link->send(*output.centroids);
   const auto settled = [journal](std::uint64_t epoch, const char* kind) -> fogmap::ParentLink::Settled {
     if (journal == nullptr) return {};
     return [journal, epoch, kind](const std::optional<fogmap::v1::Ack>& answer) {
@@ -152,12 +157,33 @@ int run(const Flags& flags) {
   fogmap::ParentLink link(link_config, std::move(hooks));
 
   const fogmap::EdgeConfig edge_config = fogmap::edgeConfigFor(*topology, *node);
-  fogmap::MetricsObserver observer(metrics, edge_config.max_points_per_chunk);
+  fogmap::MetricsObserver observer(metrics, edge_config.max_points_per_chunk, node->name);
+  // Declared after the observer, so destroyed (and its thread stopped) before the hooks' target goes.
+  std::optional<fogmap::CentroidLink> centroid_link;
+  const fogmap::NodeConfig* tracker = node->displacement ? topology->find(node->displacement->tracker) : nullptr;
+  if (tracker != nullptr) {  // the topology's validation: the tracker exists and takes centroids
+    fogmap::TrackerLinkConfig centroid_config;
+    centroid_config.target = tracker->host + ":" + std::to_string(tracker->port);
+    centroid_config.credentials = fogmap::channelCredentials(*tls);
+    centroid_config.max_message_bytes = topology->max_message_bytes;
+    fogmap::TrackerLinkHooks centroid_hooks;
+    centroid_hooks.on_sent = [&observer, peer = tracker->name](std::size_t bytes) { observer.centroidFrameSent(peer, bytes); };
+    centroid_hooks.on_reconnect = [&metrics] { metrics.reconnects(); };
+    centroid_hooks.on_dropped = [&observer, prefix](std::uint64_t total, bool first_of_burst) {
+      observer.centroidFrameDropped();
+      if (first_of_burst) {
+        std::cerr << prefix << "the tracker is not taking centroids; dropping the oldest frames (" << total
+                  << " dropped so far)\n";
+      }
+    };
+    centroid_hooks.on_stream_ended = [prefix](const std::string& why) { std::cerr << prefix << "centroids: " << why << "\n"; };
+    centroid_link.emplace(centroid_config, std::move(centroid_hooks));
+  }
   fogmap::EdgeRunnerHooks runner_hooks;
   runner_hooks.now = fogmap::systemNowNs;
   runner_hooks.wait_until = waitUntil;
-  runner_hooks.ship = [&link, &journal](const fogmap::EdgeOutput& output) {
-    ship(output, link, journal ? &*journal : nullptr);
+  runner_hooks.ship = [&link, &journal, &centroid_link](const fogmap::EdgeOutput& output) {
+    ship(output, link, journal ? &*journal : nullptr, centroid_link ? &*centroid_link : nullptr);
   };
   runner_hooks.dropped_uploads = [&link] { return link.dropped(); };
   runner_hooks.log = [&prefix](const std::string& line) { std::cerr << prefix << line << "\n"; };
@@ -172,13 +198,16 @@ int run(const Flags& flags) {
   std::cerr << prefix << scans.describe() << " at "
             << sensor.rate_hz << " Hz, epochs of " << topology->period_ms << " ms, mode "
             << fogmap::modeName(topology->mode) << ", sending to " << parent->name << " (" << link_config.target
-            << (*tls ? ", mutual TLS" : "") << ")\n";
+            << (*tls ? ", mutual TLS" : "") << ")"
+            << (tracker != nullptr ? ", displacement centroids to " + tracker->name : std::string()) << "\n";
 
   runner.run();
   const fogmap::EdgeRunnerStats& stats = runner.stats();
   const std::string frames = std::to_string(stats.epochs_shipped) + " epoch(s) from " +
                              std::to_string(stats.scans_processed) + " scan(s), " +
                              std::to_string(stats.failed_frames) + " failed";
+  // Centroids are perishable: whatever the tracker has not taken within a moment is abandoned.
+  if (centroid_link) (void)centroid_link->flush(kStopFlush);
   if (stopRequested()) {
     const bool flushed = link.flush(kStopFlush);
     std::cerr << prefix << "stopping after " << frames

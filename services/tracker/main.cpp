@@ -1,5 +1,6 @@
-// tracker: the composition root. Reads the topology, builds the tracker core, its adapter, the
-// feed of the root's global maps and the metrics, and runs until SIGINT or SIGTERM.
+// tracker: the composition root. Reads the topology, builds the tracker core, its adapter, its
+// LiDAR input (the feed of the root's global maps, or the collector of its edges' centroids) and
+// the metrics, and runs until SIGINT or SIGTERM.
 //   tracker --topology FILE --node NAME
 #include <pthread.h>
 #include <signal.h>
@@ -18,10 +19,12 @@
 #include <grpcpp/grpcpp.h>
 
 #include "common/certs.hpp"
+#include "common/epochs.hpp"
 #include "common/topology.hpp"
 #include "services/common/grpc_options.hpp"
 #include "services/common/metrics.hpp"
 #include "services/common/service_process.hpp"
+#include "services/tracker/centroid_collector.hpp"
 #include "services/tracker/global_map_feed.hpp"
 #include "services/tracker/tracker_metrics.hpp"
 #include "services/tracker/tracker_node.hpp"
@@ -44,9 +47,11 @@ struct Args {
 
 void usage(std::ostream& out) {
   out << "usage: tracker --topology FILE --node NAME\n"
-         "Fuses the root's global maps with the detections of the tracker's cameras (the detection nodes\n"
-         "whose parent it is) into tracks, served on TrackerService.Subscribe; settings in the node's\n"
-         "tracker: section (association paper|kalman, eps_sync_s, thresholds, track life cycle).\n";
+         "Fuses the root's global maps (input: global_map) or the displacement centroids its edges stream\n"
+         "(input: centroids; the edges whose displacement: section names it) with the detections of the\n"
+         "tracker's cameras (the detection nodes whose parent it is) into tracks, served on\n"
+         "TrackerService.Subscribe; settings in the node's tracker: section (input, centroid_merge_m,\n"
+         "association paper|kalman, eps_sync_s, thresholds, track life cycle).\n";
 }
 
 std::optional<Args> parseArgs(int argc, char** argv) {
@@ -93,14 +98,29 @@ int run(const Args& args, const sigset_t& stop_signals) {
 
   Metrics metrics(self->host + ":" + std::to_string(self->metrics_port), serviceName(Role::kTracker), self->name);
   metrics.periodSeconds(topology->period_ms / 1000.0);
-  TrackerMetrics tracker_metrics(metrics, self->name, camera_names);
+  const bool centroid_input = self->tracker->input == TrackerInput::kCentroids;
+  std::vector<std::string> edge_names;
+  for (const NodeConfig* e : topology->centroidEdgesOf(self->name)) edge_names.push_back(e->name);
+  TrackerMetrics tracker_metrics(metrics, self->name, camera_names, edge_names);
+  std::optional<CentroidCollector> collector;
+  if (centroid_input) {
+    const auto schedule = EpochSchedule::create(topology->period_ms, topology->deadline_ms);
+    if (!schedule) {
+      std::cerr << "tracker " << self->name << ": " << schedule.error().message << "\n";
+      return kBadConfig;
+    }
+    collector.emplace(CentroidCollectorConfig{edge_names, self->tracker->centroid_merge_m, topology->admission.window_periods},
+                      *schedule);
+  }
 
   std::unique_ptr<TrackerService> service;
-  TrackerNode node(std::move(*tracker), topology->madc.alpha, systemNowNs,
-                   [&service, &tracker_metrics](const TrackSnapshot& snapshot, const FusionReport& report) {
-                     tracker_metrics.fused(report);
-                     service->publish(snapshot);
-                   });
+  TrackerNode node(
+      std::move(*tracker), topology->madc.alpha, systemNowNs,
+      [&service, &tracker_metrics](const TrackSnapshot& snapshot, const FusionReport& report) {
+        tracker_metrics.fused(report);
+        service->publish(snapshot);
+      },
+      std::move(collector));
   TrackerServiceHooks hooks;
   hooks.on_detections = [&metrics](const std::string& camera, std::size_t bytes) { metrics.bytesReceived(camera, "detections", bytes); };
   hooks.on_refused = [&tracker_metrics, name = self->name](const std::string& why) {
@@ -108,6 +128,16 @@ int run(const Args& args, const sigset_t& stop_signals) {
     std::cerr << "tracker " << name << ": refused a detection frame: " << why << "\n";
   };
   hooks.on_subscriber_drops = [&metrics](std::uint64_t n) { metrics.subscriberDrops(n); };
+  hooks.on_centroids = [&tracker_metrics](const std::string& edge, std::size_t bytes) {
+    tracker_metrics.centroidsReceived(edge, bytes);
+  };
+  hooks.on_centroids_refused = [&tracker_metrics, name = self->name](const std::string& reason, const std::string& why) {
+    tracker_metrics.centroidsRejected(reason);
+    // Late frames are routine after a stall; the counter tells how many.
+    if (reason != centroidVerdictName(CentroidVerdict::kLate)) {
+      std::cerr << "tracker " << name << ": refused a centroid frame (" << reason << "): " << why << "\n";
+    }
+  };
   service = std::make_unique<TrackerService>(node, camera_names, tls->has_value(), std::move(hooks));
 
   grpc::ServerBuilder builder;
@@ -122,22 +152,26 @@ int run(const Args& args, const sigset_t& stop_signals) {
     return kRuntimeFailure;
   }
 
-  const NodeConfig* root = topology->root();
-  const std::string root_name = root->name;
-  GlobalMapFeedHooks feed_hooks;
-  feed_hooks.on_map = [&](const GlobalMapMessage& global, std::size_t bytes) {
-    metrics.bytesReceived(root_name, "global_map", bytes);
-    node.addGlobalMap(global);
-  };
-  feed_hooks.on_malformed = [&metrics, name = self->name](const std::string& why) {
-    metrics.malformed("global_map");
-    std::cerr << "tracker " << name << ": malformed global map: " << why << "\n";
-  };
-  feed_hooks.on_reconnect = [&metrics] { metrics.reconnects(); };
-  GlobalMapFeed feed(makeChannel(root->host + ":" + std::to_string(root->port), channelCredentials(*tls), topology->max_message_bytes),
-                     std::move(feed_hooks));
-  // LiDAR frames waiting for late detections are fused when their wait ends, even if nothing
-  // else arrives (a camera that stopped).
+  // Input global_map: the root's maps; input centroids: the edges' streams reach the service.
+  std::optional<GlobalMapFeed> feed;
+  if (!centroid_input) {
+    const NodeConfig* root = topology->root();
+    const std::string root_name = root->name;
+    GlobalMapFeedHooks feed_hooks;
+    feed_hooks.on_map = [&metrics, &node, root_name](const GlobalMapMessage& global, std::size_t bytes) {
+      metrics.bytesReceived(root_name, "global_map", bytes);
+      node.addGlobalMap(global);
+    };
+    feed_hooks.on_malformed = [&metrics, name = self->name](const std::string& why) {
+      metrics.malformed("global_map");
+      std::cerr << "tracker " << name << ": malformed global map: " << why << "\n";
+    };
+    feed_hooks.on_reconnect = [&metrics] { metrics.reconnects(); };
+    feed.emplace(makeChannel(root->host + ":" + std::to_string(root->port), channelCredentials(*tls), topology->max_message_bytes),
+                 std::move(feed_hooks));
+  }
+  // LiDAR frames waiting for late detections are fused when their wait ends, and epochs of
+  // centroids at their deadline, even if nothing else arrives (a camera or an edge that stopped).
   std::atomic<bool> stopping{false};
   std::thread ticker([&] {
     while (!stopping.load()) {
@@ -152,7 +186,7 @@ int run(const Args& args, const sigset_t& stop_signals) {
   const auto signalled = std::chrono::steady_clock::now();
   stopping = true;
   ticker.join();
-  feed.stop();
+  if (feed) feed->stop();
   service->shutdown(kSubscriberDrain);
   server->Shutdown(std::chrono::system_clock::now() + kCallGrace);
   server->Wait();

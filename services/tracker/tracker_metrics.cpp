@@ -14,7 +14,8 @@ void addDelta(prometheus::Counter& counter, std::uint64_t now, std::uint64_t bef
 
 }  // namespace
 
-TrackerMetrics::TrackerMetrics(Metrics& metrics, const std::string& node, const std::vector<std::string>& cameras)
+TrackerMetrics::TrackerMetrics(Metrics& metrics, const std::string& node, const std::vector<std::string>& cameras,
+                               const std::vector<std::string>& edges)
     : metrics_(metrics) {
   prometheus::Registry& r = metrics.registry();
   const prometheus::Labels c{{"service", serviceName(Role::kTracker)}, {"node", node}};
@@ -53,6 +54,29 @@ TrackerMetrics::TrackerMetrics(Metrics& metrics, const std::string& node, const 
                          .Labels(c)
                          .Register(r)
                          .Add({}, prometheus::Histogram::BucketBoundaries{1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 0.1});
+  centroid_frames_ = &prometheus::BuildCounter()
+                          .Name("fogmap_centroid_frames_received_total")
+                          .Help("Centroid frames accepted from each edge (input centroids).")
+                          .Labels(c)
+                          .Register(r);
+  for (const auto& edge : edges) centroid_frames_->Add({{"edge", edge}});
+  centroid_rejected_ = &prometheus::BuildCounter()
+                            .Name("fogmap_centroid_frames_rejected_total")
+                            .Help("Centroid frames never fused, by reason: malformed (bad sizes, non-finite values, a "
+                                  "covariance not positive semi-definite), forged (another edge's identity), "
+                                  "unknown_edge, late (their epoch was fused), early (beyond the clock window), "
+                                  "duplicate (the edge sent that epoch already).")
+                            .Labels(c)
+                            .Register(r);
+  for (const char* reason : {"malformed", "forged", "unknown_edge", "late", "early", "duplicate"}) {
+    centroid_rejected_->Add({{"reason", reason}});
+  }
+  centroid_epochs_partial_ = &prometheus::BuildCounter()
+                                  .Name("fogmap_centroid_epochs_partial_total")
+                                  .Help("Epochs of centroids fused at their deadline without every edge's frame.")
+                                  .Labels(c)
+                                  .Register(r)
+                                  .Add({});
 }
 
 void TrackerMetrics::fused(const FusionReport& report) {
@@ -67,6 +91,10 @@ void TrackerMetrics::fused(const FusionReport& report) {
   addDelta(dropped_->Add({{"reason", "stale"}}), counters.detection_frames_stale, last_.detection_frames_stale);
   addDelta(dropped_->Add({{"reason", "overflow"}}), counters.detection_frames_overflow, last_.detection_frames_overflow);
   last_ = counters;
+  if (report.centroids) {
+    addDelta(*centroid_epochs_partial_, report.centroids->epochs_partial, last_partial_);
+    last_partial_ = report.centroids->epochs_partial;
+  }
   std::map<std::string, double> by_state{{"tentative", 0.0}, {"confirmed", 0.0}, {"lost", 0.0}};
   for (const auto& t : report.tracks) by_state[tracking::trackStateName(t.state)] += 1.0;
   for (const auto& [state, n] : by_state) tracks_->Add({{"state", state}}).Set(n);
@@ -74,5 +102,12 @@ void TrackerMetrics::fused(const FusionReport& report) {
 }
 
 void TrackerMetrics::refused() { dropped_->Add({{"reason", "refused"}}).Increment(); }
+
+void TrackerMetrics::centroidsReceived(const std::string& edge, std::size_t bytes) {
+  centroid_frames_->Add({{"edge", edge}}).Increment();
+  metrics_.bytesReceived(edge, "centroids", bytes);
+}
+
+void TrackerMetrics::centroidsRejected(const std::string& reason) { centroid_rejected_->Add({{"reason", reason}}).Increment(); }
 
 }  // namespace fogmap

@@ -2,7 +2,10 @@
 // The tracker's observations as Prometheus metrics, beside the shared ones (bytes, end-to-end
 // latency, reconnects): tracks by state, tracks created and deleted, updates by kind (a camera's
 // detection fused with LiDAR, or LiDAR alone), detection frames dropped by reason, per-camera
-// staleness and the fusion step's time.
+// staleness and the fusion step's time; with centroid input, centroid frames received per edge,
+// rejected by reason, and epochs fused without every edge.
+#include <cstddef>
+#include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
@@ -20,13 +23,18 @@ namespace fogmap {
 class TrackerMetrics {
  public:
   // Adds the tracker's families to `metrics`' registry with its constant labels; `cameras` get a
-  // staleness series from the start.
-  TrackerMetrics(Metrics& metrics, const std::string& node, const std::vector<std::string>& cameras);
+  // staleness series from the start, `edges` (those sending centroids) a received series.
+  TrackerMetrics(Metrics& metrics, const std::string& node, const std::vector<std::string>& cameras,
+                 const std::vector<std::string>& edges = {});
 
   // After frames were fused: what the report says.
   void fused(const FusionReport& report);
   // A detection frame the adapter refused (malformed, unknown camera, forged).
   void refused();
+  // A centroid frame accepted from `edge`, of `bytes` serialised bytes.
+  void centroidsReceived(const std::string& edge, std::size_t bytes);
+  // A centroid frame rejected; `reason` as TrackerServiceHooks::on_centroids_refused gives it.
+  void centroidsRejected(const std::string& reason);
 
  private:
   Metrics& metrics_;
@@ -37,7 +45,11 @@ class TrackerMetrics {
   prometheus::Family<prometheus::Counter>* dropped_;
   prometheus::Family<prometheus::Gauge>* staleness_;
   prometheus::Histogram* fusion_seconds_;
+  prometheus::Family<prometheus::Counter>* centroid_frames_;
+  prometheus::Family<prometheus::Counter>* centroid_rejected_;
+  prometheus::Counter* centroid_epochs_partial_;
   tracking::TrackerCounters last_;  // counters already exported
+  std::uint64_t last_partial_ = 0;
 };
 
 }  // namespace fogmap

@@ -51,8 +51,22 @@ tracking::CloudFrame observationsOf(const GlobalMapMessage& global, double alpha
   return frame;
 }
 
-TrackerNode::TrackerNode(tracking::Tracker tracker, double alpha, NowNs now, Publish publish)
-    : tracker_(std::move(tracker)), alpha_(alpha), now_(std::move(now)), publish_(std::move(publish)) {}
+TrackerNode::TrackerNode(tracking::Tracker tracker, double alpha, NowNs now, Publish publish,
+                         std::optional<CentroidCollector> centroids)
+    : tracker_(std::move(tracker)),
+      alpha_(alpha),
+      now_(std::move(now)),
+      publish_(std::move(publish)),
+      centroids_(std::move(centroids)) {}
+
+std::vector<tracking::StepStats> TrackerNode::offer(const std::vector<tracking::CloudFrame>& frames, std::int64_t now_ns) {
+  std::vector<tracking::StepStats> steps;
+  for (const auto& frame : frames) {
+    auto fused = tracker_.offerCloud(frame, now_ns);
+    steps.insert(steps.end(), fused.begin(), fused.end());
+  }
+  return steps;
+}
 
 void TrackerNode::addDetections(tracking::DetectionFrame frame) {
   std::unique_lock lock(mutex_);
@@ -69,10 +83,25 @@ void TrackerNode::addGlobalMap(const GlobalMapMessage& global) {
   publishFused(lock, tracker_.offerCloud(frame, now_()), started);
 }
 
+CentroidVerdict TrackerNode::addCentroids(tracking::CentroidFrame frame) {
+  if (!centroids_) return CentroidVerdict::kUnknownEdge;
+  std::unique_lock lock(mutex_);
+  const auto started = std::chrono::steady_clock::now();
+  const std::int64_t now = now_();
+  auto added = centroids_->add(std::move(frame), now);
+  publishFused(lock, offer(added.ready, now), started);
+  return added.verdict;
+}
+
 void TrackerNode::tick() {
   std::unique_lock lock(mutex_);
   const auto started = std::chrono::steady_clock::now();
-  publishFused(lock, tracker_.advance(now_()), started);
+  const std::int64_t now = now_();
+  std::vector<tracking::StepStats> steps;
+  if (centroids_) steps = offer(centroids_->expire(now), now);
+  auto advanced = tracker_.advance(now);
+  steps.insert(steps.end(), advanced.begin(), advanced.end());
+  publishFused(lock, std::move(steps), started);
 }
 
 void TrackerNode::publishFused(std::unique_lock<std::mutex>& lock, std::vector<tracking::StepStats> steps,
@@ -85,6 +114,7 @@ void TrackerNode::publishFused(std::unique_lock<std::mutex>& lock, std::vector<t
   snapshot.association = tracker_.config().association;
   snapshot.tracks = tracker_.tracks();
   report.counters = tracker_.counters();
+  if (centroids_) report.centroids = centroids_->counters();
   report.tracks = snapshot.tracks;
   const std::int64_t now = now_();
   for (const auto& [camera, captured] : tracker_.lastCapture()) report.camera_staleness_s[camera] = static_cast<double>(now - captured) * 1e-9;
@@ -98,6 +128,12 @@ void TrackerNode::publishFused(std::unique_lock<std::mutex>& lock, std::vector<t
 tracking::TrackerCounters TrackerNode::counters() const {
   std::lock_guard lock(mutex_);
   return tracker_.counters();
+}
+
+std::optional<CentroidCounters> TrackerNode::centroidCounters() const {
+  std::lock_guard lock(mutex_);
+  if (!centroids_) return std::nullopt;
+  return centroids_->counters();
 }
 
 std::vector<tracking::Track> TrackerNode::tracks() const {

@@ -1,13 +1,15 @@
 #pragma once
-// The tracker service's core, in domain types: it fuses the root's global maps (the LiDAR input:
-// one observation per object) with the detection frames its cameras send, and hands every
-// resulting set of tracks to its subscribers. Thread-safe: the detection streams, the global-map
-// feed and the subscribers run on their own threads.
+// The tracker service's core, in domain types: it fuses its LiDAR input (the root's global maps:
+// one observation per obstacle; or its edges' displacement centroids, one LiDAR frame per epoch)
+// with the detection frames its cameras send, and hands every resulting set of tracks to its
+// subscribers. Thread-safe: the detection and centroid streams, the global-map feed and the
+// subscribers run on their own threads.
 #include <chrono>
 #include <cstdint>
 #include <functional>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -15,6 +17,7 @@
 #include "common/messages.hpp"
 #include "common/status.hpp"
 #include "common/tracking/tracker.hpp"
+#include "services/tracker/centroid_collector.hpp"
 
 namespace fogmap {
 
@@ -32,7 +35,7 @@ tracking::CloudFrame observationsOf(const GlobalMapMessage& global, double alpha
 
 // One published set of tracks.
 struct TrackSnapshot {
-  std::int64_t lidar_time_ns = 0;      // the sensor time of the fused global map
+  std::int64_t lidar_time_ns = 0;      // the sensor time of the fused LiDAR frame (global map or epoch)
   std::int64_t published_time_ns = 0;
   tracking::Association association = tracking::Association::kKalman;
   std::vector<tracking::Track> tracks;  // every live track (subscribers choose which to show)
@@ -47,6 +50,7 @@ struct FusionReport {
   tracking::TrackerCounters counters;
   std::vector<tracking::Track> tracks;
   std::map<std::string, double> camera_staleness_s;  // seconds since each camera's newest capture
+  std::optional<CentroidCounters> centroids;          // with centroid input
 };
 
 // The tracker core of the service: LiDAR frames wait for the detections that belong to them
@@ -54,16 +58,24 @@ struct FusionReport {
 class TrackerNode {
  public:
   using Publish = std::function<void(const TrackSnapshot&, const FusionReport&)>;
-  TrackerNode(tracking::Tracker tracker, double alpha, NowNs now, Publish publish);
+  // `centroids`: the collector of a tracker whose input is centroids (none: global maps).
+  TrackerNode(tracking::Tracker tracker, double alpha, NowNs now, Publish publish,
+              std::optional<CentroidCollector> centroids = std::nullopt);
 
   // A camera's detection frame, already validated by the adapter; may complete waiting frames.
   void addDetections(tracking::DetectionFrame frame);
   // Offers a global map's observations (late revisions are skipped: their epoch was offered).
   void addGlobalMap(const GlobalMapMessage& global);
-  // Fuses the LiDAR frames whose wait for detections is over (call it every few milliseconds).
+  // An edge's centroid frame, already validated by the adapter: collected with the other edges'
+  // frames of its epoch; each epoch complete is offered as one LiDAR frame. kUnknownEdge when this
+  // node takes no centroids.
+  CentroidVerdict addCentroids(tracking::CentroidFrame frame);
+  // Offers the epochs of centroids whose deadline passed, and fuses the LiDAR frames whose wait for
+  // detections is over (call it every few milliseconds).
   void tick();
 
   tracking::TrackerCounters counters() const;
+  std::optional<CentroidCounters> centroidCounters() const;  // with centroid input
   std::vector<tracking::Track> tracks() const;
 
  private:
@@ -72,11 +84,15 @@ class TrackerNode {
   void publishFused(std::unique_lock<std::mutex>& lock, std::vector<tracking::StepStats> steps,
                     std::chrono::steady_clock::time_point started);
 
+  // Offers `frames` (epochs of centroids, in order) under the lock; returns the steps fused.
+  std::vector<tracking::StepStats> offer(const std::vector<tracking::CloudFrame>& frames, std::int64_t now_ns);
+
   mutable std::mutex mutex_;
   tracking::Tracker tracker_;
   double alpha_;
   NowNs now_;
   Publish publish_;
+  std::optional<CentroidCollector> centroids_;
 };
 
 }  // namespace fogmap

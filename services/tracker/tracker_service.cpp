@@ -92,6 +92,45 @@ grpc::Status TrackerService::PushDetections(grpc::ServerContext* context, grpc::
   return grpc::Status::OK;
 }
 
+grpc::Status TrackerService::PushCentroids(grpc::ServerContext* context, grpc::ServerReader<v1::CentroidFrame>* reader,
+                                           v1::CentroidSummary* summary) {
+  std::optional<std::string> peer;
+  if (identify_by_certificate_) {
+    peer = peerCertificateName(*context);
+    if (!peer) return {grpc::StatusCode::UNAUTHENTICATED, "the client's certificate names no edge"};
+  }
+  v1::CentroidFrame message;
+  while (reader->Read(&message)) {
+    summary->set_received(summary->received() + 1);
+    const std::size_t bytes = message.ByteSizeLong();
+    auto frame = fromProto(message);
+    std::string reason;
+    std::string refusal;
+    if (!frame) {
+      reason = "malformed";
+      refusal = frame.error().message;
+    } else if (peer && *peer != frame->edge) {
+      reason = "forged";
+      refusal = "'" + *peer + "' may not speak for edge '" + frame->edge + "'";
+    } else {
+      const std::string edge = frame->edge;
+      const std::uint64_t epoch = frame->epoch;
+      const CentroidVerdict verdict = node_.addCentroids(std::move(*frame));
+      if (verdict == CentroidVerdict::kAccepted) {
+        if (hooks_.on_centroids) hooks_.on_centroids(edge, bytes);
+        continue;
+      }
+      reason = centroidVerdictName(verdict);
+      refusal = "edge '" + edge + "', epoch " + std::to_string(epoch) + ": " +
+                (verdict == CentroidVerdict::kUnknownEdge ? "not an edge that sends centroids to this tracker" : reason);
+    }
+    summary->set_refused(summary->refused() + 1);
+    summary->set_last_refusal(refusal);
+    if (hooks_.on_centroids_refused) hooks_.on_centroids_refused(reason, refusal);
+  }
+  return grpc::Status::OK;
+}
+
 grpc::Status TrackerService::Subscribe(grpc::ServerContext* context, const v1::TrackSubscribeRequest* request,
                                        grpc::ServerWriter<v1::TrackList>* writer) {
   auto subscriber = std::make_shared<Subscriber>();

@@ -1,6 +1,7 @@
 #pragma once
-// gRPC adapter for TrackerService: detection services push their cameras' detections (validated by
-// proto_convert, refusals counted), subscribers read the tracks. Every subscriber has its own
+// gRPC adapter for TrackerService: detection services push their cameras' detections and edges
+// their displacement centroids (validated by proto_convert, refusals counted), subscribers read the
+// tracks. Every subscriber has its own
 // bounded queue: a slow one loses its oldest track lists (counted), never slows fusion.
 #include <atomic>
 #include <chrono>
@@ -23,12 +24,17 @@ struct TrackerServiceHooks {
   std::function<void(const std::string& camera, std::size_t bytes)> on_detections;  // a frame accepted
   std::function<void(const std::string& why)> on_refused;                            // a frame refused
   std::function<void(std::uint64_t n)> on_subscriber_drops;
+  std::function<void(const std::string& edge, std::size_t bytes)> on_centroids;  // a centroid frame accepted
+  // A centroid frame refused: `reason` is "malformed", "forged" or a CentroidVerdict's name
+  // (unknown_edge, late, early, duplicate), `why` a line for the log.
+  std::function<void(const std::string& reason, const std::string& why)> on_centroids_refused;
 };
 
 class TrackerService final : public v1::TrackerService::Service {
  public:
-  // With TLS (`identify_by_certificate`) a stream may speak only for the camera its certificate
-  // names. `cameras`: the detection nodes whose frames are accepted.
+  // With TLS (`identify_by_certificate`) a stream may speak only for the camera (or edge) its
+  // certificate names. `cameras`: the detection nodes whose frames are accepted; which edges' centroid
+  // frames are is the node's (its CentroidCollector's) to say.
   TrackerService(TrackerNode& node, std::vector<std::string> cameras, bool identify_by_certificate, TrackerServiceHooks hooks,
                  std::size_t queue_capacity = 16, std::chrono::milliseconds poll_wait = std::chrono::milliseconds(100));
 
@@ -40,6 +46,8 @@ class TrackerService final : public v1::TrackerService::Service {
 
   grpc::Status PushDetections(grpc::ServerContext* context, grpc::ServerReader<v1::DetectionFrame>* reader,
                               v1::DetectionSummary* summary) override;
+  grpc::Status PushCentroids(grpc::ServerContext* context, grpc::ServerReader<v1::CentroidFrame>* reader,
+                             v1::CentroidSummary* summary) override;
   grpc::Status Subscribe(grpc::ServerContext* context, const v1::TrackSubscribeRequest* request,
                          grpc::ServerWriter<v1::TrackList>* writer) override;
 

@@ -104,5 +104,41 @@ TEST(KittiCamera, BrokenFilesAreErrorsNamingWhatIsWrong) {
   EXPECT_FALSE(projectPoint(Eigen::Matrix<double, 3, 4>::Identity(), {0, 0, -1}).has_value()) << "behind the camera";
 }
 
+// The camera a topology's detection node gets from a KITTI calib file: in the Velodyne's frame, it
+// puts every LiDAR point of the bundled sequence where P2 after R0_rect and Tr_velo_to_cam does.
+TEST(KittiCamera, PinholeCameraProjectsLidarPointsLikeTheProjectionMatrix) {
+  const auto calib = parseKittiCalibration(slurp(dataDir() / "kitti_raw_seq_a" / "calib.txt"));
+  ASSERT_TRUE(calib.ok()) << calib.error().message;
+  const auto scan = readKittiBin(dataDir() / "kitti_raw_seq_a" / "0000000000.bin");
+  ASSERT_TRUE(scan.ok());
+  for (const int index : {2, 3}) {
+    SCOPED_TRACE("camera " + std::to_string(index));
+    const auto camera = pinholeCamera(*calib, index, kWidth, kHeight);
+    ASSERT_TRUE(camera.ok()) << camera.error().message;
+    EXPECT_EQ(camera->width, kWidth);
+    EXPECT_NEAR(camera->fx, 721.5377, 1e-4);
+    std::size_t in_image = 0;
+    for (const Point& p : scan->points) {
+      const Eigen::Vector3d point(p.x, p.y, p.z);
+      const auto expected = projectPoint(calib->projection[static_cast<std::size_t>(index)], calib->velodyneToRectified(point), 1.0);
+      const auto pixel = camera->project(point, 1.0);
+      if (!expected) continue;
+      ASSERT_TRUE(pixel.has_value());
+      ASSERT_LT((*pixel - *expected).norm(), 1e-6) << point.transpose();
+      if (camera->inImage(*pixel)) ++in_image;
+    }
+    EXPECT_GT(in_image, 5000U) << "the camera looks forward, where the scan has points";
+  }
+  const auto no_camera = pinholeCamera(*calib, 4, kWidth, kHeight);
+  ASSERT_FALSE(no_camera.ok());
+  EXPECT_NE(no_camera.error().message.find("camera 4 does not exist"), std::string::npos) << no_camera.error().message;
+  KittiCalibration skewed = *calib;
+  skewed.projection[2](0, 1) = 5.0;
+  const auto not_pinhole = pinholeCamera(skewed, 2, kWidth, kHeight);
+  ASSERT_FALSE(not_pinhole.ok());
+  EXPECT_NE(not_pinhole.error().message.find("P2 is not of the form K [I | t]"), std::string::npos) << not_pinhole.error().message;
+  EXPECT_FALSE(pinholeCamera(*calib, 2, 0, kHeight).ok()) << "an image without pixels";
+}
+
 }  // namespace
 }  // namespace fogmap::camera

@@ -59,6 +59,32 @@ TEST(SceneTopology, OneSimulatedEdgePerLidarAtItsPoseInAStarAndATree) {
   }
 }
 
+TEST(SceneTopology, WithCentroidInputEveryEdgeStreamsItsCentroidsToTheTracker) {
+  const Scene scene = movingScene(3, 1, 3, 2, 4);
+  SceneTopologyOptions options;
+  options.tracker = true;
+  options.tracker_input = TrackerInput::kCentroids;
+  options.displacement = tracking::DisplacementParams::outdoor();
+  options.displacement.min_points = 6;
+  const Expected<TopologyConfig> parsed = parseTopology(toYaml(sceneTopology(scene, "s.yaml", options)), "");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  const NodeConfig* tracker = parsed->find(kTrackerNodeName);
+  ASSERT_NE(tracker, nullptr);
+  EXPECT_EQ(tracker->tracker->input, TrackerInput::kCentroids);
+  EXPECT_EQ(parsed->camerasOf(tracker->name).size(), 2U);
+  const auto edges = parsed->centroidEdgesOf(tracker->name);
+  ASSERT_EQ(edges.size(), 3U);
+  for (const NodeConfig* e : edges) {
+    EXPECT_EQ(e->displacement->tracker, tracker->name);
+    EXPECT_EQ(e->displacement->params, options.displacement) << e->name;
+  }
+  // The default: the tracker reads the root's global maps, and no edge runs the detector.
+  options.tracker_input = TrackerInput::kGlobalMap;
+  const TopologyConfig global = sceneTopology(scene, "s.yaml", options);
+  EXPECT_EQ(global.find(kTrackerNodeName)->tracker->input, TrackerInput::kGlobalMap);
+  for (const NodeConfig* e : edgesOf(global)) EXPECT_FALSE(e->displacement.has_value()) << e->name;
+}
+
 TEST(SceneTopology, EdgeNamesAreNodeNamesAndStayApart) {
   Scene scene;
   scene.name = "yard 7/north";

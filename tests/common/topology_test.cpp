@@ -67,6 +67,17 @@ void expectSameTopology(const TopologyConfig& a, const TopologyConfig& b) {
       EXPECT_EQ(x.tls->cert, y.tls->cert);
       EXPECT_EQ(x.tls->key, y.tls->key);
     }
+    ASSERT_EQ(x.tracker.has_value(), y.tracker.has_value());
+    if (x.tracker) {
+      EXPECT_EQ(x.tracker->input, y.tracker->input);
+      EXPECT_DOUBLE_EQ(x.tracker->centroid_merge_m, y.tracker->centroid_merge_m);
+      EXPECT_EQ(x.tracker->tracking.association, y.tracker->tracking.association);
+    }
+    ASSERT_EQ(x.displacement.has_value(), y.displacement.has_value());
+    if (x.displacement) {
+      EXPECT_EQ(x.displacement->tracker, y.displacement->tracker);
+      EXPECT_EQ(x.displacement->params, y.displacement->params);
+    }
     ASSERT_EQ(x.sensor.has_value(), y.sensor.has_value());
     if (!x.sensor) continue;
     EXPECT_EQ(x.sensor->source.lexically_normal(), y.sensor->source.lexically_normal());
@@ -756,6 +767,88 @@ TEST(Topology, DetectionAndTrackerMistakesAreNamed) {
                      {"nodes[3].camera.calibration", "fx and fy must be positive"});
   expectRejectedWith(topologyYaml("", "", head + "  - {name: e, id: 3, role: edge, parent: sink, metrics_port: 2, sensor: {source: s}, camera: {source: imgs, " + cal + "}}\n"),
                      {"nodes[2] (e).camera", "only detection nodes"});
+}
+
+// Two edges streaming displacement centroids to a tracker whose input is centroids, and a
+// detection node; `edge2` and `tracker` replace the second edge's displacement and the tracker's
+// section.
+std::string centroidNodes(const std::string& edge2 = "{tracker: fusion}",
+                          const std::string& tracker = "{input: centroids, centroid_merge_m: 0.5}") {
+  return "  - {name: sink, id: 100, role: aggregator, port: 50000, metrics_port: 50200}\n"
+         "  - {name: edge-1, id: 1, role: edge, parent: sink, metrics_port: 50101, sensor: {source: scans},\n"
+         "     displacement: {tracker: fusion, preset: outdoor, min_points: 6, min_z_variance_m2: 0.02}}\n"
+         "  - {name: edge-2, id: 2, role: edge, parent: sink, metrics_port: 50102, sensor: {source: scans},\n"
+         "     displacement: " + edge2 + "}\n"
+         "  - {name: fusion, id: 300, role: tracker, port: 50300, metrics_port: 50301, tracker: " + tracker + "}\n"
+         "  - name: cam-1\n    id: 201\n    role: detection\n    parent: fusion\n    metrics_port: 50201\n"
+         "    camera: {source: imgs, calibration: {fx: 400, fy: 400, cx: 320, cy: 240, width: 640, height: 480}}\n";
+}
+
+TEST(Topology, EdgeDisplacementAndCentroidInputRoundTripThroughYaml) {
+  const Expected<TopologyConfig> parsed = parseTopology(topologyYaml("", "", centroidNodes()), "");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  const NodeConfig& tracker = *parsed->find("fusion");
+  EXPECT_EQ(tracker.tracker->input, TrackerInput::kCentroids);
+  EXPECT_DOUBLE_EQ(tracker.tracker->centroid_merge_m, 0.5);
+  const auto edges = parsed->centroidEdgesOf("fusion");
+  ASSERT_EQ(edges.size(), 2U);
+  EXPECT_EQ(edges[0]->name, "edge-1");
+  // The outdoor preset, then the keys given.
+  tracking::DisplacementParams outdoor = tracking::DisplacementParams::outdoor();
+  outdoor.min_points = 6;
+  outdoor.min_z_variance_m2 = 0.02;
+  EXPECT_EQ(edges[0]->displacement->params, outdoor);
+  EXPECT_DOUBLE_EQ(edges[0]->displacement->params.voxel_m, 1.0);
+  // No preset: the indoor one (the paper's Table 1).
+  EXPECT_EQ(edges[1]->displacement->params, tracking::DisplacementParams::indoor());
+  EXPECT_TRUE(parsed->centroidEdgesOf("sink").empty());
+  EXPECT_FALSE(parsed->find("sink")->displacement.has_value());
+
+  const std::string yaml = toYaml(*parsed);
+  const Expected<TopologyConfig> again = parseTopology(yaml, "");
+  ASSERT_TRUE(again.ok()) << again.error().message << "\n" << yaml;
+  expectSameTopology(*again, *parsed);
+
+  // A tracker without input reads the global map, and writes no input back.
+  const Expected<TopologyConfig> global = parseTopology(topologyYaml("", "", fusionNodes()), "");
+  ASSERT_TRUE(global.ok()) << global.error().message;
+  EXPECT_EQ(global->find("fusion")->tracker->input, TrackerInput::kGlobalMap);
+  EXPECT_EQ(toYaml(*global).find("input:"), std::string::npos);
+}
+
+TEST(Topology, DisplacementAndCentroidInputMistakesAreNamed) {
+  expectRejectedWith(topologyYaml("", "", centroidNodes("{tracker: nobody}")),
+                     {"nodes[2] (edge-2).displacement.tracker", "no node named 'nobody'"});
+  expectRejectedWith(topologyYaml("", "", centroidNodes("{tracker: sink}")),
+                     {"nodes[2] (edge-2).displacement.tracker", "'sink' is not a tracker (role aggregator)"});
+  expectRejectedWith(topologyYaml("", "", centroidNodes("{tracker: fusion}", "{input: global_map}")),
+                     {"nodes[1] (edge-1).displacement.tracker", "reads the root's global map", "input: centroids"});
+  expectRejectedWith(topologyYaml("", "", fusionNodes("", ", tracker: {input: centroids}")),
+                     {"nodes[2] (fusion).tracker.input", "no edge sends this tracker any"});
+  expectRejectedWith(topologyYaml("", "", centroidNodes("{preset: indoor}")), {"nodes[2].displacement.tracker", "is required"});
+  expectRejectedWith(topologyYaml("", "", centroidNodes("{tracker: fusion, preset: underwater}")),
+                     {"nodes[2].displacement.preset", "indoor", "outdoor", "'underwater'"});
+  expectRejectedWith(topologyYaml("", "", centroidNodes("{tracker: fusion, voxel_m: 0}")),
+                     {"nodes[2].displacement", "voxel_m", "above 0"});
+  expectRejectedWith(topologyYaml("", "", centroidNodes("{tracker: fusion, neighbour_m: .nan}")),
+                     {"nodes[2].displacement", "neighbour_m"});
+  expectRejectedWith(topologyYaml("", "", centroidNodes("{tracker: fusion, min_points: 1}")),
+                     {"nodes[2].displacement", "min_points", "at least 2"});
+  expectRejectedWith(topologyYaml("", "", centroidNodes("{tracker: fusion, min_neighbours: -3}")),
+                     {"nodes[2].displacement.min_neighbours", "-3"});
+  expectRejectedWith(topologyYaml("", "", centroidNodes("{tracker: fusion, min_z_variance_m2: -0.1}")),
+                     {"nodes[2].displacement", "min_z_variance_m2"});
+  expectRejectedWith(topologyYaml("", "", centroidNodes("{tracker: fusion, voxel: 0.1}")),
+                     {"nodes[2].displacement.voxel", "unknown key"});
+  expectRejectedWith(topologyYaml("", "", centroidNodes("{tracker: fusion}", "{input: lidar}")),
+                     {"nodes[3].tracker.input", "global_map", "centroids", "'lidar'"});
+  expectRejectedWith(topologyYaml("", "", centroidNodes("{tracker: fusion}", "{input: centroids, centroid_merge_m: -1}")),
+                     {"nodes[3].tracker.centroid_merge_m", "[0, 100]"});
+  expectRejectedWith(topologyYaml("", "", fusionNodes("", ", tracker: {centroid_merge_m: 1}")),
+                     {"nodes[2].tracker.centroid_merge_m", "input: centroids"});
+  expectRejectedWith(topologyYaml("", "", kNodes + "  - {name: t, id: 3, role: tracker, port: 3, metrics_port: 2, "
+                                                   "displacement: {tracker: t}, tracker: {input: centroids}}\n"),
+                     {"nodes[2] (t).displacement", "only edges"});
 }
 
 }  // namespace

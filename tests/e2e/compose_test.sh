@@ -1,19 +1,23 @@
 #!/usr/bin/env bash
-# The deployment, end to end, with Docker (docs/deployment.md): one command, as root.
+# The deployment, end to end, with Docker (docker/README.md): one command, as root.
 #   tests/e2e/compose_test.sh [--skip-tree] [--skip-without-docker]
 # Installs Debian's docker.io and docker-compose if missing, starts the Docker daemon if it is not
 # running, makes the base images without a registry (docker/offline-base.sh) if absent, builds the
 # fogmap and Prometheus images, then for the star deployment (compose.yaml): makes certificates
-# (mutual TLS on every link), brings it up, waits until the root publishes global maps, checks that
-# Prometheus has every target up, that every query of the Grafana dashboard and every rule returns
-# data and evaluates without error, kills one edge container and checks that the root marks it
-# missing and the alert fires, and tears everything down. Then the tree deployment
-# (compose.tree.yaml): up, global maps, every target up, down. In both, every fogmap container
-# must turn healthy (HEALTHCHECK) and run as uid 10001, and a plaintext client must be refused.
+# (mutual TLS on every link), brings it up, waits until the root publishes global maps and the
+# tracker publishes confirmed tracks (fusing the root's maps with the HOG detections of the camera
+# node on the bundled KITTI frames), checks that Prometheus has every target up, that every query of
+# the Grafana dashboards and every rule returns data and evaluates without error, kills one edge
+# container and the camera container and checks that the root marks the edge missing and
+# FogmapSensorMissing and FogmapCameraStale fire, and tears everything down. Then the tree
+# deployment (compose.tree.yaml): up, global maps, every target up, down. In both, every node's
+# container must turn healthy (HEALTHCHECK) and run as uid 10001, and a plaintext client must be
+# refused (by the root; in the star also by the tracker).
 # Every container uses host networking on 127.0.0.1: no container traffic leaves loopback.
 # Reports each phase's time and the image size.
 # --skip-without-docker: when the Docker daemon cannot run here or the disk has less than 8 GB
 # free, say so and exit 0 (the test command uses it; by hand, that is a failure).
+# FOGCTL=PATH: the fogctl to use (default build/bin/fogctl, built by tools/build.sh when missing).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 root_dir=$PWD
@@ -24,7 +28,7 @@ for arg in "$@"; do
   case "$arg" in
     --skip-tree) skip_tree=1 ;;
     --skip-without-docker) skip_without_docker=1 ;;
-    -h | --help) sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h | --help) sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "compose_test.sh: unknown argument '$arg'" >&2; exit 2 ;;
   esac
 done
@@ -84,8 +88,13 @@ if ! docker info > /dev/null 2>&1; then
   for _ in $(seq 60); do docker info > /dev/null 2>&1 && break; sleep 1; done
   docker info > /dev/null 2>&1 || unavailable "the Docker daemon did not start: $(tail -n 3 /var/log/fogmap-dockerd.log 2> /dev/null)"
 fi
-[ -x build/bin/fogctl ] || ./tools/build.sh
-fogctl=$root_dir/build/bin/fogctl
+if [ -n "${FOGCTL:-}" ]; then
+  fogctl=$(realpath "$FOGCTL")
+  [ -x "$fogctl" ] || { echo "compose_test.sh: FOGCTL=$FOGCTL is not an executable" >&2; exit 2; }
+else
+  [ -x build/bin/fogctl ] || ./tools/build.sh
+  fogctl=$root_dir/build/bin/fogctl
+fi
 phase "host ready (packages, daemon)"
 
 docker/offline-base.sh
@@ -128,7 +137,7 @@ deploy() {  # deploy COMPOSE_FILE TOPOLOGY: certificates, up, global maps, every
   nodes=$(grep -c '^  - name:' "$topology")
   wait_for 90 "$name: every target up" "count(up{job=\"fogmap\"} == 1) == $nodes"
   phase "$name: $nodes targets up in Prometheus"
-  local deadline=$(($(date +%s) + 90)) unhealthy
+  local deadline=$(($(date +%s) + 90)) unhealthy healthy
   while :; do
     unhealthy=$(for c in $(compose ps -q); do
       docker inspect -f '{{.Name}} {{.Config.Image}} {{if .State.Health}}{{.State.Health.Status}}{{end}}' "$c"
@@ -137,12 +146,17 @@ deploy() {  # deploy COMPOSE_FILE TOPOLOGY: certificates, up, global maps, every
     [ "$(date +%s)" -lt $deadline ] || fail "$name: not healthy within 90 s: $unhealthy"
     sleep 2
   done
+  # One container per node (edges, aggregators, detection nodes, the tracker), each healthy and
+  # running as the image's user.
+  healthy=0
   for c in $(compose ps -q); do
     if [ "$(docker inspect -f '{{.Config.Image}}' "$c")" = fogmap:latest ]; then
       [ "$(docker exec "$c" id -u)" = 10001 ] || fail "$name: $(docker inspect -f '{{.Name}}' "$c") does not run as uid 10001"
+      healthy=$((healthy + 1))
     fi
   done
-  phase "$name: every fogmap container healthy, uid 10001"
+  [ "$healthy" -eq "$nodes" ] || fail "$name: $healthy fogmap containers for $nodes nodes"
+  phase "$name: $healthy fogmap containers healthy, uid 10001"
   local root_target
   root_target=$(awk '/^  - name:/ {n++} n == 1 && /host:/ {h=$2} n == 1 && / port:/ {p=$2} END {print h ":" p}' "$topology")
   if "$fogctl" watch --target "$root_target" --count 1 --timeout-s 5 > /dev/null 2>&1; then
@@ -150,14 +164,28 @@ deploy() {  # deploy COMPOSE_FILE TOPOLOGY: certificates, up, global maps, every
   fi
 }
 
-# --- the star: every query, every rule, a killed edge -----------------------------------------
-deploy compose.yaml docker/topologies/star-4.yaml
+# --- the star: tracks, every query, every rule, a killed edge and camera ----------------------
+star=docker/topologies/star-4.yaml
+deploy compose.yaml "$star"
+# The tracker's stream over mutual TLS, then confirmed tracks: objects of the root's global maps
+# followed over consecutive frames (fogmap_tracks counts them at every fusion step).
+tracker_target=$(awk '/^  - name:/ {t = ($3 == "tracker")} t && /host:/ {h=$2} t && / port:/ {p=$2} END {print h ":" p}' "$star")
+"$fogctl" watch "$star" --tracks --count 5 --timeout-s 90 > /dev/null || fail "star: no tracks from the tracker within 90 s"
+wait_for 90 "confirmed tracks" 'sum(fogmap_tracks{state="confirmed"}) > 0'
+phase "star: tracker publishes tracks"
+echo "$(query 'sum(fogmap_tracks{state="confirmed"})' | jq -r '.data.result[0].value[1]') confirmed tracks," \
+  "$(query 'sum(fogmap_tracks)' | jq -r '.data.result[0].value[1]') in all"
+if "$fogctl" watch --tracks --target "$tracker_target" --count 1 --timeout-s 5 > /dev/null 2>&1; then
+  fail "star: a plaintext client got tracks from $tracker_target"
+fi
 checked=0
-while IFS= read -r expr; do
-  q=${expr//\$__rate_interval/1m}
-  wait_for 90 "dashboard query" "$q"
-  checked=$((checked + 1))
-done < <(jq -r '.panels[].targets[].expr' docker/grafana/dashboards/fogmap.json)
+for dashboard in docker/grafana/dashboards/*.json; do
+  while IFS= read -r expr; do
+    q=${expr//\$__rate_interval/1m}
+    wait_for 90 "dashboard query ($(basename "$dashboard"))" "$q"
+    checked=$((checked + 1))
+  done < <(jq -r '.panels[].targets[].expr' "$dashboard")
+done
 rules=$(curl -fsS "$prom/api/v1/rules")
 bad=$(echo "$rules" | jq -r '.data.groups[].rules[] | select(.health != "ok") | "\(.name): \(.health) \(.lastError)"')
 [ -z "$bad" ] || fail "rules that do not evaluate: $bad"
@@ -177,14 +205,20 @@ phase "star: $checked queries and rules have data"
 # are missing for a moment (the alert may be pending, never firing).
 wait_for 60 "every sensor in the global map" 'sum(fogmap_sensor_missing) == 0'
 has_data 'ALERTS{alertname="FogmapSensorMissing",alertstate="firing"}' && fail "FogmapSensorMissing fired before any edge was killed"
-compose kill -s SIGKILL edge-2 > /dev/null 2>&1
+camera=$(awk '/^  - name:/ {n=$3} /role: detection/ {print n; exit}' "$star")
+[ -n "$camera" ] || fail "$star has no detection node"
+has_data 'ALERTS{alertname="FogmapCameraStale"}' && fail "FogmapCameraStale pending or firing before the camera was killed"
+compose kill -s SIGKILL edge-2 "$camera" > /dev/null 2>&1
 killed=$(date +%s)
 wait_for 30 "edge-2 missing" 'fogmap_sensor_missing{sensor="edge-2"} == 1'
 missing_after=$(($(date +%s) - killed))
 wait_for 90 "the alert" 'ALERTS{alertname="FogmapSensorMissing",alertstate="firing",sensor="edge-2"}'
 firing_after=$(($(date +%s) - killed))
-phase "star: edge-2 killed, missing, alert"
+wait_for 90 "the camera alert" "ALERTS{alertname=\"FogmapCameraStale\",alertstate=\"firing\",camera=\"$camera\"}"
+camera_after=$(($(date +%s) - killed))
+phase "star: edge-2 and $camera killed, alerts"
 echo "edge-2 marked missing within $missing_after s of kill -9; FogmapSensorMissing firing after $firing_after s (for: 15s)"
+echo "$camera killed: FogmapCameraStale firing after $camera_after s (staleness above 5 s, for: 15s)"
 compose down -v > /dev/null 2>&1
 compose_file=
 phase "star: torn down"

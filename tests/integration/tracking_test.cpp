@@ -17,6 +17,7 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include "common/epochs.hpp"
 #include "common/sim/generators.hpp"
 #include "common/sim/scene.hpp"
 #include "common/sim/scene_topology.hpp"
@@ -26,6 +27,9 @@
 #include "tests/support/free_ports.hpp"
 #include "tests/support/scratch_dir.hpp"
 #include "tools/fogctl/launcher.hpp"
+#include "tools/fogctl/scene_picture.hpp"
+#include "tools/fogctl/scene_run.hpp"
+#include "tools/fogctl/track_scoring.hpp"
 
 namespace fogmap {
 namespace {
@@ -97,7 +101,9 @@ TEST(TrackingCluster, TracksFromLidarsAndCamerasFollowTheSimulatedPeopleWithThei
   // Score the track lists of 10 s (100 LiDAR frames) after a 3 s warm-up. A moving object the
   // LiDARs saw (a global-map object's footprint, grown by 0.5 m, holds its truth position) is
   // covered when a confirmed track lies within 1 m (a person) or 2.5 m (a car) of its truth position.
-  const double period_s = reloaded->period_ms / 1000.0;
+  // Every scored frame also goes to the CLEAR MOT and IDF1 scoring fogctl demo and track-eval use.
+  const auto schedule = EpochSchedule::create(reloaded->period_ms, reloaded->deadline_ms);
+  ASSERT_TRUE(schedule.ok());
   v1::TrackList list;
   int lists = 0;
   int scored = 0;
@@ -106,6 +112,7 @@ TEST(TrackingCluster, TracksFromLidarsAndCamerasFollowTheSimulatedPeopleWithThei
   std::size_t labelled_right = 0;
   std::size_t labelled = 0;
   std::vector<double> person_errors;
+  std::vector<cli::TrackingFrame> frames;
   std::int64_t first_ns = 0;
   while (scored < 100 && reader->Read(&list)) {
     ++lists;
@@ -119,17 +126,19 @@ TEST(TrackingCluster, TracksFromLidarsAndCamerasFollowTheSimulatedPeopleWithThei
       map = it->second;
     }
     ++scored;
-    // The LiDAR frame's instant: scan floor(t / period) of a 10 Hz LiDAR (the edges' mapping).
-    const auto scan = static_cast<std::uint64_t>(static_cast<double>(list.lidar_time_ns()) * 1e-9 / period_s);
-    const double t = sim::sceneTime(scene, scan, 10.0);
+    // The LiDAR frame's instant: the scan its epoch replays, as the edges pick it.
+    const double t = cli::sceneTimeOf(scene, *schedule, 1000.0 / reloaded->period_ms, list.lidar_time_ns());
     std::vector<tracking::Track> tracks;
     for (const auto& proto : list.tracks()) {
       const auto track = fromProto(proto);
       ASSERT_TRUE(track.ok()) << track.error().message;
-      if (track->state == tracking::TrackState::kConfirmed) tracks.push_back(*track);
+      tracks.push_back(*track);
     }
-    for (const auto& object : scene.objects) {
-      const Eigen::Vector2d truth = sim::poseAt(object, t).xy;
+    frames.push_back(cli::trackingFrame(scene, t, tracks));
+    const cli::TrackingFrame& frame = frames.back();
+    for (std::size_t i = 0; i < frame.mot.truth.size(); ++i) {
+      const Eigen::Vector2d truth = frame.mot.truth[i].position;
+      const std::string& label = frame.truth_labels[i];
       const bool in_map = std::any_of(map.objects.begin(), map.objects.end(), [&](const MapObject& o) {
         return truth.x() >= o.box.min.x() - 0.5 && truth.x() <= o.box.max.x() + 0.5 && truth.y() >= o.box.min.y() - 0.5 &&
                truth.y() <= o.box.max.y() + 0.5;
@@ -138,16 +147,17 @@ TEST(TrackingCluster, TracksFromLidarsAndCamerasFollowTheSimulatedPeopleWithThei
       ++observable;
       const tracking::Track* best = nullptr;
       for (const auto& track : tracks) {
+        if (track.state != tracking::TrackState::kConfirmed) continue;
         if (!best || (track.position - truth).norm() < (best->position - truth).norm()) best = &track;
       }
       // A car's observation is the centroid of its visible side: up to half its length away.
-      const double reach = object.label == "person" ? 1.0 : 2.5;
+      const double reach = label == "person" ? 1.0 : 2.5;
       if (!best || (best->position - truth).norm() > reach) continue;
       ++covered;
-      if (object.label == "person") person_errors.push_back((best->position - truth).norm());
+      if (label == "person") person_errors.push_back((best->position - truth).norm());
       if (best->label != tracking::kUnknownLabel) {
         ++labelled;
-        labelled_right += best->label == object.label ? 1 : 0;
+        labelled_right += best->label == label ? 1 : 0;
       }
     }
   }
@@ -161,6 +171,14 @@ TEST(TrackingCluster, TracksFromLidarsAndCamerasFollowTheSimulatedPeopleWithThei
               "labels %zu of %zu right\n",
               covered, observable, coverage, person_error, person_errors.size(), labelled_right, labelled);
   ASSERT_EQ(scored, 100) << lists << " track lists in all";
+  const auto mot = cli::scoreTracking(frames);
+  ASSERT_TRUE(mot.ok()) << mot.error().message;
+  std::printf("tracking cluster, every moving object (1 m gate): MOTA %.3f, IDF1 %.3f, %zu ID switches, error mean %.3f m",
+              mot->mot.clear.mota, mot->mot.identity.idf1, mot->mot.clear.id_switches, mot->mot.localization.mean_m);
+  for (const auto& [label, report] : mot->by_label) {
+    std::printf("; %s MOTA %.3f IDF1 %.3f", label.c_str(), report.clear.mota, report.identity.idf1);
+  }
+  std::printf("\n");
   // Where the objects are depends on the wall clock (the scene loops every minute): at its ends
   // the LiDARs see less of them, but never nothing.
   ASSERT_GT(observable, 60U);
@@ -169,6 +187,66 @@ TEST(TrackingCluster, TracksFromLidarsAndCamerasFollowTheSimulatedPeopleWithThei
   EXPECT_LT(person_error, 0.3);
   EXPECT_GT(labelled, covered / 2) << "most covered objects carry a camera's label";
   EXPECT_GE(static_cast<double>(labelled_right), 0.95 * static_cast<double>(labelled));
+}
+
+// fogctl demo --scene's tracking run (tools/fogctl/scene_run): the cluster of `fogctl topology
+// --scene F --tracker` as processes, its tracker's published tracks read, placed at their scene
+// instants and scored against the truth, and drawn.
+TEST(TrackingCluster, TheDemosTrackingRunScoresThePublishedTracksAgainstTheTruth) {
+  test_support::ScratchDir dir("demo-tracking");
+  // Four people walking apart (seed 7: no two come within 1.8 m), 4 LiDARs, 2 cameras.
+  const sim::Scene scene = sim::movingScene(4, 0, 4, 2, 7);
+  const fs::path scene_file = dir.path() / "scene.yaml";
+  {
+    std::ofstream out(scene_file);
+    out << sim::toYaml(scene);
+  }
+  ASSERT_TRUE(cli::tracksScene(scene));
+  cli::SceneTrackingOptions options;
+  options.free_ports = true;
+  options.warmup_lists = 30;
+  options.scored_lists = 40;
+  const auto run = cli::runSceneTracking(dir.path(), scene_file, scene, options);
+  ASSERT_TRUE(run.ok()) << run.error().message;
+  const auto scored = cli::scoreSceneTracking(scene, *run, options);
+  ASSERT_TRUE(scored.ok()) << scored.error().message;
+  std::printf("%s", cli::sceneTrackingText(*scored, options, 4).c_str());
+
+  // The window: 40 lists after 30, their scene instants one frame apart within one cycle.
+  EXPECT_EQ(scored->frames, 40U);
+  EXPECT_GE(scored->first_list, 30U);
+  EXPECT_NEAR(scored->last_time_s - scored->first_time_s, 3.9, 0.35) << "at most a few lists lost on the way";
+  const auto& mot = scored->scores.mot;
+  EXPECT_EQ(mot.clear.truth_count, 4U * 40U);
+  EXPECT_GT(mot.clear.matches, 20U) << "the tracks follow the people the LiDARs see (those nearer a LiDAR than about 15 m)";
+  EXPECT_LT(mot.localization.mean_m, 0.4) << "a person's observation is the near side of its body";
+  EXPECT_GE(scored->scores.tracks_confirmed, 1U);
+  ASSERT_EQ(scored->scores.by_label.size(), 1U);
+  EXPECT_EQ(scored->scores.by_label[0].first, "person");
+  // From the LiDAR frame's sensor time to its tracks: at least the cameras' 50 ms latency (the
+  // frame waits for their detections), at most the wait's 250 ms bound and a margin.
+  EXPECT_GE(scored->latency_p50_ms, options.truth.latency_ms);
+  EXPECT_LE(scored->latency_p50_ms, scored->latency_p95_ms);
+  EXPECT_LE(scored->latency_p95_ms, scored->latency_max_ms);
+  EXPECT_LT(scored->latency_p50_ms, 1000.0);
+
+  const std::string json = cli::sceneTrackingJson(*scored, options, 4);
+  for (const char* key : {"\"mota\": ", "\"motp_m\": ", "\"id_switches\": ", "\"idf1\": ", "\"loc_error_mean_m\": ",
+                          "\"loc_error_max_m\": ", "\"tracks_confirmed\": ", "\"fragmentations\": ", "\"e2e_p50_ms\": "}) {
+    EXPECT_NE(json.find(key), std::string::npos) << key << " in " << json;
+  }
+  EXPECT_EQ(json.find("nan"), std::string::npos) << json;
+
+  // The picture of the last scored list, with the tracks held then (birdseye_test checks how they
+  // are drawn).
+  const std::size_t last = scored->first_list + scored->frames - 1;
+  const auto tracks = cli::birdseyeTracks(run->lists, last, 30);
+  EXPECT_TRUE(std::any_of(tracks.begin(), tracks.end(), [](const cli::BirdseyeTrack& t) { return t.confirmed && !t.trail.empty(); }))
+      << tracks.size() << " tracks";
+  const fs::path png = dir.path() / "tracks.png";
+  const Status drawn = cli::drawSceneTracks(png, scene, *run, last, 30);
+  ASSERT_TRUE(drawn.ok()) << drawn.error().message;
+  EXPECT_GT(fs::file_size(png), 20000U);
 }
 
 }  // namespace

@@ -60,7 +60,7 @@ MapHeader expectedHeader() {
   return header;
 }
 
-EdgeOutput process(const EdgeNode& edge, const Cloud& scan) {
+EdgeOutput process(EdgeNode edge, const Cloud& scan) {
   Expected<EdgeOutput> output = edge.processFrame(scan, kFrame, kSensorTimeNs);
   EXPECT_TRUE(output.ok()) << output.error().message;
   return output ? *output : EdgeOutput{};
@@ -291,6 +291,114 @@ TEST(EdgeNode, AVirtualSensorPoseIsTheSensorPoseAfterTheSectorRotation) {
   EXPECT_LT((via_sector - sensor.pose * scan_point).norm(), 1e-9);
 }
 
+// A cube of m^3 lattice points of edge `edge_m` centred on `centre`, in the sensor frame.
+Cloud cube(const Eigen::Vector3d& centre, double edge_m, int m) {
+  Cloud points;
+  for (int i = 0; i < m; ++i) {
+    for (int j = 0; j < m; ++j) {
+      for (int k = 0; k < m; ++k) {
+        const Eigen::Vector3d p = centre + edge_m * (Eigen::Vector3d(i, j, k) / (m - 1) - Eigen::Vector3d::Constant(0.5));
+        points.push_back({static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()), 1.0F});
+      }
+    }
+  }
+  return points;
+}
+
+Cloud joined(Cloud a, const Cloud& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  return a;
+}
+
+// The oracle: mean and sample covariance of points moved into the common frame.
+std::pair<Eigen::Vector3d, Eigen::Matrix3d> meanAndCovariance(const Cloud& points, const Eigen::Isometry3d& pose) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const Point& p : points) mean += pose * Eigen::Vector3d(p.x, p.y, p.z);
+  mean /= static_cast<double>(points.size());
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+  for (const Point& p : points) {
+    const Eigen::Vector3d d = pose * Eigen::Vector3d(p.x, p.y, p.z) - mean;
+    covariance += d * d.transpose();
+  }
+  return {mean, covariance / static_cast<double>(points.size() - 1)};
+}
+
+EdgeConfig displacementConfig(Mode mode, const Eigen::Isometry3d& pose) {
+  EdgeConfig config = edgeConfig(mode);
+  config.name = "edge-7";
+  config.preprocess = PreprocessConfig{};  // no ground in these scenes
+  config.preprocess.sensor_to_common = pose;
+  tracking::DisplacementParams params;
+  params.voxel_m = 0.1;
+  params.neighbour_m = 0.15;
+  params.min_neighbours = 3;
+  params.min_points = 5;
+  config.displacement = params;
+  return config;
+}
+
+TEST(EdgeNode, DisplacementCentroidsAreTheMovedObjectsInTheCommonFrameFromTheSecondScanOn) {
+  const Eigen::Isometry3d pose = Eigen::Translation3d(3.0, -2.0, 1.5) * Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ());
+  // A box standing still and one that moves 1 m between the scans (0.5 m boxes, 216 points each).
+  const Cloud still = cube({6.0, 0.0, 0.0}, 0.5, 6);
+  const Cloud before = cube({0.0, 4.0, 0.0}, 0.5, 6);
+  const Cloud after = cube({1.0, 4.0, 0.0}, 0.5, 6);
+  EdgeNode edge(displacementConfig(Mode::kMadc, pose));
+
+  const auto first = edge.processFrame(joined(still, before), 10, 1'000);
+  ASSERT_TRUE(first.ok()) << first.error().message;
+  EXPECT_FALSE(first->centroids.has_value()) << "the first scan has no previous one: all of it would be displacement";
+  EXPECT_TRUE(first->displacement_seconds.has_value());
+  EXPECT_EQ(first->map->map.objects.size(), 2U) << "the map is as without displacement";
+
+  const auto second = edge.processFrame(joined(still, after), 11, 2'000);
+  ASSERT_TRUE(second.ok()) << second.error().message;
+  ASSERT_TRUE(second->centroids.has_value());
+  const tracking::CentroidFrame& frame = *second->centroids;
+  EXPECT_EQ(frame.edge, "edge-7");
+  EXPECT_EQ(frame.epoch, 11U);
+  EXPECT_EQ(frame.time_ns, 2'000);
+  EXPECT_LT((frame.sensor_position - Eigen::Vector3d(3.0, -2.0, 1.5)).norm(), 1e-12);
+  ASSERT_EQ(frame.centroids.size(), 1U) << "only the box that moved";
+  const auto [mean, covariance] = meanAndCovariance(after, pose);
+  EXPECT_LT((frame.centroids[0].position - mean).norm(), 1e-5);
+  EXPECT_LT((frame.centroids[0].covariance - covariance).cwiseAbs().maxCoeff(), 1e-5);
+  EXPECT_EQ(frame.centroids[0].point_count, after.size());
+
+  // Nothing moved since: a frame with no centroids (the tracker learns the edge is alive).
+  const auto third = edge.processFrame(joined(still, after), 12, 3'000);
+  ASSERT_TRUE(third.ok() && third->centroids.has_value());
+  EXPECT_TRUE(third->centroids->centroids.empty());
+}
+
+TEST(EdgeNode, ABaselineShippingRawScansFindsCentroidsInTheCleanedScan) {
+  // A box moving inside the crop and one moving outside it: only the first is the edge's.
+  EdgeConfig config = displacementConfig(Mode::kBaseline, Eigen::Isometry3d::Identity());
+  config.ship_raw = true;
+  config.preprocess.crop = CropBox{{-10.0, -10.0, -3.0}, {10.0, 10.0, 3.0}};
+  EdgeNode edge(config);
+  const auto first = edge.processFrame(joined(cube({0.0, 4.0, 0.0}, 0.5, 6), cube({30.0, 0.0, 0.0}, 0.5, 6)), 1, 1);
+  ASSERT_TRUE(first.ok()) << first.error().message;
+  const Cloud inside = cube({1.0, 4.0, 0.0}, 0.5, 6);
+  const auto second = edge.processFrame(joined(inside, cube({31.0, 0.0, 0.0}, 0.5, 6)), 2, 2);
+  ASSERT_TRUE(second.ok()) << second.error().message;
+  EXPECT_EQ(second->points_out, 2 * inside.size()) << "the scan ships whole";
+  ASSERT_TRUE(second->centroids.has_value());
+  ASSERT_EQ(second->centroids->centroids.size(), 1U);
+  EXPECT_LT((second->centroids->centroids[0].position - meanAndCovariance(inside, Eigen::Isometry3d::Identity()).first).norm(), 1e-5);
+}
+
+TEST(EdgeNode, InvalidDisplacementSettingsAreAnErrorOnEveryFrame) {
+  EdgeConfig config = displacementConfig(Mode::kMadc, Eigen::Isometry3d::Identity());
+  config.displacement->min_points = 1;
+  EdgeNode edge(config);
+  for (std::uint64_t frame = 0; frame < 2; ++frame) {
+    const auto output = edge.processFrame(cube({0.0, 4.0, 0.0}, 0.5, 6), frame, 1);
+    ASSERT_FALSE(output.ok());
+    EXPECT_NE(output.error().message.find("min_points"), std::string::npos) << output.error().message;
+  }
+}
+
 TEST(EdgeNode, ConfigFromTheTopologyUsesItsModeSettingsAndTheNodePose) {
   TopologyConfig topology;
   topology.mode = Mode::kExt;
@@ -313,6 +421,10 @@ TEST(EdgeNode, ConfigFromTheTopologyUsesItsModeSettingsAndTheNodePose) {
 
   topology.max_message_bytes = 64U << 20;
   EXPECT_EQ(edgeConfigFor(topology, node).max_points_per_chunk, kDefaultMaxPointsPerChunk);
+  EXPECT_EQ(config.name, "edge-3");
+  EXPECT_FALSE(config.displacement.has_value());
+  node.displacement = DisplacementNodeConfig{"tracker", tracking::DisplacementParams::outdoor()};
+  EXPECT_EQ(edgeConfigFor(topology, node).displacement, tracking::DisplacementParams::outdoor());
 }
 
 }  // namespace

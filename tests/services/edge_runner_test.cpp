@@ -239,6 +239,31 @@ void expectNormalFrame(const EdgeOutput& output, std::uint64_t epoch) {
   }
 }
 
+TEST(EdgeRunner, DisplacementCentroidsAreShippedOncePerScanFromTheSecondScanOn) {
+  EdgeConfig config = edgeConfig();
+  config.name = "edge-5";
+  config.displacement = tracking::DisplacementParams::indoor();
+  Replay replay(5.0, config);  // epochs 2j and 2j + 1 show scan j
+  constexpr std::size_t kSteps = 6;
+  for (std::size_t i = 0; i < kSteps; ++i) ASSERT_EQ(replay.runner.step(), EdgeStep::kShipped);
+  ASSERT_EQ(replay.shipped.size(), kSteps);
+  EXPECT_EQ(replay.observer.scans_processed, 3);
+  for (std::size_t i = 0; i < kSteps; ++i) {
+    SCOPED_TRACE(::testing::Message() << "step " << i);
+    const Shipped& s = replay.shipped[i];
+    // The first scan has nothing to be compared with; a re-used scan shows nothing new.
+    const bool fresh = i % 2 == 0;
+    ASSERT_EQ(s.output.centroids.has_value(), fresh && i > 0);
+    EXPECT_EQ(s.output.displacement_seconds.has_value(), true) << "the detector's time stays with the scan's output";
+    if (!s.output.centroids) continue;
+    EXPECT_EQ(s.output.centroids->edge, "edge-5");
+    EXPECT_EQ(s.output.centroids->epoch, epochOf(s.output));
+    EXPECT_EQ(s.output.centroids->time_ns, s.at_ns) << "the scan's sensor time: when it was read";
+    // The two boxes stand still; the noise points are single points: nothing moved.
+    EXPECT_TRUE(s.output.centroids->centroids.empty());
+  }
+}
+
 TEST(EdgeRunner, EpochsFollowTheClusterPeriodNotTheSensorRate) {
   const EpochSchedule epochs = schedule();
   const std::uint64_t first = firstEpoch();
@@ -715,6 +740,38 @@ double counterValue(Metrics& metrics, const std::string& family, const std::stri
   return sum;
 }
 
+TEST(EdgeMetrics, DisplacementTimeCentroidsAndTheCentroidLinksFramesAreExported) {
+  Metrics metrics("", "edge-cluster", "edge-5");
+  MetricsObserver observer(metrics, kDefaultMaxPointsPerChunk, "edge-5");
+  EdgeOutput first;  // a first scan: the detector ran, nothing to send
+  first.displacement_seconds = 0.004;
+  EdgeOutput second;
+  second.displacement_seconds = 0.02;
+  second.centroids = tracking::CentroidFrame{};
+  second.centroids->centroids.resize(3);
+  observer.scanProcessed(first);
+  observer.scanProcessed(second);
+  observer.scanProcessed(EdgeOutput{});  // displacement off
+  observer.centroidFrameSent("tracker", 120);
+  observer.centroidFrameSent("tracker", 80);
+  observer.centroidFrameDropped();
+  double sum = 0.0;
+  std::uint64_t count = 0;
+  for (const auto& f : metrics.registry().Collect()) {
+    if (f.name != "fogmap_displacement_seconds") continue;
+    for (const auto& m : f.metric) {
+      sum += m.histogram.sample_sum;
+      count += m.histogram.sample_count;
+    }
+  }
+  EXPECT_EQ(count, 2U);
+  EXPECT_DOUBLE_EQ(sum, 0.024);
+  EXPECT_EQ(counterValue(metrics, "fogmap_displacement_centroids_total", "node", "edge-5"), 3.0);
+  EXPECT_EQ(counterValue(metrics, "fogmap_centroid_frames_sent_total", "node", "edge-5"), 2.0);
+  EXPECT_EQ(counterValue(metrics, "fogmap_centroid_frames_dropped_total", "node", "edge-5"), 1.0);
+  EXPECT_EQ(counterValue(metrics, "fogmap_bytes_sent_total", "kind", "centroids"), 200.0);
+}
+
 TEST(EdgeRunner, OnePercentNonFinitePointsOverTenThousandFramesAreDroppedAndCountedExactly) {
   constexpr std::size_t kFramesEach = 5000;  // read from files, then handed over from memory
   const std::vector<HostileScan> scans = hostileScans();
@@ -736,7 +793,7 @@ TEST(EdgeRunner, OnePercentNonFinitePointsOverTenThousandFramesAreDroppedAndCoun
   InMemoryScans memory(scans, kFramesEach);
 
   Metrics metrics("", "edge-cluster", "hostile");  // the edge's one Metrics, nothing served
-  MetricsObserver observer(metrics, kDefaultMaxPointsPerChunk);
+  MetricsObserver observer(metrics, kDefaultMaxPointsPerChunk, "hostile");
   const HostileReplay from_files = replayToTheEnd(*files, scans, observer);
   const HostileReplay from_memory = replayToTheEnd(memory, scans, observer);
   std::filesystem::remove_all(dir);

@@ -654,5 +654,95 @@ TEST(ProtoConvert, AnswersCarryTheirGrpcCode) {
   EXPECT_EQ(refusedAck(10, Error{ErrorCode::kInternal, "no parent"}).code(), 13);
 }
 
+// An edge's centroid frame whose geometry is float-representable (what an edge's doubles become on
+// the wire), with one centroid's covariance singular (a cluster of points on a plane).
+tracking::CentroidFrame sampleCentroidFrame() {
+  tracking::CentroidFrame f;
+  f.edge = "edge-north";
+  f.epoch = 17'000'000'123;
+  f.time_ns = 1'700'000'012'300'000'000;
+  f.sensor_position = {-20.0, 0.5, 1.75};
+  std::mt19937_64 rng(7);
+  for (int i = 0; i < 4; ++i) {
+    tracking::DisplacementCentroid c;
+    c.position = Eigen::Vector3d(3.25 * i, -1.5, 0.875).cast<float>().cast<double>();
+    c.covariance = randomShape(rng).cast<float>().cast<double>();
+    c.point_count = static_cast<std::size_t>(10 + i);
+    f.centroids.push_back(c);
+  }
+  f.centroids[3].covariance = Eigen::Vector3d(0.25, 0.5, 0.0).asDiagonal();
+  return f;
+}
+
+TEST(ProtoConvert, CentroidFrameRoundTripIsExactThroughTheWire) {
+  const tracking::CentroidFrame f = sampleCentroidFrame();
+  v1::CentroidFrame parsed;
+  ASSERT_TRUE(parsed.ParseFromString(toProto(f).SerializeAsString()));
+  const auto back = fromProto(parsed);
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  EXPECT_EQ(back->edge, f.edge);
+  EXPECT_EQ(back->epoch, f.epoch);
+  EXPECT_EQ(back->time_ns, f.time_ns);
+  EXPECT_EQ(back->sensor_position, f.sensor_position);
+  ASSERT_EQ(back->centroids.size(), f.centroids.size());
+  for (std::size_t i = 0; i < f.centroids.size(); ++i) {
+    EXPECT_EQ(back->centroids[i].position, f.centroids[i].position) << i;
+    EXPECT_EQ(back->centroids[i].covariance, f.centroids[i].covariance) << i;
+    EXPECT_EQ(back->centroids[i].point_count, f.centroids[i].point_count) << i;
+  }
+  // An edge that saw nothing move sends an empty frame: valid.
+  tracking::CentroidFrame empty = f;
+  empty.centroids.clear();
+  EXPECT_TRUE(fromProto(toProto(empty)).ok());
+}
+
+TEST(ProtoConvert, CentroidFramesWithBadSizesOrValuesAreRejectedNamingTheField) {
+  const v1::CentroidFrame good = toProto(sampleCentroidFrame());
+  const auto rejected = [](const v1::CentroidFrame& m, const std::string& phrase) {
+    const auto r = fromProto(m);
+    ASSERT_FALSE(r.ok()) << "accepted, expected: " << phrase;
+    EXPECT_EQ(r.error().code, ErrorCode::kInvalidArgument);
+    EXPECT_NE(r.error().message.find(phrase), std::string::npos) << r.error().message;
+  };
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  v1::CentroidFrame m = good;
+  m.set_edge("");
+  rejected(m, "edge '' is not a node name");
+  m = good;
+  m.mutable_centroids(1)->add_position(1.0F);
+  rejected(m, "centroids[1]: position has 4 values, expected 3");
+  m = good;
+  m.mutable_centroids(2)->mutable_covariance()->RemoveLast();
+  rejected(m, "centroids[2]: covariance has 5 values, expected 6");
+  m = good;
+  m.mutable_centroids(0)->set_position(2, nan);
+  rejected(m, "centroids[0]: position must be finite");
+  m = good;
+  m.mutable_centroids(0)->set_position(0, 2e6F);
+  rejected(m, "centroids[0]: position must be finite, within 1e6 m");
+  m = good;
+  m.mutable_centroids(3)->set_covariance(5, inf);
+  rejected(m, "centroids[3]: covariance is not finite");
+  m = good;
+  m.mutable_centroids(3)->set_covariance(0, -0.25F);  // a negative variance
+  rejected(m, "centroids[3]: covariance is not positive semi-definite");
+  m = good;
+  m.mutable_centroids(3)->set_covariance(1, 1.0F);  // xy beyond sqrt(xx yy)
+  rejected(m, "centroids[3]: covariance is not positive semi-definite");
+  m = good;
+  m.mutable_centroids(3)->set_covariance(3, 1e9F);
+  rejected(m, "centroids[3]: covariance has a variance above 1e8");
+  m = good;
+  m.mutable_centroids(1)->set_point_count(1);
+  rejected(m, "centroids[1]: point_count 1");
+  m = good;
+  m.mutable_sensor_position()->set_y(std::numeric_limits<double>::infinity());
+  rejected(m, "sensor_position must be finite");
+  m = good;
+  for (int i = 0; i < kMaxCentroidsPerFrame; ++i) *m.add_centroids() = good.centroids(0);
+  rejected(m, "centroids, more than 10000");
+}
+
 }  // namespace
 }  // namespace fogmap

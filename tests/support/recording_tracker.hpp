@@ -1,6 +1,7 @@
 #pragma once
-// A stand-in tracker for tests of what sends detections: TrackerService.PushDetections on a real gRPC
-// server on 127.0.0.1, recording every frame it receives (through the conversion a tracker uses).
+// A stand-in tracker for tests of what sends detections or centroids: TrackerService.PushDetections
+// and PushCentroids on a real gRPC server on 127.0.0.1, recording every frame it receives (through
+// the conversion a tracker uses).
 #include <chrono>
 #include <condition_variable>
 #include <memory>
@@ -46,6 +47,32 @@ class RecordingTracker final : public v1::TrackerService::Service {
     return grpc::Status::OK;
   }
 
+  grpc::Status PushCentroids(grpc::ServerContext* /*context*/, grpc::ServerReader<v1::CentroidFrame>* reader,
+                             v1::CentroidSummary* summary) override {
+    v1::CentroidFrame message;
+    std::uint64_t received = 0;
+    while (reader->Read(&message)) {
+      Expected<tracking::CentroidFrame> frame = fromProto(message);
+      {
+        std::lock_guard lock(mu_);
+        if (frame) {
+          centroid_frames_.push_back(std::move(*frame));
+        } else {
+          errors_.push_back(frame.error().message);
+        }
+      }
+      ++received;
+      cv_.notify_all();
+    }
+    summary->set_received(received);
+    {
+      std::lock_guard lock(mu_);
+      ++streams_ended_;
+    }
+    cv_.notify_all();
+    return grpc::Status::OK;
+  }
+
   // Waits until `n` frames have arrived; bounded.
   bool waitFrames(std::size_t n, std::chrono::milliseconds timeout = std::chrono::seconds(10)) {
     std::unique_lock lock(mu_);
@@ -59,6 +86,14 @@ class RecordingTracker final : public v1::TrackerService::Service {
     std::lock_guard lock(mu_);
     return frames_;
   }
+  bool waitCentroidFrames(std::size_t n, std::chrono::milliseconds timeout = std::chrono::seconds(10)) {
+    std::unique_lock lock(mu_);
+    return cv_.wait_for(lock, timeout, [&] { return centroid_frames_.size() >= n; });
+  }
+  std::vector<tracking::CentroidFrame> centroidFrames() const {
+    std::lock_guard lock(mu_);
+    return centroid_frames_;
+  }
   std::vector<std::string> errors() const {
     std::lock_guard lock(mu_);
     return errors_;
@@ -68,6 +103,7 @@ class RecordingTracker final : public v1::TrackerService::Service {
   mutable std::mutex mu_;
   std::condition_variable cv_;
   std::vector<tracking::DetectionFrame> frames_;
+  std::vector<tracking::CentroidFrame> centroid_frames_;
   std::vector<std::string> errors_;
   int streams_ended_ = 0;
 };

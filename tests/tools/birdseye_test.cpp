@@ -170,6 +170,82 @@ TEST(Birdseye, TheLegendLabelsAndTitleLieOutsideTheMap) {
   EXPECT_EQ(rgbAt(image, {pixelOf(layout, k.scene, {2.5, 0}).x, row}), kBirdseyeBackground);
 }
 
+TEST(Birdseye, TracksDrawAsMarkersWithTheirTrailsIdsAndLabels) {
+  const ScratchDir scratch("tracks");
+  const fs::path dir = test_support::outputDir("FOGMAP_BIRDSEYE_DIR", scratch);
+  KnownScene k;
+  // A confirmed track walking east along y = -8, now at (1, -8), and a lost one at (6, -14).
+  k.scene.tracks = {{3, "person", {1, -8}, {{-4, -8}, {-1.5, -8}}, true}, {4, "unknown", {6, -14}, {}, false}};
+  const fs::path png = dir / "known-scene-with-tracks.png";
+  ASSERT_TRUE(drawBirdseye(png, k.scene, 1000).ok());
+  const cv::Mat image = cv::imread(png.string(), cv::IMREAD_COLOR);
+  ASSERT_FALSE(image.empty());
+  const BirdseyeLayout layout = birdseyeLayout(k.scene, 1000);
+  const Rgb walking = birdseyeTrackColour(3);
+  const Rgb lost = birdseyeTrackColour(4);
+  EXPECT_NE(walking, lost);
+  // The marker is filled at the track's position; the trail runs through its earlier positions
+  // and no further back than the oldest.
+  const cv::Point at = pixelOf(layout, k.scene, {1, -8});
+  EXPECT_TRUE(colourAt(image, at, walking, 10)) << "the confirmed track's marker";
+  EXPECT_TRUE(colourAt(image, pixelOf(layout, k.scene, {-2.75, -8}), walking)) << "the trail between its positions";
+  EXPECT_TRUE(colourAt(image, pixelOf(layout, k.scene, {-0.6, -8}), walking)) << "the trail's last leg, to the track";
+  EXPECT_TRUE(colourAt(image, pixelOf(layout, k.scene, {-4.5, -8}), kBirdseyeBackground, 0)) << "nothing before the oldest position";
+  EXPECT_TRUE(colourAt(image, pixelOf(layout, k.scene, {-2.75, -7}), kBirdseyeBackground, 0)) << "the trail is a line, not a band";
+  // The lost track: hollow (white inside), its outline in its colour halfway along an edge.
+  const cv::Point lost_at = pixelOf(layout, k.scene, {6, -14});
+  EXPECT_TRUE(colourAt(image, lost_at, kBirdseyeBackground, 0)) << "a lost track's marker is hollow";
+  EXPECT_TRUE(colourAt(image, lost_at + cv::Point(3, -4), lost, 60)) << "its outline";
+  // The id and label are written in the track's colour ahead of it, right of the marker (the map is
+  // white there), not over its trail.
+  const cv::Rect label(at.x + 8, at.y - 20, 90, 40);
+  cv::Mat near_colour;
+  cv::inRange(image(label), cv::Scalar(walking.b, walking.g, walking.r) - cv::Scalar::all(40),
+              cv::Scalar(walking.b, walking.g, walking.r) + cv::Scalar::all(40), near_colour);
+  EXPECT_GT(cv::countNonZero(near_colour), 40) << "the text '#3 person'";
+  cv::Mat behind;  // above its trail, left of the marker
+  cv::inRange(image(cv::Rect(at.x - 98, at.y - 20, 90, 16)), cv::Scalar(walking.b, walking.g, walking.r) - cv::Scalar::all(40),
+              cv::Scalar(walking.b, walking.g, walking.r) + cv::Scalar::all(40), behind);
+  EXPECT_EQ(cv::countNonZero(behind), 0) << "nothing written over the trail";
+  // The legend explains them: it holds more ink than the same picture's legend without tracks.
+  KnownScene bare;
+  const fs::path bare_png = scratch.path() / "bare.png";
+  ASSERT_TRUE(drawBirdseye(bare_png, bare.scene, 1000).ok());
+  const cv::Mat without = cv::imread(bare_png.string(), cv::IMREAD_COLOR);
+  const auto legend_ink = [&](const cv::Mat& m) {
+    cv::Mat grey;
+    cv::cvtColor(m(cv::Rect(layout.legend_left_px, layout.legend_top_px, layout.legend_width_px, layout.legend_height_px)), grey,
+                 cv::COLOR_BGR2GRAY);
+    return cv::countNonZero(grey < 160);
+  };
+  EXPECT_GT(legend_ink(image), legend_ink(without) + 300);
+  EXPECT_TRUE(colourAt(without, at, kBirdseyeBackground, 0)) << "without tracks nothing is drawn there";
+}
+
+TEST(Birdseye, TrackLabelsDoNotCoverEachOther) {
+  ScratchDir dir("labels");
+  KnownScene k;
+  // Two tracks in one place with no trail: the first one's label takes the right of the marker,
+  // the second's the first side that does not touch it (above and below reach under the first).
+  k.scene.tracks = {{3, "person", {1, -8}, {}, true}, {4, "person", {1, -8}, {}, true}};
+  const fs::path png = dir.path() / "labels.png";
+  ASSERT_TRUE(drawBirdseye(png, k.scene, 1000).ok());
+  const cv::Mat image = cv::imread(png.string(), cv::IMREAD_COLOR);
+  ASSERT_FALSE(image.empty());
+  const cv::Point at = pixelOf(birdseyeLayout(k.scene, 1000), k.scene, {1, -8});
+  const auto inColour = [&](cv::Rect r, Rgb c) {
+    cv::Mat mask;
+    cv::inRange(image(r), cv::Scalar(c.b, c.g, c.r) - cv::Scalar::all(40), cv::Scalar(c.b, c.g, c.r) + cv::Scalar::all(40), mask);
+    return cv::countNonZero(mask);
+  };
+  const cv::Rect right(at.x + 10, at.y - 12, 90, 24);
+  const cv::Rect left(at.x - 100, at.y - 12, 90, 24);
+  EXPECT_GT(inColour(right, birdseyeTrackColour(3)), 40);
+  EXPECT_EQ(inColour(right, birdseyeTrackColour(4)), 0);
+  EXPECT_GT(inColour(left, birdseyeTrackColour(4)), 40);
+  EXPECT_EQ(inColour(left, birdseyeTrackColour(3)), 0);
+}
+
 TEST(Birdseye, AnUnwritablePathIsAnErrorThatNamesIt) {
   const KnownScene k;
   const fs::path png = "/nonexistent-birdseye-dir/deeper/map.png";

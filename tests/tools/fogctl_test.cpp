@@ -23,6 +23,7 @@
 #include <optional>
 #include <set>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -815,6 +816,163 @@ TEST(FogctlTopologyScene, ComposeWantsTheSceneFileInsideTheMountedDirectory) {
   ASSERT_FALSE(outside.ok());
   EXPECT_TRUE(contains(outside.error().message, "edge-lidar-1's scene " + (dir.path() / "s.yaml").string() + " lies outside"))
       << outside.error().message;
+}
+
+// ---------------------------------------------------------------------------------------------
+// topology --tracker --cameras: a tracker and HOG cameras on KITTI frames, and their deployment
+
+// The bundled KITTI sequence copied into `dir` (scans, image_02 and calib.txt), as a user's data
+// directory beside their topologies.
+fs::path copyKittiSequence(const fs::path& dir) {
+  const fs::path data = dir / "data" / "kitti_raw_seq_a";
+  fs::create_directories(data.parent_path());
+  fs::copy(fs::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a", data, fs::copy_options::recursive);
+  return data;
+}
+
+TEST(FogctlTopologyCameras, ATrackerAndAHogCameraCalibratedFromTheKittiCalibFile) {
+  ScratchDir dir("cameras");
+  copyKittiSequence(dir.path());
+  fs::create_directories(dir.path() / "topologies");
+  const Outcome written = fogctl({"topology", "star", "--edges", "2", "--source", "../data/kitti_raw_seq_a", "--base-port", "45000",
+                                  "--tracker", "--association", "paper", "--cameras", "../data/kitti_raw_seq_a/image_02",
+                                  "--camera-rate-hz", "2", "--out", "topologies/star.yaml"},
+                                 dir.path());
+  ASSERT_EQ(written.code, 0) << describe(written);
+  const std::string text = readFile(dir.path() / "topologies" / "star.yaml");
+  EXPECT_TRUE(contains(text, "source: ../data/kitti_raw_seq_a/image_02")) << "written as given, relative to the topology";
+  const auto topology = loadTopology(dir.path() / "topologies" / "star.yaml");
+  ASSERT_TRUE(topology.ok()) << topology.error().message;
+  const NodeConfig* tracker = topology->find("tracker");
+  ASSERT_NE(tracker, nullptr);
+  EXPECT_EQ(tracker->role, Role::kTracker);
+  EXPECT_EQ(tracker->port, 45300);
+  EXPECT_EQ(tracker->metrics_port, 45301);
+  ASSERT_TRUE(tracker->tracker.has_value());
+  EXPECT_EQ(tracker->tracker->tracking.association, tracking::Association::kPaper);
+  const auto cameras = topology->camerasOf("tracker");
+  ASSERT_EQ(cameras.size(), 1U);
+  const NodeConfig& cam = *cameras[0];
+  EXPECT_EQ(cam.name, "cam-image_02");
+  EXPECT_EQ(cam.id, 401U);
+  EXPECT_EQ(cam.metrics_port, 45401);
+  ASSERT_TRUE(cam.camera.has_value());
+  EXPECT_EQ(cam.camera->detector.kind, camera::DetectorKind::kHog);
+  EXPECT_EQ(cam.camera->rate_hz, 2.0);
+  EXPECT_EQ(fs::weakly_canonical(cam.camera->source), fs::weakly_canonical(dir.path() / "data" / "kitti_raw_seq_a" / "image_02"));
+  // Camera 2 of calib.txt in the scans' frame: a point 20 m ahead of the Velodyne, on the road,
+  // lands where P2 after R0_rect and Tr_velo_to_cam puts it (written and read back: within 0.01 px).
+  const camera::PinholeCamera& k = cam.camera->calibration;
+  EXPECT_EQ(k.width, 1242);
+  EXPECT_EQ(k.height, 375);
+  EXPECT_NEAR(k.fx, 721.5377, 1e-4);
+  const auto pixel = k.project(Eigen::Vector3d(20.0, 0.0, -1.7));
+  ASSERT_TRUE(pixel.has_value());
+  Eigen::Matrix<double, 3, 4> p2;
+  p2 << 7.215377e+02, 0, 6.095593e+02, 4.485728e+01, 0, 7.215377e+02, 1.728540e+02, 2.163791e-01, 0, 0, 1, 2.745884e-03;
+  Eigen::Matrix3d r0;
+  r0 << 9.999239e-01, 9.837760e-03, -7.445048e-03, -9.869795e-03, 9.999421e-01, -4.278459e-03, 7.402527e-03, 4.351614e-03, 9.999631e-01;
+  Eigen::Matrix4d velo = Eigen::Matrix4d::Identity();
+  velo.topRows<3>() << 7.533745e-03, -9.999714e-01, -6.166020e-04, -4.069766e-03, 1.480249e-02, 7.280733e-04, -9.998902e-01,
+      -7.631618e-02, 9.998621e-01, 7.523790e-03, 1.480755e-02, -2.717806e-01;
+  const Eigen::Vector4d rect = velo * Eigen::Vector4d(20.0, 0.0, -1.7, 1.0);
+  const Eigen::Vector3d image = p2 * (Eigen::Vector4d() << r0 * rect.head<3>(), 1.0).finished();
+  EXPECT_NEAR(pixel->x(), image.x() / image.z(), 0.01);
+  EXPECT_NEAR(pixel->y(), image.y() / image.z(), 0.01);
+}
+
+TEST(FogctlTopologyCameras, BadCameraOptionsAreRefusedNamingWhatIsWrong) {
+  ScratchDir dir("cameras-bad");
+  const fs::path data = copyKittiSequence(dir.path());
+  const std::vector<std::string> star{"topology", "star", "--edges", "2", "--source", "data/kitti_raw_seq_a"};
+  const auto refused = [&](std::vector<std::string> extra, const std::string& why) {
+    std::vector<std::string> args = star;
+    args.insert(args.end(), extra.begin(), extra.end());
+    const Outcome o = fogctl(args, dir.path());
+    EXPECT_EQ(o.code, 2) << describe(o);
+    EXPECT_TRUE(contains(o.err, why)) << describe(o);
+  };
+  refused({"--cameras", "data/kitti_raw_seq_a/image_02"}, "--cameras needs --tracker");
+  refused({"--tracker", "--cameras", "data/kitti_raw_seq_a/nothing"}, "--cameras data/kitti_raw_seq_a/nothing: not a directory");
+  fs::create_directories(dir.path() / "frames");
+  fs::copy_file(data / "image_02" / "0000000000.png", dir.path() / "frames" / "0.png");
+  refused({"--tracker", "--cameras", "frames"}, "cannot tell which camera of the calibration it is");
+  fs::create_directories(dir.path() / "seq" / "image_02");
+  fs::copy_file(data / "image_02" / "0000000000.png", dir.path() / "seq" / "image_02" / "0.png");
+  refused({"--tracker", "--cameras", "seq/image_02"}, "cannot read its calibration");
+  std::ofstream(dir.path() / "seq" / "calib.txt") << "P0: 1 0 0 0 0 1 0 0 0 0 1 0\n";
+  refused({"--tracker", "--cameras", "seq/image_02"}, "calib: no P1");
+  fs::create_directories(dir.path() / "empty" / "image_02");
+  refused({"--tracker", "--cameras", "empty/image_02", "--calib", "data/kitti_raw_seq_a/calib.txt"}, "no .png or .jpg image");
+  refused({"--tracker", "--cameras", "data/kitti_raw_seq_a/image_02,data/kitti_raw_seq_a/image_02"}, "a second camera image_02");
+  refused({"--tracker", "--cameras", "data/kitti_raw_seq_a/image_02", "--camera-rate-hz", "0"}, "--camera-rate-hz must be in (0, 1000]");
+  refused({"--calib", "data/kitti_raw_seq_a/calib.txt"}, "--calib and --camera-rate-hz go with --cameras");
+  refused({"--association", "paper"}, "--association goes with --tracker");
+  refused({"--tracker", "--miss-rate", "0.3"}, "they go with --scene");
+}
+
+// The compose file runs the tracker after the root it reads and each camera after its tracker;
+// a camera's frames must lie inside the mounted directory, and a V4L2 device is passed in.
+TEST(FogctlTopologyCameras, ComposeRunsTheTrackerAndCamerasWithTheirFilesInsideTheMountedDirectory) {
+  ScratchDir dir("cameras-compose");
+  const fs::path project = dir.path() / "project";
+  copyKittiSequence(project);
+  const Outcome written = fogctl({"topology", "star", "--edges", "2", "--source", "data/kitti_raw_seq_a", "--tracker", "--cameras",
+                                  "data/kitti_raw_seq_a/image_02", "--out", "star.yaml"},
+                                 project);
+  ASSERT_EQ(written.code, 0) << describe(written);
+  auto topology = loadTopology(project / "star.yaml");
+  ASSERT_TRUE(topology.ok()) << topology.error().message;
+  cli::ComposeOptions options;
+  options.topology_file = project / "star.yaml";
+  options.project_dir = project;
+  options.prometheus_config = "prometheus.yml";
+  const auto compose = cli::composeFile(*topology, options);
+  ASSERT_TRUE(compose.ok()) << compose.error().message;
+  EXPECT_TRUE(contains(*compose, "  tracker:\n    image: fogmap:latest\n    command: [tracker, --topology, /fogmap/star.yaml, --node, tracker]\n"))
+      << *compose;
+  EXPECT_TRUE(contains(*compose, "    command: [detection, --topology, /fogmap/star.yaml, --node, cam-image_02]\n")) << *compose;
+  // A service's lines: from "  NAME:" to the next line indented by two spaces only.
+  const auto service = [&](const std::string& name) {
+    std::string out;
+    bool in = false;
+    for (const std::string& line : lines(*compose)) {
+      if (line.size() > 2 && line.rfind("  ", 0) == 0 && line[2] != ' ') in = line == "  " + name + ":";
+      if (in) out += line + "\n";
+    }
+    return out;
+  };
+  EXPECT_TRUE(contains(service("tracker"), "depends_on: [sink]")) << service("tracker");
+  EXPECT_TRUE(contains(service("cam-image_02"), "depends_on: [tracker]")) << service("cam-image_02");
+  EXPECT_TRUE(contains(service("cam-image_02"), "FOGMAP_METRICS: \"127.0.0.1:50401\"")) << service("cam-image_02");
+  EXPECT_FALSE(contains(*compose, "devices:")) << "no device for a directory of frames";
+  const std::string scrape = cli::prometheusConfig(*topology, {});
+  EXPECT_TRUE(contains(scrape, "- targets: ['127.0.0.1:50301']\n        labels: {instance: tracker, role: tracker}")) << scrape;
+  EXPECT_TRUE(contains(scrape, "- targets: ['127.0.0.1:50401']\n        labels: {instance: cam-image_02, role: detection}")) << scrape;
+
+  TopologyConfig moved = *topology;
+  const auto camera = [](TopologyConfig& t) -> CameraNodeConfig& {
+    for (NodeConfig& n : t.nodes) {
+      if (n.camera) return *n.camera;
+    }
+    throw std::logic_error("no camera");
+  };
+  camera(moved).source = dir.path() / "elsewhere";
+  const auto outside = cli::composeFile(moved, options);
+  ASSERT_FALSE(outside.ok());
+  EXPECT_TRUE(contains(outside.error().message, "cam-image_02's camera source " + (dir.path() / "elsewhere").string() + " lies outside"))
+      << outside.error().message;
+  moved = *topology;
+  camera(moved).detector.kind = camera::DetectorKind::kCascade;
+  camera(moved).detector.cascade.cascade_path = (dir.path() / "faces.xml").string();
+  const auto cascade = cli::composeFile(moved, options);
+  ASSERT_FALSE(cascade.ok());
+  EXPECT_TRUE(contains(cascade.error().message, "cam-image_02's cascade")) << cascade.error().message;
+  moved = *topology;
+  camera(moved).source = "/dev/video0";
+  const auto device = cli::composeFile(moved, options);
+  ASSERT_TRUE(device.ok()) << device.error().message;
+  EXPECT_TRUE(contains(*device, "    devices: [\"/dev/video0:/dev/video0\"]\n    group_add: [video]\n")) << *device;
 }
 
 }  // namespace

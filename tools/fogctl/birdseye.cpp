@@ -137,11 +137,35 @@ void drawSensorMarker(cv::Mat& image, const Eigen::Vector2d& px, const Eigen::Ve
   cv::circle(image, c, r, bgr(kBirdseyeSensorColour), cv::FILLED, cv::LINE_AA, kShift);
 }
 
+// A track: a diamond in its colour (hollow when lost) with a white rim, so it reads over its object.
+void drawTrackMarker(cv::Mat& image, const Eigen::Vector2d& px, double radius_px, const Rgb& colour, bool confirmed) {
+  std::vector<cv::Point> diamond;
+  for (const Eigen::Vector2d& d : {Eigen::Vector2d(0, -1), Eigen::Vector2d(1, 0), Eigen::Vector2d(0, 1), Eigen::Vector2d(-1, 0)}) {
+    diamond.push_back(fixedPoint(px + radius_px * d));
+  }
+  const int line = std::max(1, static_cast<int>(std::lround(radius_px / 3.5)));
+  cv::polylines(image, diamond, true, cv::Scalar(255, 255, 255), line + 3, cv::LINE_AA, kShift);
+  cv::fillConvexPoly(image, diamond, confirmed ? bgr(colour) : cv::Scalar(255, 255, 255), cv::LINE_AA, kShift);
+  cv::polylines(image, diamond, true, bgr(colour), line, cv::LINE_AA, kShift);
+}
+
+// A track's recent positions as a line in its colour, oldest first, ending at the track.
+void drawTrackTrail(cv::Mat& image, const std::vector<Eigen::Vector2d>& px, const Rgb& colour, double unit) {
+  if (px.size() < 2) return;
+  std::vector<cv::Point> line;
+  line.reserve(px.size());
+  for (const auto& p : px) line.push_back(fixedPoint(p));
+  cv::polylines(image, line, false, bgr(colour), std::max(1, static_cast<int>(std::lround(2.0 * unit))), cv::LINE_AA, kShift);
+}
+
 struct Counts {
   std::size_t points = 0;
   std::size_t points_in_view = 0;
   std::size_t objects_in_view = 0;
   std::size_t ellipsoids = 0;
+  std::size_t tracks_in_view = 0;
+  std::size_t tracks_lost = 0;
+  std::size_t tracks_unlabelled = 0;  // in view, but every place for its label was taken
 };
 
 // The map itself, into `plot` (a view of the picture clipped to the map's square).
@@ -212,6 +236,77 @@ Counts drawMap(cv::Mat& plot, const Projection& proj, const BirdseyeScene& scene
   const int outline_px = std::max(1, static_cast<int>(std::lround(2.0 * unit)));
   for (std::size_t o = 0; o < ellipses.size(); ++o) {
     if (!ellipses[o].empty()) cv::polylines(plot, ellipses[o], true, bgr(colours[o]), outline_px, cv::LINE_AA, kShift);
+  }
+  // Tracks over the map: trails, then markers, then their ids and labels.
+  const double marker = 7.0 * unit;
+  for (const auto& track : scene.tracks) {
+    std::vector<Eigen::Vector2d> trail;
+    for (const auto& p : track.trail) {
+      if (p.allFinite()) trail.push_back(local.pixel(p));
+    }
+    if (!track.position.allFinite()) continue;
+    trail.push_back(local.pixel(track.position));
+    drawTrackTrail(plot, trail, birdseyeTrackColour(track.id), unit);
+  }
+  const Pen track_pen{0.45 * unit, 1};
+  for (const auto& track : scene.tracks) {
+    if (!track.position.allFinite()) continue;
+    if (!track.confirmed) ++counts.tracks_lost;
+    const Eigen::Vector2d at = local.pixel(track.position);
+    if (at.x() < 0 || at.y() < 0 || at.x() >= plot.cols || at.y() >= plot.rows) continue;
+    ++counts.tracks_in_view;
+    drawTrackMarker(plot, at, marker, birdseyeTrackColour(track.id), track.confirmed);
+  }
+  // Their ids and labels, confirmed tracks first: each on the first free side of its marker, ahead
+  // of it (away from its trail) where that is free, and left out where every side would cover
+  // another label (many lost tracks in one place).
+  std::vector<const BirdseyeTrack*> labelled;
+  for (const auto& track : scene.tracks) {
+    if (track.confirmed) labelled.push_back(&track);
+  }
+  for (const auto& track : scene.tracks) {
+    if (!track.confirmed) labelled.push_back(&track);
+  }
+  std::vector<cv::Rect> taken;
+  for (const BirdseyeTrack* track : labelled) {
+    if (!track->position.allFinite()) continue;
+    const Eigen::Vector2d at = local.pixel(track->position);
+    if (at.x() < 0 || at.y() < 0 || at.x() >= plot.cols || at.y() >= plot.rows) continue;
+    std::string text = "#";  // appended piece by piece: GCC 12 warns (-Wrestrict) about "#" + std::string
+    text += std::to_string(track->id);
+    text += ' ';
+    text += track->label;
+    const cv::Size size = track_pen.size(text);
+    Eigen::Vector2d ahead(1, 0);
+    if (!track->trail.empty() && track->trail.back().allFinite()) {
+      const Eigen::Vector2d step = at - local.pixel(track->trail.back());
+      if (step.norm() > 0.5) ahead = step.normalized();
+    }
+    const double gap = marker + 3.0 * unit;
+    std::vector<std::pair<double, cv::Point>> sides;  // (preference, baseline start)
+    for (const auto& [direction, corner] : std::array<std::pair<Eigen::Vector2d, cv::Point2d>, 4>{{
+             {{1, 0}, {at.x() + gap, at.y() + size.height / 2.0}},
+             {{-1, 0}, {at.x() - gap - size.width, at.y() + size.height / 2.0}},
+             {{0, 1}, {at.x() - size.width / 2.0, at.y() + gap + size.height}},
+             {{0, -1}, {at.x() - size.width / 2.0, at.y() - gap}},
+         }}) {
+      const bool fits = corner.x >= 2 && corner.x + size.width <= plot.cols - 2 && corner.y - size.height >= 2 && corner.y <= plot.rows - 2;
+      sides.emplace_back(direction.dot(ahead) + (fits ? 10.0 : 0.0),
+                         cv::Point(static_cast<int>(std::lround(corner.x)), static_cast<int>(std::lround(corner.y))));
+    }
+    std::stable_sort(sides.begin(), sides.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+    const int pad = static_cast<int>(std::lround(2.0 * unit));
+    bool placed = false;
+    for (const auto& [preference, corner] : sides) {
+      const cv::Rect box(corner.x - pad, corner.y - size.height - pad, size.width + 2 * pad,
+                         size.height + track_pen.descent() + 2 * pad);
+      if (std::any_of(taken.begin(), taken.end(), [&](const cv::Rect& t) { return (t & box).area() > 0; })) continue;
+      taken.push_back(box);
+      track_pen.writeOnMap(plot, text, corner, bgr(birdseyeTrackColour(track->id)));
+      placed = true;
+      break;
+    }
+    if (!placed) ++counts.tracks_unlabelled;
   }
   // Sensors and their names last, over the data.
   const Pen label{0.5 * unit, 1};
@@ -360,6 +455,24 @@ void drawLegend(cv::Mat& image, const BirdseyeScene& scene, const BirdseyeLayout
       cv::polylines(image, poly, true, bgr(kBirdseyeTruthColour), 1, cv::LINE_AA, kShift);
     });
   }
+  if (!scene.tracks.empty()) {
+    std::string detail = plural(scene.tracks.size(), "track");
+    if (counts.tracks_lost > 0) detail += ", " + withThousands(counts.tracks_lost) + " lost (hollow)";
+    if (counts.tracks_in_view < scene.tracks.size()) {
+      detail += "; " + withThousands(scene.tracks.size() - counts.tracks_in_view) + " out of view";
+    }
+    if (counts.tracks_unlabelled > 0) {
+      detail += "; " + withThousands(counts.tracks_unlabelled) + " not labelled (no room)";
+    }
+    entry("track: #id and label at its position, a line through its recent positions", detail, [&](const cv::Rect& r) {
+      const Rgb colour = kBirdseyeTrackPalette[0];
+      const std::vector<Eigen::Vector2d> trail = {{r.x + 3.0, r.y + r.height * 0.85}, {r.x + r.width * 0.3, r.y + r.height * 0.6},
+                                                  {r.x + r.width * 0.55, r.y + r.height * 0.45},
+                                                  {r.x + r.width * 0.75, r.y + r.height * 0.35}};
+      drawTrackTrail(image, trail, colour, unit);
+      drawTrackMarker(image, trail.back(), 7.0 * unit, colour, true);
+    });
+  }
   if (!scene.sensors.empty()) {
     entry("sensor: position, name, heading (its x axis)", plural(scene.sensors.size(), "sensor"), [&](const cv::Rect& r) {
       drawSensorMarker(image, centreOf(r) - Eigen::Vector2d(r.width * 0.15, 0), Eigen::Vector2d(1, 0), 5.0 * unit);
@@ -469,6 +582,10 @@ std::vector<Rgb> birdseyeObjectColours(std::span<const MapObject> objects) {
     out[o] = kBirdseyePalette[chosen[o]];
   }
   return out;
+}
+
+Rgb birdseyeTrackColour(std::uint64_t id) {
+  return kBirdseyeTrackPalette[id % std::size(kBirdseyeTrackPalette)];
 }
 
 Status drawBirdseye(const std::filesystem::path& png, const BirdseyeScene& scene, int size_px) {

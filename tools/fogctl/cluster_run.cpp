@@ -230,7 +230,7 @@ Expected<std::map<std::uint64_t, EdgeView>> recomputeEdges(const TopologyConfig&
     }
     EdgeConfig config = edgeConfigFor(topology, n);
     config.mode = Mode::kExt;
-    const EdgeNode edge(config);
+    EdgeNode edge(config);
     for (const auto e : epochs) {
       const std::uint64_t scan_number = scanNumberAt(*schedule, sensor.rate_hz, e);
       Cloud raw;

@@ -1,76 +1,43 @@
 // fogctl demo: a local MAD-C cluster and the baseline over the same real frames, side by side:
 // objects, bytes per frame, merge and end-to-end latency, Rand index against the baseline, a
-// bird's-eye PNG of the global map and a JSON report.
+// bird's-eye PNG of the global map and a JSON report. On a moving simulated scene with cameras,
+// also the tracker and the detection services, their tracks scored against the truth.
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
-#include <iostream>
 #include <map>
 #include <numeric>
-#include <Eigen/Eigenvalues>
-#include <mutex>
-#include <set>
-#include <sstream>
-#include <thread>
-
-#include <grpcpp/grpcpp.h>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "common/rand_index.hpp"
+#include "common/sim/scene.hpp"
+#include "common/tracking/tracker_config.hpp"
 #include "common/topology.hpp"
-#include "fogmap/v1/fogmap.grpc.pb.h"
-#include "services/common/grpc_options.hpp"
-#include "services/common/proto_convert.hpp"
-#include "services/edge_cluster/edge_node.hpp"
 #include "services/edge_cluster/scan_source.hpp"
 #include "tools/fogctl/args.hpp"
-#include "tools/fogctl/commands.hpp"
-#include "services/edge_cluster/scan_source.hpp"
+#include "tools/fogctl/birdseye.hpp"
 #include "tools/fogctl/cluster_run.hpp"
+#include "tools/fogctl/commands.hpp"
+#include "tools/fogctl/launcher.hpp"
 #include "tools/fogctl/scene_picture.hpp"
 #include "tools/fogctl/scene_run.hpp"
-#include "common/sim/scene.hpp"
-#include "tools/fogctl/launcher.hpp"
+#include "tools/fogctl/track_scoring.hpp"
 
 namespace fogmap::cli {
 namespace {
 
 
-// Bird's-eye view: points grey, each global object's ellipsoids in the object's colour.
-Status drawPng(const std::filesystem::path& file, const GlobalMapMessage& global, const EdgeView& view, double half_extent_m) {
-  constexpr int kSize = 1000;
-  cv::Mat image(kSize, kSize, CV_8UC3, cv::Scalar(255, 255, 255));
-  const double scale = kSize / (2.0 * half_extent_m);
-  auto pixel = [&](double x, double y) { return cv::Point2d((half_extent_m - y) * scale, (half_extent_m - x) * scale); };  // x up, y left
-  for (const auto& [node, cloud] : view.points) {
-    for (const auto& p : cloud) {
-      const auto px = pixel(p.x, p.y);
-      if (px.x >= 0 && px.y >= 0 && px.x < kSize && px.y < kSize) image.at<cv::Vec3b>(static_cast<int>(px.y), static_cast<int>(px.x)) = {170, 170, 170};
-    }
-  }
-  for (std::size_t o = 0; o < global.map.objects.size(); ++o) {
-    const auto hue = static_cast<unsigned char>((o * 47) % 180);
-    cv::Mat hsv(1, 1, CV_8UC3, cv::Scalar(hue, 220, 210));
-    cv::Mat bgr;
-    cv::cvtColor(hsv, bgr, cv::COLOR_HSV2BGR);
-    const cv::Vec3b c = bgr.at<cv::Vec3b>(0, 0);
-    for (const auto& e : global.map.objects[o].ellipsoids) {
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> solver(e.shape.topLeftCorner<2, 2>());
-      const Eigen::Vector2d axes = solver.eigenvalues().cwiseMax(0.0).cwiseSqrt() * scale;
-      const Eigen::Vector2d major = solver.eigenvectors().col(1);
-      // Image x = -y, image y = -x: the angle of the major axis in image coordinates.
-      const double angle = std::atan2(-major.x(), -major.y()) * 180.0 / M_PI;
-      cv::ellipse(image, pixel(e.center.x(), e.center.y()), cv::Size2d(axes[1], axes[0]), angle, 0, 360, cv::Scalar(c[0], c[1], c[2]), 2,
-                  cv::LINE_AA);
-    }
-  }
-  cv::circle(image, pixel(0, 0), 4, cv::Scalar(0, 0, 0), cv::FILLED);
-  cv::putText(image, "fogmap global map, epoch " + std::to_string(global.header.epoch) + ": " + std::to_string(global.map.objects.size()) + " objects",
-              cv::Point(10, 25), cv::FONT_HERSHEY_SIMPLEX, 0.7, cv::Scalar(0, 0, 0), 2);
-  if (!cv::imwrite(file.string(), image)) return ioError("cannot write " + file.string());
-  return {};
+// The bird's-eye picture of a global map of recorded scans: the edges' points, the global objects
+// and the recording's LiDAR (every virtual LiDAR is a sector of it, at its place).
+Status drawRecordedBirdseye(const std::filesystem::path& png, const GlobalMapMessage& global, const EdgeView& view, int lidars) {
+  BirdseyeScene picture;
+  picture.title = "fogmap global map, epoch " + std::to_string(global.header.epoch) + ": " +
+                  std::to_string(global.map.objects.size()) + " objects from " + std::to_string(lidars) + " virtual LiDARs";
+  picture.half_extent_m = 40.0;
+  for (const auto& [node, points] : view.points) picture.points.emplace_back(points);
+  picture.objects = global.map.objects;
+  picture.sensors = {{"LiDAR", Eigen::Isometry3d::Identity(), 0.0}};
+  return drawBirdseye(png, picture);
 }
 
 std::filesystem::path defaultInput() {
@@ -96,6 +63,32 @@ int runSceneDemo(const Args& args) {
   const std::string shape = args.get("topology", "star");
   if (shape != "star" && shape != "tree") return fail(invalidArgument("--topology must be star or tree"), "fogctl demo");
   const std::filesystem::path dir = args.get("state", ".fogmap/demo");
+  // On a moving scene with cameras, the tracker and a detection service per camera run too.
+  const bool tracks = tracksScene(*scene);
+  const sim::Scene uncycled = *scene;
+  SceneTrackingOptions tracking_options;
+  if (!tracks && (args.has("miss-rate") || args.has("association") || args.has("tracker-input") || args.has("track-frames"))) {
+    return fail(invalidArgument("--miss-rate, --association, --tracker-input and --track-frames need a scene with moving objects "
+                                "and cameras"),
+                "fogctl demo");
+  }
+  {
+    const auto miss = args.getDouble("miss-rate", tracking_options.truth.miss_rate);
+    if (!miss || !(*miss >= 0.0 && *miss <= 1.0)) return fail(invalidArgument("--miss-rate must be in [0, 1]"), "fogctl demo");
+    tracking_options.truth.miss_rate = *miss;
+    const auto association = tracking::parseAssociation(args.get("association", "kalman"));
+    if (!association) return fail(invalidArgument("--association: " + association.error().message), "fogctl demo");
+    tracking_options.association = *association;
+    const auto input = parseTrackerInput(args.get("tracker-input", trackerInputName(tracking_options.input)));
+    if (!input) return fail(invalidArgument("--tracker-input: " + input.error().message), "fogctl demo");
+    tracking_options.input = *input;
+    const auto track_frames = args.getInt("track-frames", static_cast<long>(tracking_options.scored_lists));
+    if (!track_frames || *track_frames < 1 || *track_frames > 3000) {
+      return fail(invalidArgument("--track-frames must be in [1, 3000]"), "fogctl demo");
+    }
+    tracking_options.scored_lists = static_cast<std::size_t>(*track_frames);
+    tracking_options.base_port = static_cast<int>(*base) + 800;
+  }
   installStopHandlers();
   SceneRunOptions options;
   options.alpha = *alpha;
@@ -150,6 +143,28 @@ int runSceneDemo(const Args& args) {
     }
     std::printf("  bird's-eye view of epoch %lu: %s\n", static_cast<unsigned long>(last->first), png.c_str());
   }
+  std::string tracking_json;
+  if (tracks) {
+    if (stopRequested()) return 1;
+    std::printf("\nrunning the tracking cluster (%zu edges, a detection service per camera replaying the truth with %.0f %% "
+                "missed, the tracker with association %s on %s)...\n",
+                uncycled.lidars.size(), 100.0 * tracking_options.truth.miss_rate,
+                tracking::associationName(tracking_options.association), trackerInputName(tracking_options.input));
+    auto run = runSceneTracking(dir, scene_path, uncycled, tracking_options);
+    if (!run) return fail(run.error(), "fogctl demo");
+    const auto scored = scoreSceneTracking(uncycled, *run, tracking_options);
+    if (!scored) return fail(scored.error(), "fogctl demo");
+    const std::size_t moving = movingObjects(uncycled).size();
+    std::fputs(sceneTrackingText(*scored, tracking_options, moving).c_str(), stdout);
+    tracking_json = sceneTrackingJson(*scored, tracking_options, moving);
+    const std::filesystem::path tracks_png = args.get("tracks-png", (dir / "tracks.png").string());
+    const std::size_t last_scored = scored->first_list + scored->frames - 1;
+    constexpr std::size_t kTrailLists = 30;  // 3 s at 10 Hz
+    if (Status drawn = drawSceneTracks(tracks_png, uncycled, *run, last_scored, kTrailLists); !drawn) {
+      return fail(drawn.error(), "fogctl demo");
+    }
+    std::printf("  bird's-eye view of the last scored track list, with 3 s trails: %s\n", tracks_png.c_str());
+  }
   const std::filesystem::path report = args.get("report", (dir / "report.json").string());
   std::ofstream out(report);
   out << "{\n"
@@ -180,7 +195,7 @@ int runSceneDemo(const Args& args) {
       << "  \"merge_ms\": " << s.merge_ms << ",\n"
       << "  \"baseline_clustering_ms\": " << s.baseline_clustering_ms << ",\n"
       << "  \"e2e_p50_ms\": " << s.madc_e2e_p50_ms << ",\n"
-      << "  \"baseline_e2e_p50_ms\": " << s.baseline_e2e_p50_ms << "\n"
+      << "  \"baseline_e2e_p50_ms\": " << s.baseline_e2e_p50_ms << (tracks ? ",\n  \"tracking\": " + tracking_json : "") << "\n"
       << "}\n";
   if (!out) return fail(ioError("cannot write " + report.string()), "fogctl demo");
   std::printf("  report: %s\n", report.c_str());
@@ -191,13 +206,19 @@ int runSceneDemo(const Args& args) {
 
 int runDemo(int argc, char** argv) {
   const auto args =
-      Args::parse(argc, argv, 2, {"input", "scene", "nodes", "topology", "frames", "report", "png", "base-port", "state", "alpha"}, {});
+      Args::parse(argc, argv, 2,
+                  {"input", "scene", "nodes", "topology", "frames", "report", "png", "base-port", "state", "alpha", "miss-rate",
+                   "association", "tracker-input", "track-frames", "tracks-png"},
+                  {});
   if (!args) return fail(args.error(), "fogctl demo");
   if (args->has("scene")) {
     if (args->has("input") || args->has("nodes")) {
       return fail(invalidArgument("--scene runs one edge per LiDAR of the scene: no --input or --nodes with it"), "fogctl demo");
     }
     return runSceneDemo(*args);
+  }
+  for (const char* flag : {"miss-rate", "association", "tracker-input", "track-frames", "tracks-png"}) {
+    if (args->has(flag)) return fail(invalidArgument(std::string("--") + flag + " goes with --scene"), "fogctl demo");
   }
   const std::filesystem::path input = args->has("input") ? std::filesystem::absolute(args->get("input")) : defaultInput();
   if (input.empty() || !std::filesystem::exists(input)) return fail(invalidArgument("--input DIR of scans is required (bundled data not found)"), "fogctl demo");
@@ -325,7 +346,9 @@ int runDemo(int argc, char** argv) {
 
   const std::filesystem::path png = args->get("png", (dir / "global_map.png").string());
   if (last != nullptr) {
-    if (const Status s = drawPng(png, *last, views->at(last_epoch), 40.0); !s) return fail(s.error(), "fogctl demo");
+    if (const Status s = drawRecordedBirdseye(png, *last, views->at(last_epoch), static_cast<int>(*nodes)); !s) {
+      return fail(s.error(), "fogctl demo");
+    }
     std::printf("  bird's-eye view of frame %lu: %s\n", static_cast<unsigned long>(last_epoch), png.c_str());
   }
   const std::filesystem::path report = args->get("report", (dir / "report.json").string());

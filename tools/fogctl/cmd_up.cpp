@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <condition_variable>
 #include <mutex>
 #include <cmath>
@@ -19,7 +20,9 @@
 #include <thread>
 
 #include <grpcpp/grpcpp.h>
+#include <opencv2/imgcodecs.hpp>
 
+#include "common/camera/kitti.hpp"
 #include "common/certs.hpp"
 #include "common/cloud_io.hpp"
 #include "common/geofence.hpp"
@@ -34,6 +37,7 @@
 #include "tools/fogctl/args.hpp"
 #include "tools/fogctl/commands.hpp"
 #include "tools/fogctl/launcher.hpp"
+#include "tools/fogctl/tracking_eval.hpp"
 
 namespace fogmap::cli {
 namespace {
@@ -221,13 +225,70 @@ std::filesystem::path relativeTo(const std::filesystem::path& file, const std::f
   return relative.empty() ? full : relative;
 }
 
+// The detection nodes of `--cameras DIR[,DIR...]`: each DIR a directory of KITTI camera frames
+// named image_0N (camera N of the calib file: `calib`, else calib.txt beside DIR, KITTI raw's
+// layout), replayed at `rate_hz` through OpenCV's HOG people detector and sending to the tracker.
+// The paths are written as given: like --source, relative to the topology file's directory
+// `topology_dir`, where they are read now (the calibration, and the first image for its size).
+Expected<std::vector<NodeConfig>> kittiCameraNodes(const std::string& list, const std::string& calib, double rate_hz,
+                                                   const std::filesystem::path& topology_dir, int base_port) {
+  namespace fs = std::filesystem;
+  const auto at = [&](const fs::path& p) { return p.is_absolute() ? p : topology_dir / p; };
+  std::vector<NodeConfig> nodes;
+  std::set<std::string> names;
+  std::stringstream words(list);
+  for (std::string word; std::getline(words, word, ',');) {
+    const fs::path dir = fs::path(word).lexically_normal();
+    const std::string what = "--cameras " + word;
+    std::error_code ec;
+    if (word.empty() || !fs::is_directory(at(dir), ec)) {
+      return invalidArgument(what + ": not a directory of camera frames (relative paths are taken from the topology file's directory, " +
+                             topology_dir.string() + ")");
+    }
+    const std::string leaf = (dir.has_filename() ? dir : dir.parent_path()).filename().string();
+    if (leaf.size() != 8 || leaf.rfind("image_0", 0) != 0 || leaf[7] < '0' || leaf[7] > '3') {
+      return invalidArgument(what + ": cannot tell which camera of the calibration it is; KITTI names its frames' directories image_00 .. image_03");
+    }
+    const int index = leaf[7] - '0';
+    const fs::path calib_file = calib.empty() ? (dir.has_filename() ? dir : dir.parent_path()).parent_path() / "calib.txt" : fs::path(calib);
+    std::ifstream in(at(calib_file));
+    std::stringstream text;
+    text << in.rdbuf();
+    if (!in) return invalidArgument(what + ": cannot read its calibration " + at(calib_file).string() + " (give one with --calib FILE)");
+    const auto calibration = camera::parseKittiCalibration(text.str());
+    if (!calibration) return invalidArgument(at(calib_file).string() + ": " + calibration.error().message);
+    std::vector<fs::path> images;
+    for (const auto& entry : fs::directory_iterator(at(dir), ec)) {
+      std::string ext = entry.path().extension().string();
+      std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+      if (ext == ".png" || ext == ".jpg" || ext == ".jpeg") images.push_back(entry.path());
+    }
+    if (images.empty()) return invalidArgument(what + ": no .png or .jpg image in " + at(dir).string());
+    const fs::path first = *std::min_element(images.begin(), images.end());
+    const cv::Mat image = cv::imread(first.string(), cv::IMREAD_UNCHANGED);
+    if (image.empty()) return invalidArgument(what + ": cannot read the image " + first.string());
+    const auto pinhole = camera::pinholeCamera(*calibration, index, image.cols, image.rows);
+    if (!pinhole) return invalidArgument(at(calib_file).string() + ": " + pinhole.error().message);
+    const std::string name = sim::cameraNodeFor(leaf);
+    if (!names.insert(name).second) return invalidArgument(what + ": a second camera " + leaf + " (its node would be " + name + " again)");
+    CameraNodeConfig c;
+    c.source = dir;
+    c.rate_hz = rate_hz;
+    c.detector.kind = camera::DetectorKind::kHog;
+    c.calibration = *pinhole;
+    nodes.push_back(detectionNode(static_cast<int>(nodes.size() + 1), name, kTrackerNodeName, base_port, std::move(c)));
+  }
+  if (nodes.empty()) return invalidArgument("--cameras: no directory given");
+  return nodes;
+}
+
 }  // namespace
 
 int runTopology(int argc, char** argv) {
   const auto args = Args::parse(
       argc, argv, 2,
       {"edges", "source", "scene", "base-port", "mode", "frames", "out", "fanout", "deadline-ms", "tls-ca", "association",
-       "miss-rate", "box-jitter-px", "latency-ms"},
+       "miss-rate", "box-jitter-px", "latency-ms", "cameras", "calib", "camera-rate-hz", "tracker-input"},
       {"tracker"});
   if (!args) return fail(args.error());
   const bool from_scene = args->has("scene");
@@ -235,7 +296,9 @@ int runTopology(int argc, char** argv) {
   if (args->positional().size() == 1) shape = args->positional()[0];
   if (args->positional().size() > 1 || (shape != "star" && shape != "tree")) {
     return fail(invalidArgument("usage: fogctl topology star|tree --edges K --source DIR [--base-port P] [--mode madc|baseline|ext] "
-                                "[--frames N] [--fanout F] [--deadline-ms D] [--tls-ca FILE] [--out FILE]\n"
+                                "[--frames N] [--fanout F] [--deadline-ms D] [--tls-ca FILE]\n"
+                                "                       [--tracker [--association A] [--cameras DIR[,DIR...] [--calib FILE] "
+                                "[--camera-rate-hz R]]] [--out FILE]\n"
                                 "       fogctl topology [star|tree] --scene FILE [...]"));
   }
   const auto fanout = args->getInt("fanout", 2);
@@ -245,6 +308,17 @@ int runTopology(int argc, char** argv) {
   const auto base = args->getInt("base-port", 50000);
   if (!edges || *edges < 1 || *edges > 64) return fail(invalidArgument("--edges must be in [1, 64]"));
   if (!base || *base < 1024 || *base > 60000) return fail(invalidArgument("--base-port must be in [1024, 60000]"));
+  const bool with_tracker = args->has("tracker");
+  if (!with_tracker && args->has("association")) return fail(invalidArgument("--association goes with --tracker"));
+  tracking::TrackerConfig tracking;
+  if (with_tracker) {
+    const auto association = tracking::parseAssociation(args->get("association", "kalman"));
+    if (!association) return fail(invalidArgument("--association: " + association.error().message));
+    tracking.association = *association;
+  }
+  // Where the topology file goes: its paths are relative to it.
+  const std::filesystem::path topology_dir =
+      args->has("out") ? std::filesystem::absolute(args->get("out")).parent_path() : std::filesystem::current_path();
   TopologyConfig t;
   if (from_scene) {
     if (args->has("edges") || args->has("source")) {
@@ -261,14 +335,19 @@ int runTopology(int argc, char** argv) {
     options.tree = shape == "tree";
     options.fanout = static_cast<int>(*fanout);
     options.base_port = static_cast<int>(*base);
-    options.tracker = args->has("tracker");
-    if (!options.tracker && (args->has("association") || args->has("miss-rate") || args->has("box-jitter-px") || args->has("latency-ms"))) {
-      return fail(invalidArgument("--association, --miss-rate, --box-jitter-px and --latency-ms go with --tracker"));
+    if (args->has("cameras") || args->has("calib") || args->has("camera-rate-hz")) {
+      return fail(invalidArgument("--scene brings its own cameras (with --tracker): no --cameras, --calib or --camera-rate-hz"));
+    }
+    options.tracker = with_tracker;
+    if (!options.tracker && (args->has("miss-rate") || args->has("box-jitter-px") || args->has("latency-ms") || args->has("tracker-input"))) {
+      return fail(invalidArgument("--miss-rate, --box-jitter-px, --latency-ms and --tracker-input go with --tracker"));
     }
     if (options.tracker) {
-      const auto association = tracking::parseAssociation(args->get("association", "kalman"));
-      if (!association) return fail(invalidArgument("--association: " + association.error().message));
-      options.tracking.association = *association;
+      options.tracking = tracking;
+      const auto input = parseTrackerInput(args->get("tracker-input", "global_map"));
+      if (!input) return fail(invalidArgument("--tracker-input " + input.error().message));
+      options.tracker_input = *input;
+      options.displacement = trackingEvalDisplacement();  // the moving scene's VLP-16s (tracking_eval.cpp says why)
       const auto miss = args->getDouble("miss-rate", 0.0);
       const auto jitter = args->getDouble("box-jitter-px", 0.0);
       const auto latency = args->getDouble("latency-ms", 0.0);
@@ -278,13 +357,31 @@ int runTopology(int argc, char** argv) {
       options.truth = TruthReplayConfig{*miss, *jitter, *latency};
     }
     // The topology names the scene relative to its own directory, as services resolve it.
-    const std::filesystem::path topology_dir =
-        args->has("out") ? std::filesystem::absolute(args->get("out")).parent_path() : std::filesystem::current_path();
     t = sim::sceneTopology(*scene, relativeTo(scene_file, topology_dir), options);
   } else {
+    if (args->has("miss-rate") || args->has("box-jitter-px") || args->has("latency-ms")) {
+      return fail(invalidArgument("--miss-rate, --box-jitter-px and --latency-ms replay a scene's truth: they go with --scene"));
+    }
+    if (args->has("tracker-input")) {
+      return fail(invalidArgument("--tracker-input goes with --scene: displacement centroids need LiDARs that stand still"));
+    }
+    if (!args->has("cameras") && (args->has("calib") || args->has("camera-rate-hz"))) {
+      return fail(invalidArgument("--calib and --camera-rate-hz go with --cameras"));
+    }
+    if (args->has("cameras") && !with_tracker) {
+      return fail(invalidArgument("--cameras needs --tracker: a detection node sends its detections to a tracker"));
+    }
     const std::string source = args->get("source", "../data/kitti_raw_seq_a");
     t = shape == "star" ? makeStarTopology(static_cast<int>(*edges), source, static_cast<int>(*base))
                         : makeTreeTopology(static_cast<int>(*edges), source, static_cast<int>(*base), static_cast<int>(*fanout));
+    if (with_tracker) t.nodes.push_back(trackerNode(static_cast<int>(*base), tracking));
+    if (args->has("cameras")) {
+      const auto rate = args->getDouble("camera-rate-hz", 10.0);
+      if (!rate || !(*rate > 0.0 && *rate <= 1000.0)) return fail(invalidArgument("--camera-rate-hz must be in (0, 1000]"));
+      const auto cameras = kittiCameraNodes(args->get("cameras"), args->get("calib"), *rate, topology_dir, static_cast<int>(*base));
+      if (!cameras) return fail(cameras.error());
+      t.nodes.insert(t.nodes.end(), cameras->begin(), cameras->end());
+    }
   }
   if (args->has("deadline-ms")) {
     const auto deadline = args->getDouble("deadline-ms", t.deadline_ms);

@@ -4,6 +4,7 @@
 #include <set>
 #include <sstream>
 #include <system_error>
+#include <utility>
 
 namespace fogmap::cli {
 namespace {
@@ -29,6 +30,39 @@ Expected<std::string> inContainer(const fs::path& path, const fs::path& project_
 }
 
 std::string endpoint(const NodeConfig& node, std::uint16_t port) { return node.host + ":" + std::to_string(port); }
+
+// A camera source the topology keeps as written (common/topology.cpp): a device, not a file.
+bool isDevice(const fs::path& source) { return source.string().rfind("/dev/", 0) == 0; }
+
+// The files a node reads besides the topology and its TLS files, each with what it is for errors:
+// an edge's scans or scene; a camera's frames or scene and its detector's model files.
+std::vector<std::pair<fs::path, std::string>> inputFiles(const NodeConfig& node) {
+  std::vector<std::pair<fs::path, std::string>> files;
+  if (node.sensor) {
+    // A simulated LiDAR reads its scene file ("sim" is no path); a recorded one its scans.
+    const bool simulated = node.sensor->simulated();
+    files.emplace_back(simulated ? node.sensor->scene : node.sensor->source,
+                       node.name + (simulated ? "'s scene" : "'s sensor source"));
+  }
+  if (node.camera) {
+    const CameraNodeConfig& c = *node.camera;
+    if (c.simulated()) {
+      files.emplace_back(c.scene, node.name + "'s scene");
+    } else if (!isDevice(c.source)) {
+      files.emplace_back(c.source, node.name + "'s camera source");
+    }
+    if (!c.truth) {
+      const camera::DetectorConfig& d = c.detector;
+      if (d.kind == camera::DetectorKind::kCascade) files.emplace_back(d.cascade.cascade_path, node.name + "'s cascade");
+      if (d.kind == camera::DetectorKind::kDnn) {
+        files.emplace_back(d.dnn.model_path, node.name + "'s model");
+        if (!d.dnn.config_path.empty()) files.emplace_back(d.dnn.config_path, node.name + "'s model configuration");
+        files.emplace_back(d.dnn.names_path, node.name + "'s class names");
+      }
+    }
+  }
+  return files;
+}
 
 // The lines of a bash command that exits 0 when `host:port` answers `path` with HTTP 200, for
 // images without curl (bash's /dev/tcp).
@@ -57,12 +91,9 @@ Expected<std::string> composeFile(const TopologyConfig& topology, const ComposeO
       return invalidArgument("node '" + node.name + "' has the name of the deployment's " + node.name +
                              " service; rename the node");
     }
-    if (node.sensor) {
-      // A simulated LiDAR reads its scene file ("sim" is no path); a recorded one its scans.
-      const bool simulated = node.sensor->simulated();
-      const auto source = inContainer(simulated ? node.sensor->scene : node.sensor->source, options.project_dir,
-                                      node.name + (simulated ? "'s scene" : "'s sensor source"));
-      if (!source) return source.error();
+    for (const auto& [file, what] : inputFiles(node)) {
+      const auto in = inContainer(file, options.project_dir, what);
+      if (!in) return in.error();
     }
     if (const auto tls = topology.tlsIdentity(node.name)) {
       for (const fs::path& file : {tls->ca, tls->cert, tls->key}) {
@@ -101,7 +132,17 @@ Expected<std::string> composeFile(const TopologyConfig& topology, const ComposeO
     out << "    stop_grace_period: 10s\n";
     out << "    environment:\n      FOGMAP_METRICS: \"" << endpoint(node, node.metrics_port) << "\"\n";
     out << "    volumes:\n      - .:" << kMountPoint << ":ro\n";
-    if (!node.parent.empty()) out << "    depends_on: [" << node.parent << "]\n";
+    if (node.camera && isDevice(node.camera->source)) {
+      // A V4L2 camera: the device node, readable by the image's user through the video group.
+      out << "    devices: [\"" << node.camera->source.string() << ":" << node.camera->source.string() << "\"]\n";
+      out << "    group_add: [video]\n";
+    }
+    // A tracker has no parent; one whose input is the global map reads the root's.
+    const NodeConfig* root = topology.root();
+    const bool reads_root = node.role == Role::kTracker && root != nullptr && node.tracker &&
+                            node.tracker->input == TrackerInput::kGlobalMap;
+    const std::string upstream = reads_root ? root->name : node.parent;
+    if (!upstream.empty()) out << "    depends_on: [" << upstream << "]\n";
   }
 
   const std::string prometheus_check = httpCheck(options.prometheus_listen, "/-/ready");

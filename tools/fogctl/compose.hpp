@@ -1,6 +1,6 @@
 #pragma once
 // A docker compose deployment and a Prometheus scrape configuration generated from a topology
-// (docs/deployment.md): the same file that `fogctl up` runs as local processes runs as containers.
+// (docker/README.md): the same file that `fogctl up` runs as local processes runs as containers.
 // Pure text generation, no Docker needed.
 #include <filesystem>
 #include <string>
@@ -32,9 +32,11 @@ struct ComposeOptions {
 };
 
 // The compose file (valid for Compose v2 and Debian's docker-compose 1.29): one service per node
-// (named after it, its binary from serviceName(role), host networking, so it listens on the address
-// its topology entry gives), Prometheus, and Grafana in the `grafana` profile. Errors name what
-// cannot be deployed: a file outside project_dir, a node named like an infrastructure service.
+// (named after it, its binary from serviceName(role): edges, aggregators, detection nodes and
+// trackers alike; host networking, so it listens on the address its topology entry gives; a V4L2
+// camera's device passed in), Prometheus, and Grafana in the `grafana` profile. Errors name what
+// cannot be deployed: a file outside project_dir (scans, scenes, camera frames, detector models,
+// TLS files), a node named like an infrastructure service.
 Expected<std::string> composeFile(const TopologyConfig& topology, const ComposeOptions& options);
 
 struct PrometheusOptions {

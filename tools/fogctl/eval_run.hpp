@@ -1,7 +1,9 @@
 #pragma once
 // fogctl eval: the MAD-C paper's evaluation reproduced with the running services on simulated
-// random scenes (Figs. 6 to 9, Tables 1 and 2), written as CSV, PNG plots, eval.json and a
-// Markdown report with the command that made it and the paper's figures beside ours.
+// random scenes (Figs. 6 to 9, Tables 1 and 2), and the tracking evaluation of the camera-LiDAR
+// fusion paper's association against fogmap's on a moving scene (fogctl track-eval), written as
+// CSV, PNG plots, eval.json and a Markdown report with the command that made it and the papers'
+// figures beside ours.
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -11,6 +13,7 @@
 
 #include "common/status.hpp"
 #include "tools/fogctl/scene_run.hpp"
+#include "tools/fogctl/tracking_eval.hpp"
 
 namespace fogmap::cli {
 
@@ -26,6 +29,9 @@ struct EvalPlan {
   int link_lidars = 7;
   int link_objects = 100;
   double link_rate_hz = 1.0;                           // slow enough for whole scans to get through
+  // The tracking section: paper and kalman at every miss rate on one moving scene (people and
+  // vehicles, 4 LiDARs, 4 cameras), in process; none: skipped.
+  std::optional<TrackingEvalConfig> tracking = TrackingEvalConfig{};
   std::filesystem::path out = ".fogmap/eval";          // CSV, PNG, eval.json
   std::filesystem::path work = ".fogmap/eval-work";    // the runs' topologies, scenes and logs
   std::filesystem::path doc;                           // the Markdown report (default: out/evaluation.md)
@@ -34,7 +40,7 @@ struct EvalPlan {
 };
 
 // The plan of `fogctl eval --quick`: two LiDAR counts, two scene sizes, three alphas, a shaped
-// run of 3 LiDARs; under two minutes on two cores.
+// run of 3 LiDARs, a short tracking run; under two minutes on two cores.
 EvalPlan quickEvalPlan();
 
 struct AlphaRow {  // one MAD-C run of the accuracy sweep
@@ -76,6 +82,7 @@ struct EvalResult {
   std::vector<SizeRow> sizes;
   std::vector<PrecisionRow> precision;
   LinkResult links;
+  std::optional<TrackingEvalResult> tracking;
   double seconds = 0.0;
 };
 
@@ -83,8 +90,8 @@ struct EvalResult {
 // runs in network namespaces). `log` gets one line per run.
 Expected<EvalResult> runEvaluation(const EvalPlan& plan, const std::function<void(const std::string&)>& log);
 
-// Writes out/accuracy.csv, precision_recall.csv, costs.csv, links.csv, eval.json, the plots and
-// the report.
+// Writes out/accuracy.csv, precision_recall.csv, costs.csv, links.csv, tracking.csv (with a
+// tracking run), eval.json, the plots and the report.
 Status writeEvaluation(const EvalPlan& plan, const EvalResult& result);
 
 }  // namespace fogmap::cli

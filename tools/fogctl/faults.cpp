@@ -136,7 +136,7 @@ class Oracle {
     if (const auto it = local_.find(key); it != local_.end()) return &it->second;
     auto frame = sources_.at(node).at(file);
     if (!frame) return frame.error();
-    const EdgeNode edge(edgeConfigFor(topology_, *topology_.find(node)));
+    EdgeNode edge(edgeConfigFor(topology_, *topology_.find(node)));
     auto output = edge.processFrame(frame->points, 0, 0);
     if (!output) return output.error();
     if (!output->map) return invalidArgument("the oracle needs mode madc");

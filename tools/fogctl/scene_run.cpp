@@ -1,14 +1,23 @@
 #include "tools/fogctl/scene_run.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <numeric>
+#include <sstream>
 #include <unistd.h>
 
+#include <grpcpp/grpcpp.h>
+
 #include "common/epochs.hpp"
+#include "common/certs.hpp"
 #include "common/map.hpp"
 #include "common/sim/scene_topology.hpp"
 #include "common/sim/sensor_frames.hpp"
+#include "fogmap/v1/fogmap.grpc.pb.h"
+#include "services/common/grpc_options.hpp"
+#include "services/common/proto_convert.hpp"
 #include "services/edge_cluster/edge_runner.hpp"
 #include "tools/fogctl/evaluation.hpp"
 #include "tools/fogctl/free_ports.hpp"
@@ -223,6 +232,185 @@ Expected<std::pair<std::uint64_t, EdgeView>> lastCompleteView(const SceneRun& ru
     return std::pair{it->first, std::move(views->at(it->first))};
   }
   return Error{ErrorCode::kInternal, "no complete epoch"};
+}
+
+bool tracksScene(const sim::Scene& scene) { return !scene.cameras.empty() && !movingObjects(scene).empty(); }
+
+namespace {
+
+// Reads the tracker's stream into `lists` until they hold the scoring window, the deadline passes
+// or a stop is asked for. Returns why it ended early (empty when the window is there).
+std::string readTracks(const TopologyConfig& topology, const sim::Scene& scene, const EpochSchedule& schedule,
+                       double rate_hz, const SceneTrackingOptions& options, std::chrono::steady_clock::time_point deadline,
+                       std::vector<PublishedTracks>& lists) {
+  const NodeConfig* tracker = topology.find("tracker");
+  if (tracker == nullptr) return "the topology has no tracker";
+  const auto tls = loadTls(topology, "operator", std::chrono::system_clock::now());
+  if (!tls) return "tls: " + tls.error().message;
+  const std::string target = tracker->host + ":" + std::to_string(tracker->port);
+  std::vector<double> times;
+  // One subscription, re-opened while the tracker starts listening or if it drops the stream.
+  while (std::chrono::steady_clock::now() < deadline && !stopRequested()) {
+    auto channel = makeChannel(target, channelCredentials(*tls), 64U << 20);
+    if (!channel->WaitForConnected(std::chrono::system_clock::now() + std::chrono::milliseconds(200))) continue;
+    auto stub = v1::TrackerService::NewStub(channel);
+    grpc::ClientContext context;
+    context.set_deadline(std::chrono::system_clock::now() +
+                         std::chrono::duration_cast<std::chrono::system_clock::duration>(deadline - std::chrono::steady_clock::now()));
+    v1::TrackSubscribeRequest request;
+    auto reader = stub->Subscribe(&context, request);
+    v1::TrackList message;
+    while (!stopRequested() && reader->Read(&message)) {
+      PublishedTracks list;
+      list.lidar_time_ns = message.lidar_time_ns();
+      list.published_time_ns = message.published_time_ns();
+      for (const auto& proto : message.tracks()) {
+        auto track = fromProto(proto);
+        if (track) list.tracks.push_back(std::move(*track));
+      }
+      times.push_back(sceneTimeOf(scene, schedule, rate_hz, list.lidar_time_ns));
+      lists.push_back(std::move(list));
+      if (scoringWindow(times, options.warmup_lists, options.scored_lists)) break;
+    }
+    context.TryCancel();
+    reader->Finish();
+    if (scoringWindow(times, options.warmup_lists, options.scored_lists)) return {};
+  }
+  return stopRequested() ? "stopped" : "the tracker published " + std::to_string(lists.size()) + " track lists in time";
+}
+
+}  // namespace
+
+Expected<SceneTrackingRun> runSceneTracking(const std::filesystem::path& dir, const std::filesystem::path& scene_file,
+                                            const sim::Scene& scene, const SceneTrackingOptions& options) {
+  if (!tracksScene(scene)) return invalidArgument("the scene has nothing that moves or no camera: no tracks to score");
+  if (options.scored_lists == 0) return invalidArgument("tracking: scored_lists must be positive");
+  sim::SceneTopologyOptions layout;
+  layout.base_port = options.base_port;
+  layout.rate_hz = options.rate_hz;
+  layout.tracker = true;
+  layout.truth = options.truth;
+  layout.tracking.association = options.association;
+  layout.tracker_input = options.input;
+  layout.displacement = options.displacement;
+  TopologyConfig topology = sim::sceneTopology(scene, scene_file, layout);
+  topology.name = std::string("tracking-") + tracking::associationName(options.association) + "-" +
+                  trackerInputName(options.input) + "-" + std::to_string(scene.lidars.size()) + "lidars";
+  topology.period_ms = 1000.0 / options.rate_hz;
+  if (options.free_ports) {
+    try {
+      useFreePorts(topology);
+    } catch (const std::exception& e) {
+      return Error{ErrorCode::kInternal, e.what()};
+    }
+  }
+  const auto schedule = EpochSchedule::create(topology.period_ms, topology.deadline_ms);
+  if (!schedule) return schedule.error();
+  // Time for the window, and for a second one should the scene's cycle wrap inside the first.
+  const auto lists_time = std::chrono::milliseconds(static_cast<long>(
+      2.0 * static_cast<double>(options.warmup_lists + options.scored_lists) * topology.period_ms));
+  RunOptions run;
+  run.frames = 1'000'000;   // keep every global map while the tracks are read
+  run.complete_frames = 1;  // and stop once they are read
+  run.timeout = std::chrono::seconds(40) + lists_time;
+  SceneTrackingRun out;
+  std::string ended;
+  auto result = runCluster(dir, topology, run, [&](const Cluster&) {
+    ended = readTracks(topology, scene, *schedule, options.rate_hz, options,
+                       std::chrono::steady_clock::now() + std::chrono::seconds(20) + lists_time, out.lists);
+  });
+  if (!result) return result.error();
+  if (!ended.empty()) {
+    return Error{ErrorCode::kInternal, "tracking run: " + ended + "; see the logs in " + (dir / topology.name).string()};
+  }
+  out.topology = std::move(topology);
+  out.result = std::move(*result);
+  return out;
+}
+
+Expected<PublishedScores> scoreSceneTracking(const sim::Scene& scene, const SceneTrackingRun& run,
+                                             const SceneTrackingOptions& options) {
+  const auto schedule = EpochSchedule::create(run.topology.period_ms, run.topology.deadline_ms);
+  if (!schedule) return schedule.error();
+  return scorePublishedTracks(scene, *schedule, options.rate_hz, run.lists, options.warmup_lists, options.scored_lists,
+                              tracking::MotConfig{options.match_distance_m});
+}
+
+namespace {
+
+std::string fixed(double v, int digits) {
+  if (!std::isfinite(v)) return "n/a";
+  char text[64];
+  std::snprintf(text, sizeof text, "%.*f", digits, v);
+  return text;
+}
+
+std::string json(double v) {
+  if (!std::isfinite(v)) return "null";
+  std::ostringstream out;
+  out.precision(10);
+  out << v;
+  return out.str();
+}
+
+std::string motJson(const tracking::MotReport& r) {
+  const auto& c = r.clear;
+  return "{\"mota\": " + json(c.mota) + ", \"motp_m\": " + json(c.motp_m) + ", \"id_switches\": " +
+         std::to_string(c.id_switches) + ", \"fragmentations\": " + std::to_string(c.fragmentations) +
+         ", \"idf1\": " + json(r.identity.idf1) + ", \"matches\": " + std::to_string(c.matches) +
+         ", \"misses\": " + std::to_string(c.misses) + ", \"false_positives\": " + std::to_string(c.false_positives) +
+         ", \"loc_error_mean_m\": " + json(r.localization.mean_m) + ", \"loc_error_p95_m\": " + json(r.localization.p95_m) +
+         ", \"loc_error_max_m\": " + json(r.localization.max_m) + "}";
+}
+
+}  // namespace
+
+std::string sceneTrackingText(const PublishedScores& s, const SceneTrackingOptions& o, std::size_t moving_objects) {
+  const auto& mot = s.scores.mot;
+  const auto& c = mot.clear;
+  std::ostringstream out;
+  out << "  tracking (" << tracking::associationName(o.association) << " on " << trackerInputName(o.input) << ", "
+      << fixed(100.0 * o.truth.miss_rate, 0) << " % of detections missed): " << s.frames << " track lists, scene time " << fixed(s.first_time_s, 1) << " to "
+      << fixed(s.last_time_s, 1) << " s, against " << moving_objects << " moving objects (" << fixed(o.match_distance_m, 1)
+      << " m gate)\n"
+      << "    MOTA " << fixed(c.mota, 3) << "   MOTP " << fixed(c.motp_m, 3) << " m   ID switches " << c.id_switches
+      << "   fragmentations " << c.fragmentations << "   IDF1 " << fixed(mot.identity.idf1, 3) << "\n"
+      << "    localization error mean / p95 / max " << fixed(mot.localization.mean_m, 3) << " / "
+      << fixed(mot.localization.p95_m, 3) << " / " << fixed(mot.localization.max_m, 3) << " m   misses " << c.misses
+      << "   false positives " << c.false_positives << "   tracks confirmed " << s.scores.tracks_confirmed << "\n";
+  for (const auto& [label, r] : s.scores.by_label) {
+    out << "    " << label << ": MOTA " << fixed(r.clear.mota, 3) << ", ID switches " << r.clear.id_switches << ", IDF1 "
+        << fixed(r.identity.idf1, 3) << ", error mean " << fixed(r.localization.mean_m, 3) << " m (tracks labelled " << label
+        << " only)\n";
+  }
+  out << "    sensor time to published tracks: p50 " << fixed(s.latency_p50_ms, 1) << " ms   p95 " << fixed(s.latency_p95_ms, 1)
+      << " ms   max " << fixed(s.latency_max_ms, 1) << " ms\n";
+  return out.str();
+}
+
+std::string sceneTrackingJson(const PublishedScores& s, const SceneTrackingOptions& o, std::size_t moving_objects) {
+  const auto& mot = s.scores.mot;
+  const auto& c = mot.clear;
+  std::ostringstream out;
+  out << "{\"association\": \"" << tracking::associationName(o.association) << "\", \"tracker_input\": \""
+      << trackerInputName(o.input) << "\", \"miss_rate\": " << json(o.truth.miss_rate)
+      << ", \"box_jitter_px\": " << json(o.truth.box_jitter_px) << ", \"camera_latency_ms\": " << json(o.truth.latency_ms)
+      << ", \"moving_objects\": " << moving_objects << ", \"frames\": " << s.frames
+      << ", \"scene_time_first_s\": " << json(s.first_time_s) << ", \"scene_time_last_s\": " << json(s.last_time_s)
+      << ", \"match_distance_m\": " << json(o.match_distance_m)
+      << ",\n    \"mota\": " << json(c.mota) << ", \"motp_m\": " << json(c.motp_m) << ", \"id_switches\": " << c.id_switches
+      << ", \"fragmentations\": " << c.fragmentations << ", \"idf1\": " << json(mot.identity.idf1)
+      << ", \"loc_error_mean_m\": " << json(mot.localization.mean_m) << ", \"loc_error_p95_m\": " << json(mot.localization.p95_m)
+      << ", \"loc_error_max_m\": " << json(mot.localization.max_m) << ", \"tracks_confirmed\": " << s.scores.tracks_confirmed
+      << ", \"matches\": " << c.matches << ", \"misses\": " << c.misses << ", \"false_positives\": " << c.false_positives
+      << ", \"truth_count\": " << c.truth_count << ",\n    \"e2e_p50_ms\": " << json(s.latency_p50_ms)
+      << ", \"e2e_p95_ms\": " << json(s.latency_p95_ms) << ", \"e2e_max_ms\": " << json(s.latency_max_ms)
+      << ",\n    \"by_label\": {";
+  for (std::size_t i = 0; i < s.scores.by_label.size(); ++i) {
+    out << (i == 0 ? "" : ", ") << "\"" << s.scores.by_label[i].first << "\": " << motJson(s.scores.by_label[i].second);
+  }
+  out << "}}";
+  return out.str();
 }
 
 }  // namespace fogmap::cli

@@ -1,7 +1,8 @@
 #pragma once
 // A simulated scene run by real clusters, MAD-C and the baseline side by side, and scored against
 // the baseline and against the truth: what `fogctl demo --scene` shows and `fogctl eval` repeats
-// over scene sizes, LiDAR counts and alphas.
+// over scene sizes, LiDAR counts and alphas. On a moving scene with cameras, the cluster with its
+// tracker and detection services, whose published tracks are scored against the truth.
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -14,7 +15,10 @@
 #include "common/sim/scene.hpp"
 #include "common/status.hpp"
 #include "common/topology.hpp"
+#include "common/tracking/tracker_config.hpp"
 #include "tools/fogctl/cluster_run.hpp"
+#include "tools/fogctl/track_scoring.hpp"
+#include "tools/fogctl/tracking_eval.hpp"
 
 namespace fogmap::cli {
 
@@ -83,5 +87,50 @@ Expected<std::pair<std::uint64_t, EdgeView>> lastCompleteView(const SceneRun& ru
 
 // The median time from a frame's sensor time to its global map, over the complete epochs.
 double endToEndP50Ms(const SceneRun& run);
+
+// A scene whose tracks can be scored: something moves and a camera looks at it.
+bool tracksScene(const sim::Scene& scene);
+
+struct SceneTrackingOptions {
+  tracking::Association association = tracking::Association::kKalman;
+  // The tracker's LiDAR input: the root's global maps, or the displacement centroids every edge
+  // finds with `displacement` (track-eval's settings for the moving scene's VLP-16s).
+  TrackerInput input = TrackerInput::kGlobalMap;
+  tracking::DisplacementParams displacement = trackingEvalDisplacement();
+  // The cameras replay the truth with these misses, box jitter and latency (track-eval's defaults).
+  TruthReplayConfig truth{0.3, 2.0, 50.0};
+  int base_port = 47800;     // ports as sceneTopology numbers them from here
+  bool free_ports = false;   // ports the kernel says are free now instead
+  double rate_hz = 10.0;     // the LiDARs' rate and the cluster's epoch rate
+  // Track lists read before the scored ones (tracks need a few frames to be confirmed, and the
+  // first maps may lack an edge that is still starting), and the track lists scored.
+  std::size_t warmup_lists = 30;
+  std::size_t scored_lists = 100;
+  double match_distance_m = 1.0;  // the CLEAR MOT gate
+};
+
+// A tracking run: the topology it ran, what the root published and the services' metrics, and
+// every track list read from the tracker, in order.
+struct SceneTrackingRun {
+  TopologyConfig topology;
+  RunResult result;
+  std::vector<PublishedTracks> lists;
+};
+
+// Starts the cluster of `scene_file` with its tracker (sceneTopology with a tracker and one truth
+// detection node per camera, the topology `fogctl topology --scene F --tracker` writes), reads the
+// tracker's stream until the lists hold a scoringWindow(warmup_lists, scored_lists) or the time
+// runs out, and stops it.
+Expected<SceneTrackingRun> runSceneTracking(const std::filesystem::path& dir, const std::filesystem::path& scene_file,
+                                            const sim::Scene& scene, const SceneTrackingOptions& options);
+
+// The run's track lists scored against the scene (scorePublishedTracks over the options' window).
+Expected<PublishedScores> scoreSceneTracking(const sim::Scene& scene, const SceneTrackingRun& run,
+                                             const SceneTrackingOptions& options);
+
+// What `fogctl demo` prints about a scored tracking run: one figure per line, indented.
+std::string sceneTrackingText(const PublishedScores& scores, const SceneTrackingOptions& options, std::size_t moving_objects);
+// The JSON object of a demo report's "tracking" key (non-finite numbers as null).
+std::string sceneTrackingJson(const PublishedScores& scores, const SceneTrackingOptions& options, std::size_t moving_objects);
 
 }  // namespace fogmap::cli

@@ -16,6 +16,7 @@
 #include "common/sim/camera_truth.hpp"
 #include "common/sim/generators.hpp"
 #include "common/sim/raycaster.hpp"
+#include "tools/fogctl/track_scoring.hpp"
 
 namespace fogmap::cli {
 namespace {
@@ -31,6 +32,7 @@ struct Centroid {
 
 // One LiDAR instant with everything every run needs: the same for all of them.
 struct Instant {
+  double time_s = 0.0;
   std::int64_t time_ns = 0;
   tracking::CloudFrame cloud;
   std::vector<Centroid> centroids;
@@ -99,20 +101,6 @@ std::optional<double> nearestDistance(const std::vector<Eigen::Vector2d>& points
     if (d < reach && (!best || d < *best)) best = d;
   }
   return best;
-}
-
-// The hypotheses that some entry of `truth` could be matched to. The others can only be false
-// positives; leaving them out changes no match, distance or switch and keeps the assignment small
-// (the paper association leaves hundreds of lost tracks in a crowded frame).
-std::vector<tracking::MotObject> withinGateOf(const std::vector<tracking::MotObject>& truth,
-                                              const std::vector<tracking::MotObject>& hypotheses, double gate_m) {
-  std::vector<tracking::MotObject> out;
-  for (const auto& h : hypotheses) {
-    const bool reachable = std::any_of(truth.begin(), truth.end(),
-                                       [&](const tracking::MotObject& t) { return (t.position - h.position).norm() < gate_m; });
-    if (reachable) out.push_back(h);
-  }
-  return out;
 }
 
 tracking::ErrorStats statsOf(const std::vector<double>& values) {
@@ -227,13 +215,8 @@ Expected<TrackingEvalResult> runTrackingEval(const TrackingEvalConfig& config) {
   result.scene = scene.name;
   result.lidars = static_cast<int>(scene.lidars.size());
   result.cameras = static_cast<int>(scene.cameras.size());
-  std::vector<const sim::SceneObject*> moving;
-  for (const auto& o : scene.objects) {
-    if (o.motion.moves()) moving.push_back(&o);
-  }
+  const std::vector<const sim::SceneObject*> moving = movingObjects(scene);
   result.moving_objects = static_cast<int>(moving.size());
-  std::set<std::string> labels;  // of the moving objects, in name order
-  for (const auto* o : moving) labels.insert(o->label);
 
   std::vector<tracking::DisplacementDetector> detectors;
   for (std::size_t l = 0; l < scene.lidars.size(); ++l) {
@@ -255,6 +238,7 @@ Expected<TrackingEvalResult> runTrackingEval(const TrackingEvalConfig& config) {
     auto raycaster = sim::SceneRaycaster::build(scene, t);
     if (!raycaster) return raycaster.error();
     Instant instant;
+    instant.time_s = t;
     instant.time_ns = static_cast<std::int64_t>(std::llround(t * 1e9));
     for (std::size_t l = 0; l < scene.lidars.size(); ++l) {
       const auto& lidar = scene.lidars[l];
@@ -430,10 +414,8 @@ Expected<TrackingEvalResult> runTrackingEval(const TrackingEvalConfig& config) {
       TrackingRun run;
       run.association = tracking::associationName(tracker_config.association);
       run.miss_rate = config.miss_rates[m];
-      std::vector<tracking::MotFrame> frames;
-      std::vector<std::vector<std::string>> hypothesis_labels;  // per frame, per hypothesis
+      std::vector<TrackingFrame> scored;
       std::vector<double> step_ms;
-      std::set<std::uint64_t> confirmed;
       for (const Event& e : events) {
         const Instant& instant = instants[e.instant];
         if (e.kind == 0) {
@@ -444,38 +426,15 @@ Expected<TrackingEvalResult> runTrackingEval(const TrackingEvalConfig& config) {
         const auto before = Clock::now();
         tracker->addCloud(instant.cloud);
         step_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - before).count());
-        tracking::MotFrame frame;
-        frame.truth = instant.truth;
-        std::vector<std::string> labels;
-        for (const auto& track : tracker->tracks()) {
-          if (track.state == tracking::TrackState::kTentative) continue;
-          if (track.state == tracking::TrackState::kConfirmed) confirmed.insert(track.id);
-          frame.hypotheses.push_back({static_cast<std::int64_t>(track.id), track.position});
-          labels.push_back(track.label);
-        }
-        frames.push_back(std::move(frame));
-        hypothesis_labels.push_back(std::move(labels));
+        scored.push_back(trackingFrame(scene, instant.time_s, tracker->tracks()));
       }
-      auto report = tracking::evaluateMot(frames, mot_config);
-      if (!report) return report.error();
-      run.mot = std::move(report).value();
-
-      for (const std::string& label : labels) {
-        std::vector<tracking::MotFrame> of_label;
-        for (std::size_t i = 0; i < frames.size(); ++i) {
-          tracking::MotFrame f;
-          for (std::size_t j = 0; j < frames[i].truth.size(); ++j) {
-            if (moving[j]->label == label) f.truth.push_back(frames[i].truth[j]);
-          }
-          for (std::size_t j = 0; j < frames[i].hypotheses.size(); ++j) {
-            if (hypothesis_labels[i][j] == label) f.hypotheses.push_back(frames[i].hypotheses[j]);
-          }
-          of_label.push_back(std::move(f));
-        }
-        auto scored = tracking::evaluateMot(of_label, mot_config);
-        if (!scored) return scored.error();
-        run.by_label.emplace_back(label, std::move(scored).value());
-      }
+      auto scores = scoreTracking(scored, mot_config);
+      if (!scores) return scores.error();
+      run.mot = std::move(scores->mot);
+      run.by_label = std::move(scores->by_label);
+      run.tracks_confirmed = scores->tracks_confirmed;
+      std::vector<tracking::MotFrame> frames;
+      for (auto& f : scored) frames.push_back(std::move(f.mot));
 
       // Near people alone against every hypothesis: their localization error.
       std::vector<tracking::MotFrame> near_frames;
@@ -507,7 +466,6 @@ Expected<TrackingEvalResult> runTrackingEval(const TrackingEvalConfig& config) {
         run.switches.push_back({o->id, o->label, closest[static_cast<std::int64_t>(o->id)], single->id_switches});
       }
 
-      run.tracks_confirmed = confirmed.size();
       run.step_mean_ms = std::accumulate(step_ms.begin(), step_ms.end(), 0.0) / static_cast<double>(step_ms.size());
       run.step_max_ms = *std::max_element(step_ms.begin(), step_ms.end());
       run.counters = tracker->counters();
@@ -591,6 +549,34 @@ std::string trackingTableMarkdown(const TrackingEvalResult& r) {
       out << " " << o.label << "-" << o.object << " " << o.id_switches << " (" << fixed(o.closest_approach_m, 1) << " m)";
     }
     out << "\n";
+  }
+  return out.str();
+}
+
+std::string trackingComparisonMarkdown(const TrackingEvalResult& r) {
+  std::ostringstream out;
+  out << "| missed | MOTA | MOTP (m) | ID switches | fragmentations | IDF1 | loc. error mean (m) | p95 (m) | max (m) |\n"
+         "|---|---|---|---|---|---|---|---|---|\n";
+  for (const double miss : r.config.miss_rates) {
+    const TrackingRun* paper = nullptr;
+    const TrackingRun* kalman = nullptr;
+    for (const TrackingRun& run : r.runs) {
+      if (run.miss_rate != miss) continue;
+      if (run.association == tracking::associationName(tracking::Association::kPaper)) paper = &run;
+      if (run.association == tracking::associationName(tracking::Association::kKalman)) kalman = &run;
+    }
+    if (paper == nullptr || kalman == nullptr) continue;
+    const auto pair = [](const std::string& a, const std::string& b) { return a + " / " + b; };
+    const auto& p = paper->mot;
+    const auto& k = kalman->mot;
+    out << "| " << fixed(100.0 * miss, 0) << " % | " << pair(fixed(p.clear.mota, 3), fixed(k.clear.mota, 3)) << " | "
+        << pair(fixed(p.clear.motp_m, 3), fixed(k.clear.motp_m, 3)) << " | "
+        << pair(std::to_string(p.clear.id_switches), std::to_string(k.clear.id_switches)) << " | "
+        << pair(std::to_string(p.clear.fragmentations), std::to_string(k.clear.fragmentations)) << " | "
+        << pair(fixed(p.identity.idf1, 3), fixed(k.identity.idf1, 3)) << " | "
+        << pair(fixed(p.localization.mean_m, 3), fixed(k.localization.mean_m, 3)) << " | "
+        << pair(fixed(p.localization.p95_m, 3), fixed(k.localization.p95_m, 3)) << " | "
+        << pair(fixed(p.localization.max_m, 3), fixed(k.localization.max_m, 3)) << " |\n";
   }
   return out.str();
 }

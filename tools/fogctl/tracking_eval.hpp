@@ -131,6 +131,9 @@ Expected<TrackingEvalResult> runTrackingEval(const TrackingEvalConfig& config);
 
 // The runs as a Markdown table, with the settings and the observation figures under it.
 std::string trackingTableMarkdown(const TrackingEvalResult& result);
+// The two associations side by side: a row per miss rate, each cell "paper / kalman" (MOTA, MOTP,
+// ID switches, fragmentations, IDF1, localization error mean, p95, max).
+std::string trackingComparisonMarkdown(const TrackingEvalResult& result);
 // Every figure of the result as one JSON object (non-finite numbers as null).
 std::string trackingJson(const TrackingEvalResult& result);
 

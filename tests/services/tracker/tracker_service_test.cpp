@@ -1,6 +1,7 @@
 // The tracker service: a global map's objects as LiDAR observations (against the closed form), the
-// adapter over real gRPC on loopback (detections in, refusals counted, tracks out to a
-// subscriber), and the feed that follows a root which goes away and comes back.
+// adapter over real gRPC on loopback (detections and centroid frames in, refusals counted, tracks
+// out to a subscriber), epochs of centroids fused at their deadline, the metrics, and the feed
+// that follows a root which goes away and comes back.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -9,15 +10,19 @@
 #include <condition_variable>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <grpcpp/grpcpp.h>
 
 #include "services/common/grpc_options.hpp"
+#include "services/common/metrics.hpp"
 #include "services/common/proto_convert.hpp"
 #include "services/tracker/global_map_feed.hpp"
+#include "services/tracker/tracker_metrics.hpp"
 #include "services/tracker/tracker_node.hpp"
 #include "services/tracker/tracker_service.hpp"
 
@@ -123,16 +128,24 @@ TEST(TrackerNode, LateRevisionsAreNotFusedTwice) {
   EXPECT_EQ(node.counters().steps, 1U);
 }
 
-// A tracker core behind its adapter on a loopback server.
+// A tracker core behind its adapter on a loopback server; with `edges`, its input is their
+// centroids (epochs of 100 ms, deadline 80 ms).
 class TrackerServer {
  public:
-  explicit TrackerServer(std::vector<camera::PinholeCamera> cameras) {
+  explicit TrackerServer(std::vector<camera::PinholeCamera> cameras, std::vector<std::string> edges = {}) {
     auto tracker = tracking::Tracker::create({}, cameras);
     EXPECT_TRUE(tracker.ok());
     std::vector<std::string> names;
     for (const auto& c : cameras) names.push_back(c.name);
-    node_ = std::make_unique<TrackerNode>(std::move(*tracker), 1.5, [this] { return now_ns.load(); },
-                                          [this](const TrackSnapshot& s, const FusionReport&) { service_->publish(s); });
+    std::optional<CentroidCollector> collector;
+    if (!edges.empty()) {
+      auto schedule = EpochSchedule::create(100.0, 80.0);
+      EXPECT_TRUE(schedule.ok());
+      collector.emplace(CentroidCollectorConfig{edges, 1.0, 3.0}, *schedule);
+    }
+    node_ = std::make_unique<TrackerNode>(
+        std::move(*tracker), 1.5, [this] { return now_ns.load(); },
+        [this](const TrackSnapshot& s, const FusionReport&) { service_->publish(s); }, std::move(collector));
     TrackerServiceHooks hooks;
     hooks.on_detections = [this](const std::string&, std::size_t) {
       std::lock_guard lock(mutex_);
@@ -142,6 +155,17 @@ class TrackerServer {
     hooks.on_refused = [this](const std::string& why) {
       std::lock_guard lock(mutex_);
       refusals_.push_back(why);
+      changed_.notify_all();
+    };
+    hooks.on_centroids = [this](const std::string& edge, std::size_t bytes) {
+      EXPECT_GT(bytes, 0U);
+      std::lock_guard lock(mutex_);
+      centroid_frames_.push_back(edge);
+      changed_.notify_all();
+    };
+    hooks.on_centroids_refused = [this](const std::string& reason, const std::string& why) {
+      std::lock_guard lock(mutex_);
+      centroid_refusals_.push_back({reason, why});
       changed_.notify_all();
     };
     service_ = std::make_unique<TrackerService>(*node_, names, false, hooks, 16, 20ms);
@@ -167,6 +191,15 @@ class TrackerServer {
     std::lock_guard lock(mutex_);
     return refusals_;
   }
+  // Waits (bounded) until `accepted` centroid frames were taken and `refused` refused.
+  bool waitForCentroids(std::size_t accepted, std::size_t refused) {
+    std::unique_lock lock(mutex_);
+    return changed_.wait_for(lock, 5s, [&] { return centroid_frames_.size() >= accepted && centroid_refusals_.size() >= refused; });
+  }
+  std::vector<std::pair<std::string, std::string>> centroidRefusals() {
+    std::lock_guard lock(mutex_);
+    return centroid_refusals_;
+  }
   std::atomic<std::int64_t> now_ns{0};
 
  private:
@@ -178,6 +211,8 @@ class TrackerServer {
   std::condition_variable changed_;
   int accepted_ = 0;
   std::vector<std::string> refusals_;
+  std::vector<std::string> centroid_frames_;
+  std::vector<std::pair<std::string, std::string>> centroid_refusals_;
 };
 
 TEST(TrackerService, DetectionsPushedOverGrpcAreFusedAndBadFramesAreRefusedAndCounted) {
@@ -244,6 +279,135 @@ TEST(TrackerService, DetectionsPushedOverGrpcAreFusedAndBadFramesAreRefusedAndCo
   }
   EXPECT_EQ(labelled, 1);
   sub_context.TryCancel();
+}
+
+TEST(TrackerService, CentroidFramesPushedOverGrpcAreFusedPerEpochAndMalformedOnesAreRefusedAndCounted) {
+  TrackerServer server({}, {"edge-a", "edge-b"});
+  const std::int64_t epoch_start = 1'700'000'000'000'000'000;  // epoch 17e9 of 100 ms
+  const std::uint64_t epoch = 17'000'000'000;
+  server.now_ns = epoch_start + 20 * kMs;
+  auto stub = v1::TrackerService::NewStub(makeChannel(server.target(), 4U << 20));
+  grpc::ClientContext context;
+  v1::CentroidSummary summary;
+  auto writer = stub->PushCentroids(&context, &summary);
+
+  tracking::CentroidFrame a;
+  a.edge = "edge-a";
+  a.epoch = epoch;
+  a.time_ns = epoch_start + 3 * kMs;
+  a.centroids.push_back({Eigen::Vector3d(4.0, 1.0, 0.9), Eigen::Matrix3d::Identity() * 0.04, 30});
+  tracking::CentroidFrame b = a;
+  b.edge = "edge-b";
+  b.centroids[0].position = Eigen::Vector3d(4.5, 1.0, 0.9);  // the same person from the other side
+  ASSERT_TRUE(writer->Write(toProto(a)));
+  // Non-finite, a covariance of the wrong size, a negative variance, a stranger, a duplicate.
+  v1::CentroidFrame nan = toProto(b);
+  nan.mutable_centroids(0)->set_position(1, std::nanf(""));
+  ASSERT_TRUE(writer->Write(nan));
+  v1::CentroidFrame short_covariance = toProto(b);
+  short_covariance.mutable_centroids(0)->mutable_covariance()->RemoveLast();
+  ASSERT_TRUE(writer->Write(short_covariance));
+  v1::CentroidFrame negative = toProto(b);
+  negative.mutable_centroids(0)->set_covariance(5, -1.0F);
+  ASSERT_TRUE(writer->Write(negative));
+  tracking::CentroidFrame stranger = b;
+  stranger.edge = "edge-z";
+  ASSERT_TRUE(writer->Write(toProto(stranger)));
+  ASSERT_TRUE(writer->Write(toProto(a)));
+  ASSERT_TRUE(server.waitForCentroids(1, 5));
+  EXPECT_TRUE(server.node().tracks().empty()) << "the epoch waits for edge-b";
+  ASSERT_TRUE(writer->Write(toProto(b)));
+  ASSERT_TRUE(server.waitForCentroids(2, 5));
+  ASSERT_TRUE(writer->WritesDone());
+  ASSERT_TRUE(writer->Finish().ok());
+  EXPECT_EQ(summary.received(), 7U);
+  EXPECT_EQ(summary.refused(), 5U);
+
+  const auto refusals = server.centroidRefusals();
+  ASSERT_EQ(refusals.size(), 5U);
+  const std::vector<std::string> reasons{"malformed", "malformed", "malformed", "unknown_edge", "duplicate"};
+  const std::vector<std::string> phrases{"centroids[0]: position must be finite", "covariance has 5 values, expected 6",
+                                         "not positive semi-definite", "edge 'edge-z'", "edge 'edge-a'"};
+  for (std::size_t i = 0; i < refusals.size(); ++i) {
+    EXPECT_EQ(refusals[i].first, reasons[i]) << refusals[i].second;
+    EXPECT_NE(refusals[i].second.find(phrases[i]), std::string::npos) << refusals[i].second;
+  }
+  // The epoch is complete: one LiDAR frame, the two views merged into one tentative track between them.
+  const auto tracks = server.node().tracks();
+  ASSERT_EQ(tracks.size(), 1U);
+  EXPECT_LT((tracks[0].position - Eigen::Vector2d(4.25, 1.0)).norm(), 1e-9);
+  EXPECT_EQ(server.node().counters().steps, 1U);
+  ASSERT_TRUE(server.node().centroidCounters().has_value());
+  EXPECT_EQ(server.node().centroidCounters()->frames_accepted, 2U);
+}
+
+TEST(TrackerNode, AnEpochOfCentroidsAnEdgeMissedIsFusedAtItsDeadlineOnTick) {
+  std::atomic<std::int64_t> now{1'700'000'000'000'000'000};
+  auto tracker = tracking::Tracker::create({}, {});
+  ASSERT_TRUE(tracker.ok());
+  auto schedule = EpochSchedule::create(100.0, 80.0);
+  ASSERT_TRUE(schedule.ok());
+  std::vector<std::int64_t> published;
+  TrackerNode node(std::move(*tracker), 1.5, [&] { return now.load(); },
+                   [&](const TrackSnapshot& s, const FusionReport& report) {
+                     published.push_back(s.lidar_time_ns);
+                     ASSERT_TRUE(report.centroids.has_value());
+                     EXPECT_EQ(report.centroids->epochs_partial, 1U);
+                   },
+                   CentroidCollector(CentroidCollectorConfig{{"edge-a", "edge-b"}, 1.0, 3.0}, *schedule));
+  tracking::CentroidFrame a;
+  a.edge = "edge-a";
+  a.epoch = 17'000'000'000;
+  a.time_ns = now.load() + 1 * kMs;
+  a.centroids.push_back({Eigen::Vector3d(2.0, 0.0, 1.0), Eigen::Matrix3d::Identity() * 0.04, 12});
+  EXPECT_EQ(node.addCentroids(a), CentroidVerdict::kAccepted);
+  now += 79 * kMs;
+  node.tick();
+  EXPECT_TRUE(published.empty());
+  now += 1 * kMs;  // epoch start + deadline
+  node.tick();
+  EXPECT_EQ(published, (std::vector<std::int64_t>{a.time_ns}));
+  // A node without centroid input takes none.
+  auto plain = tracking::Tracker::create({}, {});
+  ASSERT_TRUE(plain.ok());
+  TrackerNode global(std::move(*plain), 1.5, [&] { return now.load(); }, {});
+  EXPECT_EQ(global.addCentroids(a), CentroidVerdict::kUnknownEdge);
+  EXPECT_FALSE(global.centroidCounters().has_value());
+}
+
+double counterValue(Metrics& metrics, const std::string& family, const std::string& label, const std::string& value) {
+  double sum = 0.0;
+  for (const auto& f : metrics.registry().Collect()) {
+    if (f.name != family) continue;
+    for (const auto& m : f.metric) {
+      for (const auto& l : m.label) {
+        if (l.name == label && l.value == value) sum += m.counter.value;
+      }
+    }
+  }
+  return sum;
+}
+
+TEST(TrackerMetrics, CentroidFramesReceivedRejectedAndPartialEpochsAreExported) {
+  Metrics metrics("", "tracker", "tracker");
+  TrackerMetrics tracker_metrics(metrics, "tracker", {}, {"edge-a", "edge-b"});
+  tracker_metrics.centroidsReceived("edge-a", 100);
+  tracker_metrics.centroidsReceived("edge-a", 50);
+  tracker_metrics.centroidsRejected("malformed");
+  tracker_metrics.centroidsRejected("late");
+  tracker_metrics.centroidsRejected("late");
+  FusionReport report;
+  report.centroids = CentroidCounters{5, 4, 2};
+  tracker_metrics.fused(report);
+  report.centroids = CentroidCounters{6, 5, 3};
+  tracker_metrics.fused(report);
+  EXPECT_EQ(counterValue(metrics, "fogmap_centroid_frames_received_total", "edge", "edge-a"), 2.0);
+  EXPECT_EQ(counterValue(metrics, "fogmap_centroid_frames_received_total", "edge", "edge-b"), 0.0);
+  EXPECT_EQ(counterValue(metrics, "fogmap_bytes_received_total", "kind", "centroids"), 150.0);
+  EXPECT_EQ(counterValue(metrics, "fogmap_centroid_frames_rejected_total", "reason", "malformed"), 1.0);
+  EXPECT_EQ(counterValue(metrics, "fogmap_centroid_frames_rejected_total", "reason", "late"), 2.0);
+  EXPECT_EQ(counterValue(metrics, "fogmap_centroid_frames_rejected_total", "reason", "duplicate"), 0.0);
+  EXPECT_EQ(counterValue(metrics, "fogmap_centroid_epochs_partial_total", "node", "tracker"), 3.0);
 }
 
 // A fake root: publishes the global maps the test gives it to every subscriber.

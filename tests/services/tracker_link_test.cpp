@@ -1,4 +1,4 @@
-#include "services/detection/tracker_link.hpp"
+#include "services/common/tracker_link.hpp"
 
 #include <gtest/gtest.h>
 
@@ -85,12 +85,12 @@ TrackerLinkConfig configFor(const std::string& target, std::size_t queue_frames 
   return config;
 }
 
-TEST(TrackerLink, DeliversEveryFrameWithItsCameraAndDetections) {
+TEST(DetectionLink, DeliversEveryFrameWithItsCameraAndDetections) {
   RecordingTracker service;
   TestTracker tracker(service);
   ASSERT_TRUE(tracker.started());
   LinkCounts counts;
-  TrackerLink link(configFor(tracker.target(), 8), counts.hooks());
+  DetectionLink link(configFor(tracker.target(), 8), counts.hooks());
   for (int i = 0; i < 3; ++i) link.send(frameAt(1'000 + i, i + 1));
   ASSERT_TRUE(service.waitFrames(3));
 
@@ -117,11 +117,11 @@ TEST(TrackerLink, DeliversEveryFrameWithItsCameraAndDetections) {
   EXPECT_GT(counts.bytes.load(), 0u);
 }
 
-TEST(TrackerLink, WhileTheTrackerIsDownTheOldestFramesAreDroppedThenItReconnectsAndDelivers) {
+TEST(DetectionLink, WhileTheTrackerIsDownTheOldestFramesAreDroppedThenItReconnectsAndDelivers) {
   const int port = closedPort();
   ASSERT_GT(port, 0);
   LinkCounts counts;
-  TrackerLink link(configFor("127.0.0.1:" + std::to_string(port), 3), counts.hooks());
+  DetectionLink link(configFor("127.0.0.1:" + std::to_string(port), 3), counts.hooks());
   for (int i = 1; i <= 8; ++i) link.send(frameAt(i));
   EXPECT_FALSE(link.connected());
   EXPECT_EQ(link.dropped(), 5u);
@@ -144,13 +144,13 @@ TEST(TrackerLink, WhileTheTrackerIsDownTheOldestFramesAreDroppedThenItReconnects
   EXPECT_EQ(link.dropped(), 5u);
 }
 
-TEST(TrackerLink, ReconnectsToARestartedTracker) {
+TEST(DetectionLink, ReconnectsToARestartedTracker) {
   RecordingTracker first_service;
   auto first = std::make_unique<TestTracker>(first_service);
   ASSERT_TRUE(first->started());
   const int port = first->port();
   LinkCounts counts;
-  TrackerLink link(configFor(first->target()), counts.hooks());
+  DetectionLink link(configFor(first->target()), counts.hooks());
   link.send(frameAt(1));
   ASSERT_TRUE(first_service.waitFrames(1));
   first->stop();
@@ -169,26 +169,64 @@ TEST(TrackerLink, ReconnectsToARestartedTracker) {
   EXPECT_EQ(link.sent() + link.dropped() + link.queued(), static_cast<std::uint64_t>(capture - 1));
 }
 
-TEST(TrackerLink, DestroyingTheLinkEndsTheStreamCleanly) {
+TEST(DetectionLink, DestroyingTheLinkEndsTheStreamCleanly) {
   RecordingTracker service;
   TestTracker tracker(service);
   ASSERT_TRUE(tracker.started());
   {
-    TrackerLink link(configFor(tracker.target()), {});
+    DetectionLink link(configFor(tracker.target()), {});
     link.send(frameAt(1));
     ASSERT_TRUE(service.waitFrames(1));
   }
   EXPECT_TRUE(service.waitStreamsEnded(1, 2s)) << "the tracker should see the stream half-closed";
 }
 
-TEST(TrackerLink, DestructorReturnsPromptlyWhenTheTrackerIsGone) {
+TEST(DetectionLink, DestructorReturnsPromptlyWhenTheTrackerIsGone) {
   const int port = closedPort();
   const auto started = Clock::now();
   {
-    TrackerLink link(configFor("127.0.0.1:" + std::to_string(port)), {});
+    DetectionLink link(configFor("127.0.0.1:" + std::to_string(port)), {});
     link.send(frameAt(1));
   }
   EXPECT_LT(Clock::now() - started, 2s);
+}
+
+TEST(CentroidLink, DeliversEveryCentroidFrameOnItsOwnStream) {
+  RecordingTracker service;
+  TestTracker tracker(service);
+  ASSERT_TRUE(tracker.started());
+  LinkCounts counts;
+  CentroidLink link(configFor(tracker.target(), 8), counts.hooks());
+  for (int i = 0; i < 3; ++i) {
+    tracking::CentroidFrame frame;
+    frame.edge = "edge-3";
+    frame.epoch = 100 + static_cast<std::uint64_t>(i);
+    frame.time_ns = 5'000 + i;
+    frame.sensor_position = {1.0, 2.0, 1.5};
+    for (int k = 0; k < i; ++k) {
+      frame.centroids.push_back({Eigen::Vector3d(k, 0.5, 1.0), Eigen::Matrix3d::Identity() * 0.25, static_cast<std::size_t>(7 + k)});
+    }
+    link.send(frame);
+  }
+  ASSERT_TRUE(service.waitCentroidFrames(3));
+  const auto got = service.centroidFrames();
+  EXPECT_TRUE(service.frames().empty()) << "centroids are not detections";
+  EXPECT_TRUE(service.errors().empty());
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(got[i].edge, "edge-3");
+    EXPECT_EQ(got[i].epoch, 100U + i);
+    EXPECT_EQ(got[i].time_ns, 5'000 + i);
+    EXPECT_EQ(got[i].sensor_position, Eigen::Vector3d(1.0, 2.0, 1.5));
+    ASSERT_EQ(got[i].centroids.size(), static_cast<std::size_t>(i));
+    for (int k = 0; k < i; ++k) {
+      EXPECT_EQ(got[i].centroids[k].position, Eigen::Vector3d(k, 0.5, 1.0));
+      EXPECT_EQ(got[i].centroids[k].covariance, Eigen::Matrix3d::Identity() * 0.25);
+      EXPECT_EQ(got[i].centroids[k].point_count, static_cast<std::size_t>(7 + k));
+    }
+  }
+  ASSERT_TRUE(link.flush(5s));
+  EXPECT_EQ(link.sent(), 3u);
+  EXPECT_EQ(counts.sent.load(), 3u);
 }
 
 }  // namespace

@@ -1,4 +1,4 @@
-#include "services/detection/tracker_link.hpp"
+#include "services/common/tracker_link.hpp"
 
 #include <algorithm>
 #include <condition_variable>
@@ -19,7 +19,32 @@ namespace fogmap {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-using Writer = grpc::ClientWriter<v1::DetectionFrame>;
+
+// What differs between the two streams: the messages and the method.
+template <class Frame>
+struct StreamKind;
+
+template <>
+struct StreamKind<tracking::DetectionFrame> {
+  using Message = v1::DetectionFrame;
+  using Summary = v1::DetectionSummary;
+  static constexpr const char* kMethod = "PushDetections";
+  static std::unique_ptr<grpc::ClientWriter<Message>> open(v1::TrackerService::Stub& stub, grpc::ClientContext* context,
+                                                           Summary* summary) {
+    return stub.PushDetections(context, summary);
+  }
+};
+
+template <>
+struct StreamKind<tracking::CentroidFrame> {
+  using Message = v1::CentroidFrame;
+  using Summary = v1::CentroidSummary;
+  static constexpr const char* kMethod = "PushCentroids";
+  static std::unique_ptr<grpc::ClientWriter<Message>> open(v1::TrackerService::Stub& stub, grpc::ClientContext* context,
+                                                           Summary* summary) {
+    return stub.PushCentroids(context, summary);
+  }
+};
 
 // Upper bound of every blocking wait, so that a stop request is seen within this long even when a
 // notification is missed.
@@ -27,9 +52,10 @@ constexpr std::chrono::milliseconds kPollSlice{100};
 // How long the destructor lets the tracker answer a half-closed stream before cancelling it.
 constexpr std::chrono::milliseconds kCloseGrace{500};
 
-std::string describeEnd(const grpc::Status& status, const v1::DetectionSummary& summary) {
+template <class Summary>
+std::string describeEnd(const grpc::Status& status, const Summary& summary, const char* method) {
   if (!status.ok()) {
-    return "the stream to the tracker ended: " + fromGrpcStatus(status, "PushDetections").message;
+    return "the stream to the tracker ended: " + fromGrpcStatus(status, method).message;
   }
   std::string why = "the tracker received " + std::to_string(summary.received()) + " frame(s), refused " +
                     std::to_string(summary.refused());
@@ -39,7 +65,12 @@ std::string describeEnd(const grpc::Status& status, const v1::DetectionSummary& 
 
 }  // namespace
 
-struct TrackerLink::State {
+template <class Frame>
+struct TrackerStreamLink<Frame>::State {
+  using Kind = StreamKind<Frame>;
+  using Message = typename Kind::Message;
+  using Writer = grpc::ClientWriter<Message>;
+
   struct Drop {
     std::uint64_t total = 0;
     bool first_of_burst = false;
@@ -52,7 +83,7 @@ struct TrackerLink::State {
 
   mutable std::mutex mu;
   std::condition_variable cv;  // any change: a new frame, a write, a broken stream, a stop, the end
-  std::deque<std::shared_ptr<const v1::DetectionFrame>> queue;
+  std::deque<std::shared_ptr<const Message>> queue;
   std::uint64_t sent = 0;
   std::uint64_t dropped = 0;
   bool drop_burst = false;
@@ -108,7 +139,7 @@ struct TrackerLink::State {
   bool writeFrames(Writer& writer) {
     bool wrote = false;
     for (;;) {
-      std::shared_ptr<const v1::DetectionFrame> next;
+      std::shared_ptr<const Message> next;
       {
         std::unique_lock lock(mu);
         cv.wait_for(lock, kPollSlice, [&] { return stopping || !queue.empty(); });
@@ -156,9 +187,9 @@ struct TrackerLink::State {
         if (stopping) break;
         this->context = context;
       }
-      v1::DetectionSummary summary;
+      typename Kind::Summary summary;
       // No deadline: the stream lives as long as the link; keepalive detects a dead tracker.
-      std::unique_ptr<Writer> writer = stub->PushDetections(context.get(), &summary);
+      std::unique_ptr<Writer> writer = Kind::open(*stub, context.get(), &summary);
       const auto opened = Clock::now();
       {
         std::lock_guard lock(mu);
@@ -177,7 +208,7 @@ struct TrackerLink::State {
         connected = false;
         this->context.reset();
       }
-      if (hooks.on_stream_ended) hooks.on_stream_ended(describeEnd(status, summary));
+      if (hooks.on_stream_ended) hooks.on_stream_ended(describeEnd(status, summary, Kind::kMethod));
 
       // A tracker that accepts streams and fails them at once must not be hammered; one that
       // took frames a while gets a quick reconnect.
@@ -192,12 +223,14 @@ struct TrackerLink::State {
   }
 };
 
-TrackerLink::TrackerLink(TrackerLinkConfig config, TrackerLinkHooks hooks)
+template <class Frame>
+TrackerStreamLink<Frame>::TrackerStreamLink(TrackerLinkConfig config, TrackerLinkHooks hooks)
     : state_(std::make_unique<State>(std::move(config), std::move(hooks))) {
   thread_ = std::thread([state = state_.get()] { state->run(); });
 }
 
-TrackerLink::~TrackerLink() {
+template <class Frame>
+TrackerStreamLink<Frame>::~TrackerStreamLink() {
   {
     std::unique_lock lock(state_->mu);
     state_->stopping = true;
@@ -211,9 +244,10 @@ TrackerLink::~TrackerLink() {
   thread_.join();
 }
 
-void TrackerLink::send(const tracking::DetectionFrame& frame) {
-  auto message = std::make_shared<const v1::DetectionFrame>(toProto(frame));
-  std::vector<State::Drop> drops;
+template <class Frame>
+void TrackerStreamLink<Frame>::send(const Frame& frame) {
+  auto message = std::make_shared<const typename State::Message>(toProto(frame));
+  std::vector<typename State::Drop> drops;
   {
     std::lock_guard lock(state_->mu);
     state_->queue.push_back(std::move(message));
@@ -226,29 +260,37 @@ void TrackerLink::send(const tracking::DetectionFrame& frame) {
   state_->reportDrops(drops);
 }
 
-bool TrackerLink::flush(std::chrono::milliseconds timeout) {
+template <class Frame>
+bool TrackerStreamLink<Frame>::flush(std::chrono::milliseconds timeout) {
   std::unique_lock lock(state_->mu);
   return state_->cv.wait_for(lock, timeout, [&] { return state_->queue.empty() && !state_->writing; });
 }
 
-std::uint64_t TrackerLink::sent() const {
+template <class Frame>
+std::uint64_t TrackerStreamLink<Frame>::sent() const {
   std::lock_guard lock(state_->mu);
   return state_->sent;
 }
 
-std::uint64_t TrackerLink::dropped() const {
+template <class Frame>
+std::uint64_t TrackerStreamLink<Frame>::dropped() const {
   std::lock_guard lock(state_->mu);
   return state_->dropped;
 }
 
-std::size_t TrackerLink::queued() const {
+template <class Frame>
+std::size_t TrackerStreamLink<Frame>::queued() const {
   std::lock_guard lock(state_->mu);
   return state_->queue.size();
 }
 
-bool TrackerLink::connected() const {
+template <class Frame>
+bool TrackerStreamLink<Frame>::connected() const {
   std::lock_guard lock(state_->mu);
   return state_->connected;
 }
+
+template class TrackerStreamLink<tracking::DetectionFrame>;
+template class TrackerStreamLink<tracking::CentroidFrame>;
 
 }  // namespace fogmap

@@ -1,9 +1,10 @@
 #pragma once
-// The detection node's side of TrackerService.PushDetections: one long-lived client stream of
-// DetectionFrames to the tracker, with keepalive and reconnect with the capped backoff of the
-// upload link (ParentLinkConfig's). Detections are perishable: a tracker fuses a frame only near
-// its capture time, so nothing is re-sent, and a small queue keeps only the newest frames while the
-// tracker is slow or down; every frame that does not reach a stream is dropped and counted.
+// A node's side of a client stream to TrackerService: detection nodes push their camera's
+// DetectionFrames (PushDetections), edges their displacement CentroidFrames (PushCentroids). One
+// long-lived stream to the tracker, with keepalive and reconnect with the capped backoff of the
+// upload link (ParentLinkConfig's). Both are perishable: a tracker fuses a frame only near its time,
+// so nothing is re-sent, and a small queue keeps only the newest frames while the tracker is slow
+// or down; every frame that does not reach a stream is dropped and counted.
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
@@ -45,18 +46,21 @@ struct TrackerLinkHooks {
   std::function<void(const std::string& why)> on_stream_ended;
 };
 
-class TrackerLink {
+// `Frame` is tracking::DetectionFrame or tracking::CentroidFrame (the two streams of
+// TrackerService; the aliases below).
+template <class Frame>
+class TrackerStreamLink {
  public:
   // Starts the stream thread at once; the tracker need not be up yet.
-  TrackerLink(TrackerLinkConfig config, TrackerLinkHooks hooks);
+  TrackerStreamLink(TrackerLinkConfig config, TrackerLinkHooks hooks);
   // Ends the stream (half-closes it, giving the tracker a moment to answer) and joins the thread;
   // frames still queued are abandoned, not counted as dropped.
-  ~TrackerLink();
-  TrackerLink(const TrackerLink&) = delete;
-  TrackerLink& operator=(const TrackerLink&) = delete;
+  ~TrackerStreamLink();
+  TrackerStreamLink(const TrackerStreamLink&) = delete;
+  TrackerStreamLink& operator=(const TrackerStreamLink&) = delete;
 
   // Converts the frame and queues it, dropping the oldest queued frame when full; returns at once.
-  void send(const tracking::DetectionFrame& frame);
+  void send(const Frame& frame);
   // Blocks until every queued frame was written (or dropped), or the timeout passes; true when
   // none is left.
   bool flush(std::chrono::milliseconds timeout);
@@ -70,5 +74,10 @@ class TrackerLink {
   std::unique_ptr<State> state_;
   std::thread thread_;
 };
+
+// A detection node's link (PushDetections).
+using DetectionLink = TrackerStreamLink<tracking::DetectionFrame>;
+// An edge's link for its displacement centroids (PushCentroids).
+using CentroidLink = TrackerStreamLink<tracking::CentroidFrame>;
 
 }  // namespace fogmap

@@ -1,0 +1,107 @@
+#include "services/tracker/centroid_collector.hpp"
+
+#include <algorithm>
+#include <utility>
+
+#include "common/tracking/centroid_merge.hpp"
+
+namespace fogmap {
+
+const char* centroidVerdictName(CentroidVerdict verdict) {
+  switch (verdict) {
+    case CentroidVerdict::kAccepted:
+      return "accepted";
+    case CentroidVerdict::kUnknownEdge:
+      return "unknown_edge";
+    case CentroidVerdict::kLate:
+      return "late";
+    case CentroidVerdict::kEarly:
+      return "early";
+    case CentroidVerdict::kDuplicate:
+      return "duplicate";
+  }
+  return "unknown";
+}
+
+CentroidCollector::CentroidCollector(CentroidCollectorConfig config, EpochSchedule schedule)
+    : config_(std::move(config)), schedule_(schedule), edges_(config_.edges.begin(), config_.edges.end()) {
+  config_.max_open_epochs = std::max<std::size_t>(config_.max_open_epochs, 1);
+}
+
+tracking::CloudFrame CentroidCollector::merged(const std::vector<tracking::CentroidFrame>& frames) const {
+  tracking::CloudFrame out;
+  if (!frames.empty()) out.time_ns = frames.front().time_ns;
+  std::vector<tracking::DisplacementCentroid> centroids;
+  for (const auto& f : frames) {
+    out.time_ns = std::min(out.time_ns, f.time_ns);
+    out.sensor_position += f.sensor_position;
+    centroids.insert(centroids.end(), f.centroids.begin(), f.centroids.end());
+  }
+  if (!frames.empty()) out.sensor_position /= static_cast<double>(frames.size());
+  out.observations = tracking::mergeCentroids(centroids, config_.merge_radius_m);
+  return out;
+}
+
+bool CentroidCollector::complete(std::uint64_t epoch) const {
+  return std::all_of(edges_.begin(), edges_.end(), [&](const std::string& edge) {
+    const auto it = newest_.find(edge);
+    return it != newest_.end() && it->second >= epoch;
+  });
+}
+
+void CentroidCollector::emit(std::map<std::uint64_t, std::vector<tracking::CentroidFrame>>::iterator it,
+                             std::vector<tracking::CloudFrame>& out) {
+  if (!complete(it->first)) ++counters_.epochs_partial;
+  ++counters_.epochs_emitted;
+  out.push_back(merged(it->second));
+  emitted_any_ = true;
+  last_emitted_ = it->first;
+  open_.erase(it);
+}
+
+std::vector<tracking::CloudFrame> CentroidCollector::expire(std::int64_t now_ns) {
+  std::vector<tracking::CloudFrame> out;
+  // In epoch order: an epoch is never emitted after a later one.
+  while (!open_.empty()) {
+    const auto oldest = open_.begin();
+    if (now_ns < schedule_.deadlineNs(oldest->first, 1) && !complete(oldest->first)) break;
+    emit(oldest, out);
+  }
+  return out;
+}
+
+CentroidCollector::Added CentroidCollector::add(tracking::CentroidFrame frame, std::int64_t now_ns) {
+  Added added;
+  added.ready = expire(now_ns);
+  if (edges_.count(frame.edge) == 0) {
+    added.verdict = CentroidVerdict::kUnknownEdge;
+    return added;
+  }
+  const std::uint64_t epoch = frame.epoch;
+  const double ahead = static_cast<double>(epoch) - static_cast<double>(schedule_.epochAt(now_ns));
+  if (ahead > config_.window_periods) {
+    added.verdict = CentroidVerdict::kEarly;
+    return added;
+  }
+  if (emitted_any_ && epoch <= last_emitted_) {
+    added.verdict = CentroidVerdict::kLate;
+    return added;
+  }
+  const auto newest = newest_.find(frame.edge);
+  if (newest != newest_.end() && epoch <= newest->second) {
+    // The same epoch twice, or an older one after a newer (the stream keeps order): either way
+    // the edge has spoken for this epoch.
+    added.verdict = CentroidVerdict::kDuplicate;
+    return added;
+  }
+  newest_[frame.edge] = epoch;
+  ++counters_.frames_accepted;
+  open_[epoch].push_back(std::move(frame));
+  while (open_.size() > config_.max_open_epochs) emit(open_.begin(), added.ready);
+  // This frame may complete its epoch and, as the edge's newest, earlier ones it skipped.
+  const auto more = expire(now_ns);
+  added.ready.insert(added.ready.end(), more.begin(), more.end());
+  return added;
+}
+
+}  // namespace fogmap

@@ -1,0 +1,90 @@
+#pragma once
+// The tracker's centroid input (topology `tracker: {input: centroids}`): the centroid frames its
+// edges stream, collected per cluster epoch and merged into one LiDAR frame per epoch.
+//
+// Why one frame per epoch and not one per edge: the edges of a cluster share the epochs
+// (common/epochs.hpp), so the frames of one epoch are one instant seen from several sides. Fed one
+// by one, the tracker would give each camera frame to the first of them only (it fuses a detection
+// frame with the LiDAR frame nearest in time), read an object the last edge did not see as lost,
+// and spawn a track per extra view; merged, an object seen by several LiDARs is one measurement
+// (common/tracking/centroid_merge.hpp). fogctl track-eval measured it on people, 30 % of the
+// detections missed: kalman MOTA 0.95 / 1.00 / 0.89 merged, 0.80 / 0.62 / 0.63 fed per LiDAR.
+//
+// An epoch is emitted as soon as every edge has sent a frame of it or of a later epoch (an edge
+// whose scan did not change sends nothing for that epoch), else at its deadline, the one a level-1
+// aggregator keeps: start of the epoch + the topology's deadline_ms; then with what arrived. Pure
+// and single-threaded (TrackerNode holds it under its lock); time comes in as arguments.
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "common/epochs.hpp"
+#include "common/tracking/track.hpp"
+
+namespace fogmap {
+
+struct CentroidCollectorConfig {
+  std::vector<std::string> edges;  // the edges that send centroids to this tracker
+  double merge_radius_m = 1.0;     // topology centroid_merge_m; 0: every centroid its own observation
+  // Frames of epochs more than this many periods ahead of the clock are refused (a clock set wrong,
+  // or a forged epoch would hold back every honest frame); topology admission.window_periods.
+  double window_periods = 3.0;
+  std::size_t max_open_epochs = 16;  // beyond, the oldest open epoch is emitted at once
+};
+
+// What became of a centroid frame.
+enum class CentroidVerdict {
+  kAccepted,
+  kUnknownEdge,  // not one of this tracker's edges
+  kLate,         // its epoch was emitted already (or a later one): the tracker has moved past it
+  kEarly,        // its epoch lies beyond the window ahead of the clock
+  kDuplicate,    // the edge sent this epoch already
+};
+// The metric label: "accepted", "unknown_edge", "late", "early", "duplicate".
+const char* centroidVerdictName(CentroidVerdict verdict);
+
+struct CentroidCounters {
+  std::uint64_t frames_accepted = 0;
+  std::uint64_t epochs_emitted = 0;
+  std::uint64_t epochs_partial = 0;  // emitted at the deadline (or beyond the open bound) without every edge
+};
+
+class CentroidCollector {
+ public:
+  CentroidCollector(CentroidCollectorConfig config, EpochSchedule schedule);
+
+  struct Added {
+    CentroidVerdict verdict = CentroidVerdict::kAccepted;
+    std::vector<tracking::CloudFrame> ready;  // epochs complete now, oldest first
+  };
+  // Takes an edge's frame at `now_ns`; epochs whose deadline passed are emitted first.
+  Added add(tracking::CentroidFrame frame, std::int64_t now_ns);
+  // The open epochs whose deadline has passed at `now_ns`, oldest first.
+  std::vector<tracking::CloudFrame> expire(std::int64_t now_ns);
+
+  // One epoch's LiDAR frame: the earliest sensor time of its frames, the mean of their sensors'
+  // positions, and their centroids merged within merge_radius_m.
+  tracking::CloudFrame merged(const std::vector<tracking::CentroidFrame>& frames) const;
+
+  const CentroidCounters& counters() const { return counters_; }
+  std::size_t openEpochs() const { return open_.size(); }
+
+ private:
+  bool complete(std::uint64_t epoch) const;
+  void emit(std::map<std::uint64_t, std::vector<tracking::CentroidFrame>>::iterator it,
+            std::vector<tracking::CloudFrame>& out);
+
+  CentroidCollectorConfig config_;
+  EpochSchedule schedule_;
+  std::set<std::string> edges_;
+  std::map<std::string, std::uint64_t> newest_;  // per edge, the newest epoch it sent
+  std::map<std::uint64_t, std::vector<tracking::CentroidFrame>> open_;  // by epoch
+  bool emitted_any_ = false;
+  std::uint64_t last_emitted_ = 0;
+  CentroidCounters counters_;
+};
+
+}  // namespace fogmap
