@@ -53,7 +53,7 @@ phase() {  # phase NAME: closes the running phase under NAME
   local now took
   now=$(now_ms)
   took=$(printf '%d.%d' $(((now - phase_start) / 1000)) $((((now - phase_start) % 1000) / 100)))
-  phases+=("$(printf '%-40s %7s s' "$1" "$took")")
+  phases+=("$(printf '%-48s %7s s' "$1" "$took")")
   echo "== $1: $took s"
   phase_start=$now
 }

@@ -944,6 +944,17 @@ TEST(FogctlTopologyCameras, ComposeRunsTheTrackerAndCamerasWithTheirFilesInsideT
   };
   EXPECT_TRUE(contains(service("tracker"), "depends_on: [sink]")) << service("tracker");
   EXPECT_TRUE(contains(service("cam-image_02"), "depends_on: [tracker]")) << service("cam-image_02");
+  {
+    TopologyConfig centroids = *topology;
+    for (NodeConfig& n : centroids.nodes) {
+      if (n.tracker) n.tracker->input = TrackerInput::kCentroids;
+    }
+    const auto without_root = cli::composeFile(centroids, options);
+    ASSERT_TRUE(without_root.ok()) << without_root.error().message;
+    EXPECT_TRUE(contains(*without_root, "--node, tracker]\n    network_mode: host\n    restart: unless-stopped\n    stop_grace_period: 10s\n"
+                                        "    environment:\n      FOGMAP_METRICS: \"127.0.0.1:50301\"\n    volumes:\n      - .:/fogmap:ro\n  cam-image_02:"))
+        << "a tracker fed by its edges' centroids does not wait for the root:\n" << *without_root;
+  }
   EXPECT_TRUE(contains(service("cam-image_02"), "FOGMAP_METRICS: \"127.0.0.1:50401\"")) << service("cam-image_02");
   EXPECT_FALSE(contains(*compose, "devices:")) << "no device for a directory of frames";
   const std::string scrape = cli::prometheusConfig(*topology, {});

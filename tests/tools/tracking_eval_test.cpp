@@ -6,7 +6,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <string>
+
+#include "tools/fogctl/report_text.hpp"
 
 namespace fogmap::cli {
 namespace {
@@ -102,6 +105,14 @@ TEST(TrackingEval, RunsAreReproducibleAndReported) {
   EXPECT_NE(table.find("| paper | 0.3 |"), std::string::npos) << table;
   EXPECT_NE(table.find("| kalman | 0.3 |"), std::string::npos) << table;
   EXPECT_NE(table.find("moving-p4-v0-s7"), std::string::npos) << table;
+  // Side by side: a row per miss rate, each cell paper / kalman.
+  const std::string comparison = trackingComparisonMarkdown(*a);
+  const std::string row = "| 30 % | " + fixedText(a->runs[0].mot.clear.mota, 3) + " / " + fixedText(a->runs[1].mot.clear.mota, 3) +
+                          " | " + fixedText(a->runs[0].mot.clear.motp_m, 3) + " / " + fixedText(a->runs[1].mot.clear.motp_m, 3) +
+                          " | " + std::to_string(a->runs[0].mot.clear.id_switches) + " / " +
+                          std::to_string(a->runs[1].mot.clear.id_switches) + " | ";
+  EXPECT_NE(comparison.find(row), std::string::npos) << row << "\n" << comparison;
+  EXPECT_EQ(std::count(comparison.begin(), comparison.end(), '\n'), 3) << "a header, its rule and one row";
   const std::string json = trackingJson(*a);
   EXPECT_NE(json.find("\"association\": \"kalman\""), std::string::npos);
   EXPECT_NE(json.find("\"mota\": "), std::string::npos);

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <fstream>
 #include <map>
 #include <set>
@@ -12,6 +11,7 @@
 #include "common/sim/generators.hpp"
 #include "tools/fogctl/evaluation.hpp"
 #include "tools/fogctl/plot.hpp"
+#include "tools/fogctl/report_text.hpp"
 #include "tools/fogctl/scene_picture.hpp"
 #include "tools/fogctl/shaped_links.hpp"
 
@@ -20,21 +20,6 @@ namespace {
 
 constexpr double kPaperAlpha = 1.5;
 constexpr double kRateHz = 10.0;
-
-std::string fixed(double v, int digits) {
-  char text[64];
-  std::snprintf(text, sizeof text, "%.*f", digits, v);
-  return text;
-}
-
-// A number for JSON: finite, else null.
-std::string json(double v) {
-  if (!std::isfinite(v)) return "null";
-  std::ostringstream out;
-  out.precision(10);
-  out << v;
-  return out.str();
-}
 
 std::string sceneLabel(int objects, int lidars) {
   return std::to_string(objects) + " objects, " + std::to_string(lidars) + " LiDARs";
@@ -81,7 +66,7 @@ Expected<EvalResult> runEvaluation(const EvalPlan& plan, const std::function<voi
   options.frames = plan.frames;
   options.rate_hz = kRateHz;
   const auto stamp = [&] {
-    return fixed(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 1) + " s";
+    return fixedText(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 1) + " s";
   };
 
   for (const int objects : plan.object_counts) {
@@ -100,10 +85,10 @@ Expected<EvalResult> runEvaluation(const EvalPlan& plan, const std::function<voi
       auto scores = scoreSceneRuns(scene, *madc, &*baseline);
       if (!scores) return Error{scores.error().code, sceneLabel(objects, lidars) + ": " + scores.error().message};
       result.sizes.push_back({objects, lidars, *scores});
-      log("[" + stamp() + "] " + sceneLabel(objects, lidars) + ": bytes " + fixed(scores->madc_bytes_per_frame, 0) + " / " +
-          fixed(scores->baseline_bytes_per_frame, 0) + ", RI vs baseline " + fixed(scores->madc_vs_baseline.rand_index, 4) +
-          ", ARI vs truth " + fixed(scores->madc_vs_truth.adjusted_rand_index, 4) + " (baseline " +
-          fixed(scores->baseline_vs_truth.adjusted_rand_index, 4) + ")");
+      log("[" + stamp() + "] " + sceneLabel(objects, lidars) + ": bytes " + fixedText(scores->madc_bytes_per_frame, 0) + " / " +
+          fixedText(scores->baseline_bytes_per_frame, 0) + ", RI vs baseline " + fixedText(scores->madc_vs_baseline.rand_index, 4) +
+          ", ARI vs truth " + fixedText(scores->madc_vs_truth.adjusted_rand_index, 4) + " (baseline " +
+          fixedText(scores->baseline_vs_truth.adjusted_rand_index, 4) + ")");
       if (objects != plan.accuracy_objects) continue;
 
       // A picture of the scenario: MAD-C's global map of its last complete frame over the truth.
@@ -146,12 +131,12 @@ Expected<EvalResult> runEvaluation(const EvalPlan& plan, const std::function<voi
         }
         options.alpha = alpha;
         auto run = runScene(dir, *file, scene, options);
-        if (!run) return Error{run.error().code, sceneLabel(objects, lidars) + ", alpha " + fixed(alpha, 2) + ": " + run.error().message};
+        if (!run) return Error{run.error().code, sceneLabel(objects, lidars) + ", alpha " + fixedText(alpha, 2) + ": " + run.error().message};
         auto swept = scoreSceneRuns(scene, *run, &*baseline);
         if (!swept) return swept.error();
         result.alphas.push_back({lidars, alpha, *swept});
-        log("[" + stamp() + "]   alpha " + fixed(alpha, 2) + ": RI vs baseline " + fixed(swept->madc_vs_baseline.rand_index, 4) +
-            ", ARI vs truth " + fixed(swept->madc_vs_truth.adjusted_rand_index, 4));
+        log("[" + stamp() + "]   alpha " + fixedText(alpha, 2) + ": RI vs baseline " + fixedText(swept->madc_vs_baseline.rand_index, 4) +
+            ", ARI vs truth " + fixedText(swept->madc_vs_truth.adjusted_rand_index, 4));
       }
     }
   }
@@ -202,9 +187,9 @@ Expected<EvalResult> runEvaluation(const EvalPlan& plan, const std::function<voi
     if (!scores) return scores.error();
     links.scores = *scores;
     links.ran = true;
-    log("[" + stamp() + "] " + sceneLabel(plan.link_objects, plan.link_lidars) + " behind " + fixed(links.mbit, 0) +
-        " Mbit/s links: end to end p50 " + fixed(scores->madc_e2e_p50_ms, 1) + " ms MAD-C, " +
-        fixed(scores->baseline_e2e_p50_ms, 1) + " ms baseline, " + fixed(links.raw_baseline_e2e_p50_ms, 1) +
+    log("[" + stamp() + "] " + sceneLabel(plan.link_objects, plan.link_lidars) + " behind " + fixedText(links.mbit, 0) +
+        " Mbit/s links: end to end p50 " + fixedText(scores->madc_e2e_p50_ms, 1) + " ms MAD-C, " +
+        fixedText(scores->baseline_e2e_p50_ms, 1) + " ms baseline, " + fixedText(links.raw_baseline_e2e_p50_ms, 1) +
         " ms baseline shipping whole scans");
   }
   if (!links.ran) log("[" + stamp() + "] SKIPPED the limited links (Fig. 9): " + links.skipped);
@@ -214,8 +199,8 @@ Expected<EvalResult> runEvaluation(const EvalPlan& plan, const std::function<voi
     auto tracking = runTrackingEval(*plan.tracking);
     if (!tracking) return Error{tracking.error().code, "tracking: " + tracking.error().message};
     for (const TrackingRun& run : tracking->runs) {
-      log("[" + stamp() + "] tracking " + run.association + ", " + fixed(100.0 * run.miss_rate, 0) + " % missed: MOTA " +
-          fixed(run.mot.clear.mota, 3) + ", IDF1 " + fixed(run.mot.identity.idf1, 3) + ", " +
+      log("[" + stamp() + "] tracking " + run.association + ", " + fixedText(100.0 * run.miss_rate, 0) + " % missed: MOTA " +
+          fixedText(run.mot.clear.mota, 3) + ", IDF1 " + fixedText(run.mot.identity.idf1, 3) + ", " +
           std::to_string(run.mot.clear.id_switches) + " ID switches");
     }
     result.tracking = std::move(tracking).value();
@@ -307,31 +292,31 @@ std::string trackingCsv(const TrackingEvalResult& t) {
 std::string scoresJson(const SceneScores& s) {
   std::ostringstream out;
   out << "{\"frames\": " << s.frames << ", \"frames_vs_baseline\": " << s.frames_vs_baseline
-      << ", \"rand_index_vs_baseline\": " << json(s.madc_vs_baseline.rand_index)
-      << ", \"ari_vs_baseline\": " << json(s.madc_vs_baseline.adjusted_rand_index)
-      << ", \"rand_index_points_vs_baseline\": " << json(s.ext_vs_baseline.rand_index)
-      << ", \"rand_index_truth\": " << json(s.madc_vs_truth.rand_index)
-      << ", \"ari_truth\": " << json(s.madc_vs_truth.adjusted_rand_index)
-      << ", \"baseline_rand_index_truth\": " << json(s.baseline_vs_truth.rand_index)
-      << ", \"baseline_ari_truth\": " << json(s.baseline_vs_truth.adjusted_rand_index)
+      << ", \"rand_index_vs_baseline\": " << jsonNumber(s.madc_vs_baseline.rand_index)
+      << ", \"ari_vs_baseline\": " << jsonNumber(s.madc_vs_baseline.adjusted_rand_index)
+      << ", \"rand_index_points_vs_baseline\": " << jsonNumber(s.ext_vs_baseline.rand_index)
+      << ", \"rand_index_truth\": " << jsonNumber(s.madc_vs_truth.rand_index)
+      << ", \"ari_truth\": " << jsonNumber(s.madc_vs_truth.adjusted_rand_index)
+      << ", \"baseline_rand_index_truth\": " << jsonNumber(s.baseline_vs_truth.rand_index)
+      << ", \"baseline_ari_truth\": " << jsonNumber(s.baseline_vs_truth.adjusted_rand_index)
       << ", \"objects_true\": " << s.madc_objects.objects_true << ", \"objects_found_whole\": " << s.madc_objects.found_whole
       << ", \"objects_split\": " << s.madc_objects.split << ", \"objects_merged\": " << s.madc_objects.merged
       << ", \"objects_missed\": " << s.madc_objects.missed
       << ", \"baseline_objects_found_whole\": " << s.baseline_objects.found_whole
-      << ", \"bytes_madc_per_frame\": " << json(s.madc_bytes_per_frame)
-      << ", \"bytes_baseline_per_frame\": " << json(s.baseline_bytes_per_frame)
-      << ", \"bytes_raw_per_frame\": " << json(s.raw_bytes_per_frame)
-      << ", \"pairs_tested\": " << json(s.pairs_tested_per_epoch) << ", \"pairs_all\": " << json(s.pairs_all_per_epoch)
-      << ", \"clustering_ms\": " << json(s.clustering_ms) << ", \"merge_ms\": " << json(s.merge_ms)
-      << ", \"baseline_clustering_ms\": " << json(s.baseline_clustering_ms)
-      << ", \"e2e_madc_p50_ms\": " << json(s.madc_e2e_p50_ms) << ", \"e2e_baseline_p50_ms\": " << json(s.baseline_e2e_p50_ms)
+      << ", \"bytes_madc_per_frame\": " << jsonNumber(s.madc_bytes_per_frame)
+      << ", \"bytes_baseline_per_frame\": " << jsonNumber(s.baseline_bytes_per_frame)
+      << ", \"bytes_raw_per_frame\": " << jsonNumber(s.raw_bytes_per_frame)
+      << ", \"pairs_tested\": " << jsonNumber(s.pairs_tested_per_epoch) << ", \"pairs_all\": " << jsonNumber(s.pairs_all_per_epoch)
+      << ", \"clustering_ms\": " << jsonNumber(s.clustering_ms) << ", \"merge_ms\": " << jsonNumber(s.merge_ms)
+      << ", \"baseline_clustering_ms\": " << jsonNumber(s.baseline_clustering_ms)
+      << ", \"e2e_madc_p50_ms\": " << jsonNumber(s.madc_e2e_p50_ms) << ", \"e2e_baseline_p50_ms\": " << jsonNumber(s.baseline_e2e_p50_ms)
       << "}";
   return out.str();
 }
 
 std::string evalJson(const EvalPlan& plan, const EvalResult& r) {
   std::ostringstream out;
-  out << "{\n  \"quick\": " << (plan.quick ? "true" : "false") << ",\n  \"seconds\": " << json(r.seconds)
+  out << "{\n  \"quick\": " << (plan.quick ? "true" : "false") << ",\n  \"seconds\": " << jsonNumber(r.seconds)
       << ",\n  \"frames_per_run\": " << plan.frames << ",\n  \"seed\": " << plan.seed << ",\n  \"alpha_sweep\": [";
   for (std::size_t i = 0; i < r.alphas.size(); ++i) {
     out << (i ? ",\n    " : "\n    ") << "{\"objects\": " << plan.accuracy_objects << ", \"lidars\": " << r.alphas[i].lidars
@@ -346,15 +331,15 @@ std::string evalJson(const EvalPlan& plan, const EvalResult& r) {
   for (std::size_t i = 0; i < r.precision.size(); ++i) {
     const auto& p = r.precision[i];
     out << (i ? ",\n    " : "\n    ") << "{\"lidars\": " << p.lidars << ", \"alpha\": " << p.alpha
-        << ", \"aura\": " << (p.aura ? "true" : "false") << ", \"precision\": " << json(p.precision)
-        << ", \"recall\": " << json(p.recall) << ", \"clusters\": " << p.clusters << "}";
+        << ", \"aura\": " << (p.aura ? "true" : "false") << ", \"precision\": " << jsonNumber(p.precision)
+        << ", \"recall\": " << jsonNumber(p.recall) << ", \"clusters\": " << p.clusters << "}";
   }
   out << "\n  ],\n  \"links\": {\"ran\": " << (r.links.ran ? "true" : "false") << ", \"skipped\": \"" << r.links.skipped
-      << "\", \"lidars\": " << r.links.lidars << ", \"objects\": " << r.links.objects << ", \"mbit\": " << json(r.links.mbit)
-      << ", \"rate_hz\": " << json(r.links.rate_hz);
+      << "\", \"lidars\": " << r.links.lidars << ", \"objects\": " << r.links.objects << ", \"mbit\": " << jsonNumber(r.links.mbit)
+      << ", \"rate_hz\": " << jsonNumber(r.links.rate_hz);
   if (r.links.ran) {
-    out << ", \"e2e_raw_baseline_p50_ms\": " << json(r.links.raw_baseline_e2e_p50_ms)
-        << ", \"raw_baseline_root_ms\": " << json(r.links.raw_baseline_merge_ms) << ", \"scores\": " << scoresJson(r.links.scores);
+    out << ", \"e2e_raw_baseline_p50_ms\": " << jsonNumber(r.links.raw_baseline_e2e_p50_ms)
+        << ", \"raw_baseline_root_ms\": " << jsonNumber(r.links.raw_baseline_merge_ms) << ", \"scores\": " << scoresJson(r.links.scores);
   }
   out << "}";
   if (r.tracking) {
@@ -434,7 +419,7 @@ Status drawPlots(const EvalPlan& plan, const EvalResult& r) {
     spec.y_label = "adjusted Rand index";
     spec.x_ticks = lidar_ticks;
     for (const double alpha : plan.alphas) {
-      PlotSeries series{"MAD-C-ext, alpha " + fixed(alpha, 1), {}, {}, {}, {}, false};
+      PlotSeries series{"MAD-C-ext, alpha " + fixedText(alpha, 1), {}, {}, {}, {}, false};
       for (const auto& a : r.alphas) {
         if (a.alpha != alpha) continue;
         series.x.push_back(a.lidars);
@@ -519,15 +504,15 @@ std::string trackingSection(const TrackingEvalResult& t) {
   md << "## Tracking: the fusion paper's association against fogmap's\n\n"
      << "The tracker (common/tracking, the tracker service's core) in process on simulated moving scene " << t.scene << " ("
      << count(c.people, "person", "people") << " and " << count(c.vehicles, "car", "cars") << " crossing a 40 x 40 m area, "
-     << count(t.lidars, "static VLP-16 LiDAR", "static VLP-16 LiDARs") << ", " << count(t.cameras, "camera", "cameras") << "; " << c.frames << " LiDAR frames at " << fixed(c.rate_hz, 0) << " Hz, seed " << c.seed
+     << count(t.lidars, "static VLP-16 LiDAR", "static VLP-16 LiDARs") << ", " << count(t.cameras, "camera", "cameras") << "; " << c.frames << " LiDAR frames at " << fixedText(c.rate_hz, 0) << " Hz, seed " << c.seed
      << "), through the whole chain: every LiDAR frame through ground removal and the displacement detector (the fusion "
      << "paper's Algorithm 1), the centroids of one instant merged across LiDARs, every camera's detections replayed from "
-     << "the truth (occluded objects not reported, " << fixed(c.box_jitter_px, 0) << " px box jitter, "
-     << fixed(c.camera_latency_ms, 0) << " ms latency) with the given share of them missed (seeded, the same for both), "
+     << "the truth (occluded objects not reported, " << fixedText(c.box_jitter_px, 0) << " px box jitter, "
+     << fixedText(c.camera_latency_ms, 0) << " ms latency) with the given share of them missed (seeded, the same for both), "
      << "and the tracker with either association on the same centroids and detections. `paper`: the paper's Algorithms "
      << "2-5 (greedy nearest neighbour, no motion model); `kalman`: a constant-velocity Kalman filter per track, Hungarian "
      << "assignment with a Mahalanobis gate, tentative/confirmed/lost tracks. Scored against the objects' true centres on "
-     << "the ground: CLEAR MOT (a pair counts as a match closer than " << fixed(c.match_distance_m, 1)
+     << "the ground: CLEAR MOT (a pair counts as a match closer than " << fixedText(c.match_distance_m, 1)
      << " m), IDF1 and the localization error over the matches; hypotheses are the confirmed and lost tracks. The same "
      << "run as `fogctl track-eval` (docs/tracking.md discusses it).\n\n"
      << "Each cell: paper / kalman. MOTP is the mean localization error over the matches.\n\n"
@@ -541,7 +526,7 @@ std::string report(const EvalPlan& plan, const EvalResult& r, const std::filesys
   };
   std::ostringstream md;
   md << "# Evaluation: the MAD-C paper reproduced with the running services\n\n"
-     << "Generated by `" << plan.command << "` in " << fixed(r.seconds, 0) << " s"
+     << "Generated by `" << plan.command << "` in " << fixedText(r.seconds, 0) << " s"
      << (plan.quick ? " (the quick form: fewer LiDAR counts, scene sizes and alphas, a shorter tracking run)" : "")
      << ". Every number of the MAD-C sections comes from real clusters of local processes (edge-cluster per simulated "
      << "LiDAR, merge-aggregator as the sink) on random scenes made by "
@@ -571,10 +556,10 @@ std::string report(const EvalPlan& plan, const EvalResult& r, const std::filesys
      << "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& a : r.alphas) {
     const SceneScores& s = a.scores;
-    md << "| " << a.lidars << " | " << fixed(a.alpha, 1) << " | " << fixed(s.madc_vs_baseline.rand_index, 4) << " | "
-       << fixed(s.madc_vs_baseline.adjusted_rand_index, 4) << " | " << fixed(s.ext_vs_baseline.rand_index, 4) << " | "
-       << fixed(s.madc_vs_truth.rand_index, 4) << " | " << fixed(s.madc_vs_truth.adjusted_rand_index, 4) << " | "
-       << fixed(s.baseline_vs_truth.adjusted_rand_index, 4) << " | " << s.madc_objects.objects_true << " | "
+    md << "| " << a.lidars << " | " << fixedText(a.alpha, 1) << " | " << fixedText(s.madc_vs_baseline.rand_index, 4) << " | "
+       << fixedText(s.madc_vs_baseline.adjusted_rand_index, 4) << " | " << fixedText(s.ext_vs_baseline.rand_index, 4) << " | "
+       << fixedText(s.madc_vs_truth.rand_index, 4) << " | " << fixedText(s.madc_vs_truth.adjusted_rand_index, 4) << " | "
+       << fixedText(s.baseline_vs_truth.adjusted_rand_index, 4) << " | " << s.madc_objects.objects_true << " | "
        << s.madc_objects.found_whole << " | " << s.madc_objects.split << " | " << s.madc_objects.merged << " | "
        << s.madc_objects.missed << " |\n";
   }
@@ -599,7 +584,7 @@ std::string report(const EvalPlan& plan, const EvalResult& r, const std::filesys
     for (const int k : plan.lidar_counts) {
       for (const auto& z : r.sizes) {
         if (z.objects == objects && z.lidars == k) {
-          md << " " << fixed(z.scores.pairs_tested_per_epoch, 0) << " / " << fixed(z.scores.pairs_all_per_epoch, 0) << " |";
+          md << " " << fixedText(z.scores.pairs_tested_per_epoch, 0) << " / " << fixedText(z.scores.pairs_all_per_epoch, 0) << " |";
         }
       }
     }
@@ -617,33 +602,33 @@ std::string report(const EvalPlan& plan, const EvalResult& r, const std::filesys
      << "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& z : r.sizes) {
     const SceneScores& s = z.scores;
-    md << "| " << z.objects << " | " << z.lidars << " | " << fixed(s.madc_bytes_per_frame, 0) << " | "
-       << fixed(s.baseline_bytes_per_frame, 0) << " | " << fixed(s.baseline_bytes_per_frame / std::max(1.0, s.madc_bytes_per_frame), 0)
-       << "x | " << fixed(s.raw_bytes_per_frame, 0) << " | " << fixed(s.raw_bytes_per_frame / std::max(1.0, s.madc_bytes_per_frame), 0)
-       << "x | " << fixed(s.clustering_ms, 2) << " | " << fixed(s.merge_ms, 3) << " | " << fixed(s.baseline_clustering_ms, 2)
-       << " | " << fixed(s.madc_e2e_p50_ms, 1) << " | " << fixed(s.baseline_e2e_p50_ms, 1) << " |\n";
+    md << "| " << z.objects << " | " << z.lidars << " | " << fixedText(s.madc_bytes_per_frame, 0) << " | "
+       << fixedText(s.baseline_bytes_per_frame, 0) << " | " << fixedText(s.baseline_bytes_per_frame / std::max(1.0, s.madc_bytes_per_frame), 0)
+       << "x | " << fixedText(s.raw_bytes_per_frame, 0) << " | " << fixedText(s.raw_bytes_per_frame / std::max(1.0, s.madc_bytes_per_frame), 0)
+       << "x | " << fixedText(s.clustering_ms, 2) << " | " << fixedText(s.merge_ms, 3) << " | " << fixedText(s.baseline_clustering_ms, 2)
+       << " | " << fixedText(s.madc_e2e_p50_ms, 1) << " | " << fixedText(s.baseline_e2e_p50_ms, 1) << " |\n";
   }
   md << "\n" << image("fig9_bytes.png", "bytes per frame") << "\n" << image("fig9_times.png", "processing times") << "\n";
 
-  md << "## Every edge behind a " << fixed(plan.link_mbit.value_or(0.0), 0) << " Mbit/s link (paper Table 2)\n\n";
+  md << "## Every edge behind a " << fixedText(plan.link_mbit.value_or(0.0), 0) << " Mbit/s link (paper Table 2)\n\n";
   if (r.links.ran) {
     const SceneScores& s = r.links.scores;
-    md << "Each edge in its own network namespace, its veth pair limited by tbf to " << fixed(r.links.mbit, 0)
+    md << "Each edge in its own network namespace, its veth pair limited by tbf to " << fixedText(r.links.mbit, 0)
        << " Mbit/s both ways; " << r.links.lidars << " LiDARs, " << r.links.objects << " objects, frames at "
-       << fixed(r.links.rate_hz, 0) << " Hz. The paper estimates 19 s for MAD-C and 50 s for the baseline at Lambda_7 with "
+       << fixedText(r.links.rate_hz, 0) << " Hz. The paper estimates 19 s for MAD-C and 50 s for the baseline at Lambda_7 with "
        << "100 objects (2.6x), from 2 GHz CPUs and 10 Mbit/s; its baseline ships the point clouds whole.\n\n"
        << "| | MAD-C | baseline, pre-processed points | baseline / MAD-C | baseline, whole scans (the paper's) | whole scans / MAD-C |\n"
        << "|---|---|---|---|---|---|\n"
-       << "| end to end per frame (p50) | " << fixed(s.madc_e2e_p50_ms, 1) << " ms | " << fixed(s.baseline_e2e_p50_ms, 1)
-       << " ms | " << fixed(s.baseline_e2e_p50_ms / std::max(1e-9, s.madc_e2e_p50_ms), 1) << "x | "
-       << fixed(r.links.raw_baseline_e2e_p50_ms, 1) << " ms | "
-       << fixed(r.links.raw_baseline_e2e_p50_ms / std::max(1e-9, s.madc_e2e_p50_ms), 1) << "x |\n"
-       << "| bytes per frame | " << fixed(s.madc_bytes_per_frame, 0) << " | " << fixed(s.baseline_bytes_per_frame, 0) << " | "
-       << fixed(s.baseline_bytes_per_frame / std::max(1.0, s.madc_bytes_per_frame), 0) << "x | "
-       << fixed(s.raw_bytes_per_frame, 0) << " | " << fixed(s.raw_bytes_per_frame / std::max(1.0, s.madc_bytes_per_frame), 0)
+       << "| end to end per frame (p50) | " << fixedText(s.madc_e2e_p50_ms, 1) << " ms | " << fixedText(s.baseline_e2e_p50_ms, 1)
+       << " ms | " << fixedText(s.baseline_e2e_p50_ms / std::max(1e-9, s.madc_e2e_p50_ms), 1) << "x | "
+       << fixedText(r.links.raw_baseline_e2e_p50_ms, 1) << " ms | "
+       << fixedText(r.links.raw_baseline_e2e_p50_ms / std::max(1e-9, s.madc_e2e_p50_ms), 1) << "x |\n"
+       << "| bytes per frame | " << fixedText(s.madc_bytes_per_frame, 0) << " | " << fixedText(s.baseline_bytes_per_frame, 0) << " | "
+       << fixedText(s.baseline_bytes_per_frame / std::max(1.0, s.madc_bytes_per_frame), 0) << "x | "
+       << fixedText(s.raw_bytes_per_frame, 0) << " | " << fixedText(s.raw_bytes_per_frame / std::max(1.0, s.madc_bytes_per_frame), 0)
        << "x |\n\n"
        << "The whole-scan baseline's root pre-processes every scan (crop, voxel grid, ground removal) before it clusters them: "
-       << fixed(r.links.raw_baseline_merge_ms, 1) << " ms per frame.\n";
+       << fixedText(r.links.raw_baseline_merge_ms, 1) << " ms per frame.\n";
   } else {
     md << "SKIPPED: " << r.links.skipped << "\n";
   }

@@ -1,8 +1,6 @@
 #include "tools/fogctl/scene_run.hpp"
 
 #include <algorithm>
-#include <cmath>
-#include <cstdio>
 #include <fstream>
 #include <numeric>
 #include <sstream>
@@ -10,8 +8,8 @@
 
 #include <grpcpp/grpcpp.h>
 
-#include "common/epochs.hpp"
 #include "common/certs.hpp"
+#include "common/epochs.hpp"
 #include "common/map.hpp"
 #include "common/sim/scene_topology.hpp"
 #include "common/sim/sensor_frames.hpp"
@@ -21,6 +19,7 @@
 #include "services/edge_cluster/edge_runner.hpp"
 #include "tools/fogctl/evaluation.hpp"
 #include "tools/fogctl/free_ports.hpp"
+#include "tools/fogctl/report_text.hpp"
 #include "tools/fogctl/shaped_links.hpp"
 
 namespace fogmap::cli {
@@ -338,29 +337,15 @@ Expected<PublishedScores> scoreSceneTracking(const sim::Scene& scene, const Scen
 
 namespace {
 
-std::string fixed(double v, int digits) {
-  if (!std::isfinite(v)) return "n/a";
-  char text[64];
-  std::snprintf(text, sizeof text, "%.*f", digits, v);
-  return text;
-}
-
-std::string json(double v) {
-  if (!std::isfinite(v)) return "null";
-  std::ostringstream out;
-  out.precision(10);
-  out << v;
-  return out.str();
-}
-
 std::string motJson(const tracking::MotReport& r) {
   const auto& c = r.clear;
-  return "{\"mota\": " + json(c.mota) + ", \"motp_m\": " + json(c.motp_m) + ", \"id_switches\": " +
+  return "{\"mota\": " + jsonNumber(c.mota) + ", \"motp_m\": " + jsonNumber(c.motp_m) + ", \"id_switches\": " +
          std::to_string(c.id_switches) + ", \"fragmentations\": " + std::to_string(c.fragmentations) +
-         ", \"idf1\": " + json(r.identity.idf1) + ", \"matches\": " + std::to_string(c.matches) +
+         ", \"idf1\": " + jsonNumber(r.identity.idf1) + ", \"matches\": " + std::to_string(c.matches) +
          ", \"misses\": " + std::to_string(c.misses) + ", \"false_positives\": " + std::to_string(c.false_positives) +
-         ", \"loc_error_mean_m\": " + json(r.localization.mean_m) + ", \"loc_error_p95_m\": " + json(r.localization.p95_m) +
-         ", \"loc_error_max_m\": " + json(r.localization.max_m) + "}";
+         ", \"loc_error_mean_m\": " + jsonNumber(r.localization.mean_m) +
+         ", \"loc_error_p95_m\": " + jsonNumber(r.localization.p95_m) +
+         ", \"loc_error_max_m\": " + jsonNumber(r.localization.max_m) + "}";
 }
 
 }  // namespace
@@ -370,21 +355,22 @@ std::string sceneTrackingText(const PublishedScores& s, const SceneTrackingOptio
   const auto& c = mot.clear;
   std::ostringstream out;
   out << "  tracking (" << tracking::associationName(o.association) << " on " << trackerInputName(o.input) << ", "
-      << fixed(100.0 * o.truth.miss_rate, 0) << " % of detections missed): " << s.frames << " track lists, scene time " << fixed(s.first_time_s, 1) << " to "
-      << fixed(s.last_time_s, 1) << " s, against " << moving_objects << " moving objects (" << fixed(o.match_distance_m, 1)
+      << fixedText(100.0 * o.truth.miss_rate, 0) << " % of detections missed): " << s.frames << " track lists, scene time "
+      << fixedText(s.first_time_s, 1) << " to "
+      << fixedText(s.last_time_s, 1) << " s, against " << moving_objects << " moving objects (" << fixedText(o.match_distance_m, 1)
       << " m gate)\n"
-      << "    MOTA " << fixed(c.mota, 3) << "   MOTP " << fixed(c.motp_m, 3) << " m   ID switches " << c.id_switches
-      << "   fragmentations " << c.fragmentations << "   IDF1 " << fixed(mot.identity.idf1, 3) << "\n"
-      << "    localization error mean / p95 / max " << fixed(mot.localization.mean_m, 3) << " / "
-      << fixed(mot.localization.p95_m, 3) << " / " << fixed(mot.localization.max_m, 3) << " m   misses " << c.misses
+      << "    MOTA " << fixedText(c.mota, 3) << "   MOTP " << fixedText(c.motp_m, 3) << " m   ID switches " << c.id_switches
+      << "   fragmentations " << c.fragmentations << "   IDF1 " << fixedText(mot.identity.idf1, 3) << "\n"
+      << "    localization error mean / p95 / max " << fixedText(mot.localization.mean_m, 3) << " / "
+      << fixedText(mot.localization.p95_m, 3) << " / " << fixedText(mot.localization.max_m, 3) << " m   misses " << c.misses
       << "   false positives " << c.false_positives << "   tracks confirmed " << s.scores.tracks_confirmed << "\n";
   for (const auto& [label, r] : s.scores.by_label) {
-    out << "    " << label << ": MOTA " << fixed(r.clear.mota, 3) << ", ID switches " << r.clear.id_switches << ", IDF1 "
-        << fixed(r.identity.idf1, 3) << ", error mean " << fixed(r.localization.mean_m, 3) << " m (tracks labelled " << label
+    out << "    " << label << ": MOTA " << fixedText(r.clear.mota, 3) << ", ID switches " << r.clear.id_switches << ", IDF1 "
+        << fixedText(r.identity.idf1, 3) << ", error mean " << fixedText(r.localization.mean_m, 3) << " m (tracks labelled " << label
         << " only)\n";
   }
-  out << "    sensor time to published tracks: p50 " << fixed(s.latency_p50_ms, 1) << " ms   p95 " << fixed(s.latency_p95_ms, 1)
-      << " ms   max " << fixed(s.latency_max_ms, 1) << " ms\n";
+  out << "    sensor time to published tracks: p50 " << fixedText(s.latency_p50_ms, 1) << " ms   p95 " << fixedText(s.latency_p95_ms, 1)
+      << " ms   max " << fixedText(s.latency_max_ms, 1) << " ms\n";
   return out.str();
 }
 
@@ -393,18 +379,18 @@ std::string sceneTrackingJson(const PublishedScores& s, const SceneTrackingOptio
   const auto& c = mot.clear;
   std::ostringstream out;
   out << "{\"association\": \"" << tracking::associationName(o.association) << "\", \"tracker_input\": \""
-      << trackerInputName(o.input) << "\", \"miss_rate\": " << json(o.truth.miss_rate)
-      << ", \"box_jitter_px\": " << json(o.truth.box_jitter_px) << ", \"camera_latency_ms\": " << json(o.truth.latency_ms)
+      << trackerInputName(o.input) << "\", \"miss_rate\": " << jsonNumber(o.truth.miss_rate)
+      << ", \"box_jitter_px\": " << jsonNumber(o.truth.box_jitter_px) << ", \"camera_latency_ms\": " << jsonNumber(o.truth.latency_ms)
       << ", \"moving_objects\": " << moving_objects << ", \"frames\": " << s.frames
-      << ", \"scene_time_first_s\": " << json(s.first_time_s) << ", \"scene_time_last_s\": " << json(s.last_time_s)
-      << ", \"match_distance_m\": " << json(o.match_distance_m)
-      << ",\n    \"mota\": " << json(c.mota) << ", \"motp_m\": " << json(c.motp_m) << ", \"id_switches\": " << c.id_switches
-      << ", \"fragmentations\": " << c.fragmentations << ", \"idf1\": " << json(mot.identity.idf1)
-      << ", \"loc_error_mean_m\": " << json(mot.localization.mean_m) << ", \"loc_error_p95_m\": " << json(mot.localization.p95_m)
-      << ", \"loc_error_max_m\": " << json(mot.localization.max_m) << ", \"tracks_confirmed\": " << s.scores.tracks_confirmed
+      << ", \"scene_time_first_s\": " << jsonNumber(s.first_time_s) << ", \"scene_time_last_s\": " << jsonNumber(s.last_time_s)
+      << ", \"match_distance_m\": " << jsonNumber(o.match_distance_m)
+      << ",\n    \"mota\": " << jsonNumber(c.mota) << ", \"motp_m\": " << jsonNumber(c.motp_m) << ", \"id_switches\": " << c.id_switches
+      << ", \"fragmentations\": " << c.fragmentations << ", \"idf1\": " << jsonNumber(mot.identity.idf1)
+      << ", \"loc_error_mean_m\": " << jsonNumber(mot.localization.mean_m) << ", \"loc_error_p95_m\": " << jsonNumber(mot.localization.p95_m)
+      << ", \"loc_error_max_m\": " << jsonNumber(mot.localization.max_m) << ", \"tracks_confirmed\": " << s.scores.tracks_confirmed
       << ", \"matches\": " << c.matches << ", \"misses\": " << c.misses << ", \"false_positives\": " << c.false_positives
-      << ", \"truth_count\": " << c.truth_count << ",\n    \"e2e_p50_ms\": " << json(s.latency_p50_ms)
-      << ", \"e2e_p95_ms\": " << json(s.latency_p95_ms) << ", \"e2e_max_ms\": " << json(s.latency_max_ms)
+      << ", \"truth_count\": " << c.truth_count << ",\n    \"e2e_p50_ms\": " << jsonNumber(s.latency_p50_ms)
+      << ", \"e2e_p95_ms\": " << jsonNumber(s.latency_p95_ms) << ", \"e2e_max_ms\": " << jsonNumber(s.latency_max_ms)
       << ",\n    \"by_label\": {";
   for (std::size_t i = 0; i < s.scores.by_label.size(); ++i) {
     out << (i == 0 ? "" : ", ") << "\"" << s.scores.by_label[i].first << "\": " << motJson(s.scores.by_label[i].second);

@@ -4,18 +4,17 @@
 #include <array>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <map>
 #include <numeric>
 #include <optional>
-#include <set>
 #include <sstream>
 #include <tuple>
 
 #include "common/sim/camera_truth.hpp"
 #include "common/sim/generators.hpp"
 #include "common/sim/raycaster.hpp"
+#include "tools/fogctl/report_text.hpp"
 #include "tools/fogctl/track_scoring.hpp"
 
 namespace fogmap::cli {
@@ -109,28 +108,13 @@ tracking::ErrorStats statsOf(const std::vector<double>& values) {
   return {0, std::nan(""), std::nan(""), std::nan("")};
 }
 
-std::string fixed(double v, int digits) {
-  if (!std::isfinite(v)) return "n/a";
-  char text[64];
-  std::snprintf(text, sizeof text, "%.*f", digits, v);
-  return text;
-}
-
-std::string json(double v) {
-  if (!std::isfinite(v)) return "null";
-  std::ostringstream out;
-  out.precision(10);
-  out << v;
-  return out.str();
-}
-
 std::string errorJson(const tracking::ErrorStats& s) {
-  return "{\"count\": " + std::to_string(s.count) + ", \"mean_m\": " + json(s.mean_m) + ", \"p95_m\": " + json(s.p95_m) +
-         ", \"max_m\": " + json(s.max_m) + "}";
+  return "{\"count\": " + std::to_string(s.count) + ", \"mean_m\": " + jsonNumber(s.mean_m) + ", \"p95_m\": " + jsonNumber(s.p95_m) +
+         ", \"max_m\": " + jsonNumber(s.max_m) + "}";
 }
 
 std::string threeErrors(const tracking::ErrorStats& s) {
-  return fixed(s.mean_m, 3) + " / " + fixed(s.p95_m, 3) + " / " + fixed(s.max_m, 3);
+  return fixedText(s.mean_m, 3) + " / " + fixedText(s.p95_m, 3) + " / " + fixedText(s.max_m, 3);
 }
 
 }  // namespace
@@ -481,16 +465,16 @@ std::string trackingTableMarkdown(const TrackingEvalResult& r) {
   std::ostringstream out;
   out << "| association | miss | MOTA | MOTP (m) | ID sw. | frag. | IDF1 | loc. error mean / p95 / max (m) | "
          "people within "
-      << fixed(c.near_range_m, 0)
+      << fixedText(c.near_range_m, 0)
       << " m: mean / p95 / max (m) | tracks confirmed | step mean / max (ms) |\n"
          "|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const TrackingRun& run : r.runs) {
     const auto& clear = run.mot.clear;
-    out << "| " << run.association << " | " << fixed(run.miss_rate, 1) << " | " << fixed(clear.mota, 3) << " | "
-        << fixed(clear.motp_m, 3) << " | " << clear.id_switches << " | " << clear.fragmentations << " | "
-        << fixed(run.mot.identity.idf1, 3) << " | " << threeErrors(run.mot.localization) << " | "
-        << threeErrors(run.near_people) << " | " << run.tracks_confirmed << " | " << fixed(run.step_mean_ms, 3) << " / "
-        << fixed(run.step_max_ms, 3) << " |\n";
+    out << "| " << run.association << " | " << fixedText(run.miss_rate, 1) << " | " << fixedText(clear.mota, 3) << " | "
+        << fixedText(clear.motp_m, 3) << " | " << clear.id_switches << " | " << clear.fragmentations << " | "
+        << fixedText(run.mot.identity.idf1, 3) << " | " << threeErrors(run.mot.localization) << " | "
+        << threeErrors(run.near_people) << " | " << run.tracks_confirmed << " | " << fixedText(run.step_mean_ms, 3) << " / "
+        << fixedText(run.step_max_ms, 3) << " |\n";
   }
   if (!r.runs.empty() && !r.runs.front().by_label.empty()) {
     out << "\nPer label (the objects of a label against the tracks given that label), MOTA / ID switches / IDF1 / "
@@ -500,53 +484,53 @@ std::string trackingTableMarkdown(const TrackingEvalResult& r) {
     for (std::size_t i = 0; i < r.runs.front().by_label.size(); ++i) out << "---|";
     out << "\n";
     for (const TrackingRun& run : r.runs) {
-      out << "| " << run.association << " | " << fixed(run.miss_rate, 1) << " |";
+      out << "| " << run.association << " | " << fixedText(run.miss_rate, 1) << " |";
       for (const auto& [label, report] : run.by_label) {
-        out << " " << fixed(report.clear.mota, 3) << " / " << report.clear.id_switches << " / "
-            << fixed(report.identity.idf1, 3) << " / " << report.clear.misses << " / " << report.clear.false_positives << " |";
+        out << " " << fixedText(report.clear.mota, 3) << " / " << report.clear.id_switches << " / "
+            << fixedText(report.identity.idf1, 3) << " / " << report.clear.misses << " / " << report.clear.false_positives << " |";
       }
       out << "\n";
     }
   }
   const ObservationStats& s = r.observations;
   out << "\nScene " << r.scene << ": " << r.moving_objects << " moving objects, " << r.lidars << " VLP-16 LiDARs, "
-      << r.cameras << " cameras; " << c.frames << " instants at " << fixed(c.rate_hz, 0) << " Hz, seed " << c.seed
+      << r.cameras << " cameras; " << c.frames << " instants at " << fixedText(c.rate_hz, 0) << " Hz, seed " << c.seed
       << ". Truth: each object's ground position (its centre); hypotheses: confirmed and lost tracks; gate "
-      << fixed(c.match_distance_m, 1) << " m.\n";
-  out << "Displacement: voxel " << fixed(c.displacement.voxel_m, 2) << " m, neighbour " << fixed(c.displacement.neighbour_m, 2)
+      << fixedText(c.match_distance_m, 1) << " m.\n";
+  out << "Displacement: voxel " << fixedText(c.displacement.voxel_m, 2) << " m, neighbour " << fixedText(c.displacement.neighbour_m, 2)
       << " m, " << c.displacement.min_neighbours << " neighbours, " << c.displacement.min_points
-      << " points, z variance > " << fixed(c.displacement.min_z_variance_m2, 3) << " m^2"
+      << " points, z variance > " << fixedText(c.displacement.min_z_variance_m2, 3) << " m^2"
       << (c.ground ? ", after the edge's ground removal" : ", on raw frames") << "; centroids of one instant merged within "
-      << fixed(c.merge_radius_m, 2) << " m into one LiDAR frame.\n";
-  out << "Cameras: truth replay, box jitter " << fixed(c.box_jitter_px, 1) << " px, latency " << fixed(c.camera_latency_ms, 0)
-      << " ms; LiDAR frames delivered " << fixed(c.lidar_delivery_ms, 0) << " ms after their stamp.\n";
-  out << "Paper association: rho_overlay " << fixed(c.paper.rho_overlay_m, 2) << " m, rho_purecloud "
-      << fixed(c.paper.rho_purecloud_m, 2) << " m, tracks deleted after " << fixed(c.paper.track_timeout_s, 1)
-      << " s. Kalman: gate chi2 " << fixed(c.kalman.gate_chi2, 2) << ", acceleration sigma "
-      << fixed(c.kalman.acceleration_sigma, 2) << " m/s^2, confirmed after " << c.kalman.confirm_hits
-      << " LiDAR hits (or a detection), deleted after " << fixed(c.kalman.track_timeout_s, 1) << " s unobserved.\n";
-  out << "\nLiDAR side: " << fixed(s.centroids_per_frame, 1) << " centroids and " << fixed(s.observations_per_frame, 1)
-      << " merged observations per instant; objects with an observation within the gate " << fixed(100.0 * s.object_recall, 1)
-      << " %, people within " << fixed(c.near_range_m, 0) << " m " << fixed(100.0 * s.person_recall_near, 1) << " %.\n";
+      << fixedText(c.merge_radius_m, 2) << " m into one LiDAR frame.\n";
+  out << "Cameras: truth replay, box jitter " << fixedText(c.box_jitter_px, 1) << " px, latency " << fixedText(c.camera_latency_ms, 0)
+      << " ms; LiDAR frames delivered " << fixedText(c.lidar_delivery_ms, 0) << " ms after their stamp.\n";
+  out << "Paper association: rho_overlay " << fixedText(c.paper.rho_overlay_m, 2) << " m, rho_purecloud "
+      << fixedText(c.paper.rho_purecloud_m, 2) << " m, tracks deleted after " << fixedText(c.paper.track_timeout_s, 1)
+      << " s. Kalman: gate chi2 " << fixedText(c.kalman.gate_chi2, 2) << ", acceleration sigma "
+      << fixedText(c.kalman.acceleration_sigma, 2) << " m/s^2, confirmed after " << c.kalman.confirm_hits
+      << " LiDAR hits (or a detection), deleted after " << fixedText(c.kalman.track_timeout_s, 1) << " s unobserved.\n";
+  out << "\nLiDAR side: " << fixedText(s.centroids_per_frame, 1) << " centroids and " << fixedText(s.observations_per_frame, 1)
+      << " merged observations per instant; objects with an observation within the gate " << fixedText(100.0 * s.object_recall, 1)
+      << " %, people within " << fixedText(c.near_range_m, 0) << " m " << fixedText(100.0 * s.person_recall_near, 1) << " %.\n";
   out << "Distance from a near person's centre to the nearest centroid of one LiDAR: " << threeErrors(s.centroid_error_near)
-      << " m (mean / p95 / max), of which " << fixed(s.centroid_bias_to_lidar_m, 3)
+      << " m (mean / p95 / max), of which " << fixedText(s.centroid_bias_to_lidar_m, 3)
       << " m on average towards that LiDAR; to the nearest merged observation: " << threeErrors(s.observation_error_near)
       << " m.\n";
-  out << "Nearest merged observation within " << fixed(kOffsetReachM, 0) << " m of an object's centre (mean / p95 / max):";
+  out << "Nearest merged observation within " << fixedText(kOffsetReachM, 0) << " m of an object's centre (mean / p95 / max):";
   for (const auto& [label, stats] : s.observation_offset_by_label) out << " " << label << " " << threeErrors(stats) << " m;";
   out << "\n";
   const auto shares = [](const OverlayShares& o) {
-    return "own object " + fixed(100.0 * o.own, 1) + " %, another object " + fixed(100.0 * o.other, 1) + " %, no object " +
-           fixed(100.0 * o.stray, 1) + " %, nothing in the box " + fixed(100.0 * o.none, 1) + " %";
+    return "own object " + fixedText(100.0 * o.own, 1) + " %, another object " + fixedText(100.0 * o.other, 1) + " %, no object " +
+           fixedText(100.0 * o.stray, 1) + " %, nothing in the box " + fixedText(100.0 * o.none, 1) + " %";
   };
-  out << "Overlay of the " << s.detections << " detections at miss rate " << fixed(c.miss_rates.front(), 1)
+  out << "Overlay of the " << s.detections << " detections at miss rate " << fixedText(c.miss_rates.front(), 1)
       << " (the observation nearest the LiDARs' mean, as the tracker picks it): " << shares(s.overlay)
       << ". Nearest the camera instead: " << shares(s.overlay_camera_centre) << ".\n";
   out << "\nID switches per object, each scored alone (in brackets: the closest another object came):\n";
   for (const TrackingRun& run : r.runs) {
-    out << "- " << run.association << " at " << fixed(run.miss_rate, 1) << ":";
+    out << "- " << run.association << " at " << fixedText(run.miss_rate, 1) << ":";
     for (const auto& o : run.switches) {
-      out << " " << o.label << "-" << o.object << " " << o.id_switches << " (" << fixed(o.closest_approach_m, 1) << " m)";
+      out << " " << o.label << "-" << o.object << " " << o.id_switches << " (" << fixedText(o.closest_approach_m, 1) << " m)";
     }
     out << "\n";
   }
@@ -569,14 +553,14 @@ std::string trackingComparisonMarkdown(const TrackingEvalResult& r) {
     const auto pair = [](const std::string& a, const std::string& b) { return a + " / " + b; };
     const auto& p = paper->mot;
     const auto& k = kalman->mot;
-    out << "| " << fixed(100.0 * miss, 0) << " % | " << pair(fixed(p.clear.mota, 3), fixed(k.clear.mota, 3)) << " | "
-        << pair(fixed(p.clear.motp_m, 3), fixed(k.clear.motp_m, 3)) << " | "
+    out << "| " << fixedText(100.0 * miss, 0) << " % | " << pair(fixedText(p.clear.mota, 3), fixedText(k.clear.mota, 3)) << " | "
+        << pair(fixedText(p.clear.motp_m, 3), fixedText(k.clear.motp_m, 3)) << " | "
         << pair(std::to_string(p.clear.id_switches), std::to_string(k.clear.id_switches)) << " | "
         << pair(std::to_string(p.clear.fragmentations), std::to_string(k.clear.fragmentations)) << " | "
-        << pair(fixed(p.identity.idf1, 3), fixed(k.identity.idf1, 3)) << " | "
-        << pair(fixed(p.localization.mean_m, 3), fixed(k.localization.mean_m, 3)) << " | "
-        << pair(fixed(p.localization.p95_m, 3), fixed(k.localization.p95_m, 3)) << " | "
-        << pair(fixed(p.localization.max_m, 3), fixed(k.localization.max_m, 3)) << " |\n";
+        << pair(fixedText(p.identity.idf1, 3), fixedText(k.identity.idf1, 3)) << " | "
+        << pair(fixedText(p.localization.mean_m, 3), fixedText(k.localization.mean_m, 3)) << " | "
+        << pair(fixedText(p.localization.p95_m, 3), fixedText(k.localization.p95_m, 3)) << " | "
+        << pair(fixedText(p.localization.max_m, 3), fixedText(k.localization.max_m, 3)) << " |\n";
   }
   return out.str();
 }
@@ -585,39 +569,39 @@ std::string trackingJson(const TrackingEvalResult& r) {
   const TrackingEvalConfig& c = r.config;
   const ObservationStats& s = r.observations;
   const auto shares = [](const OverlayShares& o) {
-    return "{\"own\": " + json(o.own) + ", \"other\": " + json(o.other) + ", \"stray\": " + json(o.stray) +
-           ", \"none\": " + json(o.none) + "}";
+    return "{\"own\": " + jsonNumber(o.own) + ", \"other\": " + jsonNumber(o.other) + ", \"stray\": " + jsonNumber(o.stray) +
+           ", \"none\": " + jsonNumber(o.none) + "}";
   };
   const auto clearJson = [](const tracking::MotReport& report) {
     const auto& clear = report.clear;
-    return "\"mota\": " + json(clear.mota) + ", \"motp_m\": " + json(clear.motp_m) +
+    return "\"mota\": " + jsonNumber(clear.mota) + ", \"motp_m\": " + jsonNumber(clear.motp_m) +
            ", \"id_switches\": " + std::to_string(clear.id_switches) +
            ", \"fragmentations\": " + std::to_string(clear.fragmentations) + ", \"matches\": " + std::to_string(clear.matches) +
            ", \"misses\": " + std::to_string(clear.misses) + ", \"false_positives\": " + std::to_string(clear.false_positives) +
            ", \"truth_count\": " + std::to_string(clear.truth_count) +
            ", \"mostly_tracked\": " + std::to_string(clear.mostly_tracked) +
-           ", \"mostly_lost\": " + std::to_string(clear.mostly_lost) + ", \"idf1\": " + json(report.identity.idf1) +
+           ", \"mostly_lost\": " + std::to_string(clear.mostly_lost) + ", \"idf1\": " + jsonNumber(report.identity.idf1) +
            ", \"localization\": " + errorJson(report.localization);
   };
   std::ostringstream out;
   out << "{\n  \"scene\": \"" << r.scene << "\", \"moving_objects\": " << r.moving_objects << ", \"lidars\": " << r.lidars
-      << ", \"cameras\": " << r.cameras << ", \"frames\": " << c.frames << ", \"rate_hz\": " << json(c.rate_hz)
-      << ", \"seed\": " << c.seed << ",\n  \"box_jitter_px\": " << json(c.box_jitter_px)
-      << ", \"camera_latency_ms\": " << json(c.camera_latency_ms) << ", \"lidar_delivery_ms\": " << json(c.lidar_delivery_ms)
-      << ", \"merge_radius_m\": " << json(c.merge_radius_m) << ", \"near_range_m\": " << json(c.near_range_m)
-      << ", \"match_distance_m\": " << json(c.match_distance_m) << ", \"ground_removal\": " << (c.ground ? "true" : "false")
-      << ",\n  \"displacement\": {\"voxel_m\": " << json(c.displacement.voxel_m)
-      << ", \"neighbour_m\": " << json(c.displacement.neighbour_m) << ", \"min_neighbours\": " << c.displacement.min_neighbours
-      << ", \"min_points\": " << c.displacement.min_points << ", \"min_z_variance_m2\": " << json(c.displacement.min_z_variance_m2)
-      << "},\n  \"paper\": {\"rho_overlay_m\": " << json(c.paper.rho_overlay_m)
-      << ", \"rho_purecloud_m\": " << json(c.paper.rho_purecloud_m) << ", \"track_timeout_s\": " << json(c.paper.track_timeout_s)
-      << "},\n  \"kalman\": {\"gate_chi2\": " << json(c.kalman.gate_chi2) << ", \"acceleration_sigma\": "
-      << json(c.kalman.acceleration_sigma) << ", \"confirm_hits\": " << c.kalman.confirm_hits
-      << ", \"track_timeout_s\": " << json(c.kalman.track_timeout_s) << "},\n"
-      << "  \"observations\": {\"centroids_per_frame\": " << json(s.centroids_per_frame)
-      << ", \"observations_per_frame\": " << json(s.observations_per_frame) << ", \"object_recall\": " << json(s.object_recall)
-      << ", \"person_recall_near\": " << json(s.person_recall_near) << ", \"centroid_error_near\": "
-      << errorJson(s.centroid_error_near) << ", \"centroid_bias_to_lidar_m\": " << json(s.centroid_bias_to_lidar_m)
+      << ", \"cameras\": " << r.cameras << ", \"frames\": " << c.frames << ", \"rate_hz\": " << jsonNumber(c.rate_hz)
+      << ", \"seed\": " << c.seed << ",\n  \"box_jitter_px\": " << jsonNumber(c.box_jitter_px)
+      << ", \"camera_latency_ms\": " << jsonNumber(c.camera_latency_ms) << ", \"lidar_delivery_ms\": " << jsonNumber(c.lidar_delivery_ms)
+      << ", \"merge_radius_m\": " << jsonNumber(c.merge_radius_m) << ", \"near_range_m\": " << jsonNumber(c.near_range_m)
+      << ", \"match_distance_m\": " << jsonNumber(c.match_distance_m) << ", \"ground_removal\": " << (c.ground ? "true" : "false")
+      << ",\n  \"displacement\": {\"voxel_m\": " << jsonNumber(c.displacement.voxel_m)
+      << ", \"neighbour_m\": " << jsonNumber(c.displacement.neighbour_m) << ", \"min_neighbours\": " << c.displacement.min_neighbours
+      << ", \"min_points\": " << c.displacement.min_points << ", \"min_z_variance_m2\": " << jsonNumber(c.displacement.min_z_variance_m2)
+      << "},\n  \"paper\": {\"rho_overlay_m\": " << jsonNumber(c.paper.rho_overlay_m)
+      << ", \"rho_purecloud_m\": " << jsonNumber(c.paper.rho_purecloud_m) << ", \"track_timeout_s\": " << jsonNumber(c.paper.track_timeout_s)
+      << "},\n  \"kalman\": {\"gate_chi2\": " << jsonNumber(c.kalman.gate_chi2) << ", \"acceleration_sigma\": "
+      << jsonNumber(c.kalman.acceleration_sigma) << ", \"confirm_hits\": " << c.kalman.confirm_hits
+      << ", \"track_timeout_s\": " << jsonNumber(c.kalman.track_timeout_s) << "},\n"
+      << "  \"observations\": {\"centroids_per_frame\": " << jsonNumber(s.centroids_per_frame)
+      << ", \"observations_per_frame\": " << jsonNumber(s.observations_per_frame) << ", \"object_recall\": " << jsonNumber(s.object_recall)
+      << ", \"person_recall_near\": " << jsonNumber(s.person_recall_near) << ", \"centroid_error_near\": "
+      << errorJson(s.centroid_error_near) << ", \"centroid_bias_to_lidar_m\": " << jsonNumber(s.centroid_bias_to_lidar_m)
       << ", \"observation_error_near\": " << errorJson(s.observation_error_near) << ", \"observation_offset_by_label\": {"
       << [&] {
            std::string labels;
@@ -631,10 +615,10 @@ std::string trackingJson(const TrackingEvalResult& r) {
       << ", \"overlay_camera_centre\": " << shares(s.overlay_camera_centre) << "},\n  \"runs\": [";
   for (std::size_t i = 0; i < r.runs.size(); ++i) {
     const TrackingRun& run = r.runs[i];
-    out << (i == 0 ? "\n" : ",\n") << "    {\"association\": \"" << run.association << "\", \"miss_rate\": " << json(run.miss_rate)
+    out << (i == 0 ? "\n" : ",\n") << "    {\"association\": \"" << run.association << "\", \"miss_rate\": " << jsonNumber(run.miss_rate)
         << ", " << clearJson(run.mot) << ", \"near_people\": " << errorJson(run.near_people)
-        << ", \"tracks_confirmed\": " << run.tracks_confirmed << ", \"step_mean_ms\": " << json(run.step_mean_ms)
-        << ", \"step_max_ms\": " << json(run.step_max_ms) << ", \"tracks_created\": " << run.counters.tracks_created
+        << ", \"tracks_confirmed\": " << run.tracks_confirmed << ", \"step_mean_ms\": " << jsonNumber(run.step_mean_ms)
+        << ", \"step_max_ms\": " << jsonNumber(run.step_max_ms) << ", \"tracks_created\": " << run.counters.tracks_created
         << ", \"detections_fused\": " << run.counters.detections_fused
         << ", \"detection_frames_stale\": " << run.counters.detection_frames_stale << ",\n     \"by_label\": {";
     for (std::size_t j = 0; j < run.by_label.size(); ++j) {
@@ -644,11 +628,11 @@ std::string trackingJson(const TrackingEvalResult& r) {
     for (std::size_t j = 0; j < run.switches.size(); ++j) {
       const auto& o = run.switches[j];
       out << (j == 0 ? "" : ", ") << "{\"object\": " << o.object << ", \"label\": \"" << o.label
-          << "\", \"closest_approach_m\": " << json(o.closest_approach_m) << ", \"id_switches\": " << o.id_switches << "}";
+          << "\", \"closest_approach_m\": " << jsonNumber(o.closest_approach_m) << ", \"id_switches\": " << o.id_switches << "}";
     }
     out << "]}";
   }
-  out << "\n  ],\n  \"seconds\": " << json(r.seconds) << "\n}\n";
+  out << "\n  ],\n  \"seconds\": " << jsonNumber(r.seconds) << "\n}\n";
   return out.str();
 }
 
