@@ -14,6 +14,7 @@
 #include "common/sim/camera_truth.hpp"
 #include "common/sim/generators.hpp"
 #include "common/sim/raycaster.hpp"
+#include "common/tracking/centroid_merge.hpp"
 #include "tools/fogctl/report_text.hpp"
 #include "tools/fogctl/track_scoring.hpp"
 
@@ -22,59 +23,18 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-struct Centroid {
-  Eigen::Vector3d position;  // common frame
-  Eigen::Matrix3d covariance;
-  std::size_t points = 0;
-  std::size_t lidar = 0;
-};
 
 // One LiDAR instant with everything every run needs: the same for all of them.
 struct Instant {
   double time_s = 0.0;
   std::int64_t time_ns = 0;
   tracking::CloudFrame cloud;
-  std::vector<Centroid> centroids;
+  std::vector<tracking::DisplacementCentroid> centroids;  // every LiDAR's, common frame
+  std::vector<std::size_t> centroid_lidars;                 // the LiDAR of each centroid
   std::vector<std::vector<sim::TruthDetectionFrame>> detections;  // [miss rate][camera]
   std::vector<tracking::MotObject> truth;                        // every moving object
   std::vector<bool> near_person;                                 // per truth entry
 };
-
-// Single linkage on the ground plane: groups of centroids joined by gaps below `radius`; each group
-// is one observation at the mean of its centroids (each view counts once, however many points it
-// has, so views from opposite sides cancel their biases) with the pooled covariance of its points.
-std::vector<tracking::CloudObservation> mergeCentroids(const std::vector<Centroid>& centroids, double radius) {
-  const std::size_t n = centroids.size();
-  std::vector<std::size_t> parent(n);
-  std::iota(parent.begin(), parent.end(), 0);
-  const auto root = [&](std::size_t i) {
-    while (parent[i] != i) i = parent[i] = parent[parent[i]];
-    return i;
-  };
-  for (std::size_t i = 0; i < n; ++i) {
-    for (std::size_t j = i + 1; j < n; ++j) {
-      if ((centroids[i].position.head<2>() - centroids[j].position.head<2>()).norm() < radius) parent[root(i)] = root(j);
-    }
-  }
-  std::map<std::size_t, std::vector<std::size_t>> groups;  // by root: deterministic order
-  for (std::size_t i = 0; i < n; ++i) groups[root(i)].push_back(i);
-  std::vector<tracking::CloudObservation> out;
-  for (const auto& [r, members] : groups) {
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (const std::size_t i : members) mean += centroids[i].position;
-    mean /= static_cast<double>(members.size());
-    Eigen::Matrix3d pooled = Eigen::Matrix3d::Zero();
-    double weight = 0.0;
-    for (const std::size_t i : members) {
-      const Eigen::Vector3d d = centroids[i].position - mean;
-      const auto w = static_cast<double>(centroids[i].points);
-      pooled += w * (centroids[i].covariance + d * d.transpose());
-      weight += w;
-    }
-    out.push_back({mean, weight > 0.0 ? Eigen::Matrix3d(pooled / weight) : centroids[members.front()].covariance});
-  }
-  return out;
-}
 
 // The index of the entry of `objects` nearest to `xy` within `reach`, if any.
 std::optional<std::size_t> nearestWithin(const std::vector<tracking::MotObject>& objects, const Eigen::Vector2d& xy,
@@ -237,8 +197,8 @@ Expected<TrackingEvalResult> runTrackingEval(const TrackingEvalConfig& config) {
       const auto found = detectors[l].push(points);
       const Eigen::Matrix3d rotation = lidar.pose.rotation();
       for (const auto& c : found.centroids) {
-        instant.centroids.push_back(
-            {lidar.pose * c.position, rotation * c.covariance * rotation.transpose(), c.point_count, l});
+        instant.centroids.push_back({lidar.pose * c.position, rotation * c.covariance * rotation.transpose(), c.point_count});
+        instant.centroid_lidars.push_back(l);
       }
     }
     if (k == 0) continue;  // the detectors' first frame is all displacement
@@ -250,11 +210,7 @@ Expected<TrackingEvalResult> runTrackingEval(const TrackingEvalConfig& config) {
     // joining the views of one object (each extra view spawns a track).
     instant.cloud.time_ns = instant.time_ns;
     instant.cloud.sensor_position = lidar_mean;
-    if (config.merge_radius_m > 0.0) {
-      instant.cloud.observations = mergeCentroids(instant.centroids, config.merge_radius_m);
-    } else {
-      for (const auto& c : instant.centroids) instant.cloud.observations.push_back({c.position, c.covariance});
-    }
+    instant.cloud.observations = tracking::mergeCentroids(instant.centroids, config.merge_radius_m);
     for (const double miss : config.miss_rates) {
       sim::TruthReplayConfig replay;
       replay.miss_rate = miss;
@@ -306,8 +262,8 @@ Expected<TrackingEvalResult> runTrackingEval(const TrackingEvalConfig& config) {
         }
         for (std::size_t l = 0; l < scene.lidars.size(); ++l) {
           std::vector<Eigen::Vector2d> view;
-          for (const auto& c : instant.centroids) {
-            if (c.lidar == l) view.push_back(c.position.head<2>());
+          for (std::size_t c = 0; c < instant.centroids.size(); ++c) {
+            if (instant.centroid_lidars[c] == l) view.push_back(instant.centroids[c].position.head<2>());
           }
           const auto e = nearestDistance(view, xy, config.match_distance_m);
           if (!e) continue;
