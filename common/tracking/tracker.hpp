@@ -84,6 +84,8 @@ class Tracker {
   const TrackerConfig& config() const { return config_; }
   // When each camera's newest detection frame was captured (absent until one arrived).
   const std::map<std::string, std::int64_t>& lastCapture() const { return last_capture_ns_; }
+  // The cameras whose detections this tracker fuses.
+  const std::vector<camera::PinholeCamera>& cameras() const { return cameras_; }
 
  private:
   Tracker(TrackerConfig config, std::vector<camera::PinholeCamera> cameras);

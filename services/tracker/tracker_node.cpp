@@ -57,7 +57,8 @@ TrackerNode::TrackerNode(tracking::Tracker tracker, double alpha, NowNs now, Pub
       alpha_(alpha),
       now_(std::move(now)),
       publish_(std::move(publish)),
-      centroids_(std::move(centroids)) {}
+      centroids_(std::move(centroids)),
+      started_ns_(now_()) {}
 
 std::vector<tracking::StepStats> TrackerNode::offer(const std::vector<tracking::CloudFrame>& frames, std::int64_t now_ns) {
   std::vector<tracking::StepStats> steps;
@@ -77,6 +78,9 @@ void TrackerNode::addDetections(tracking::DetectionFrame frame) {
 
 void TrackerNode::addGlobalMap(const GlobalMapMessage& global) {
   if (global.late) return;  // a revision of an epoch already offered, or a stale epoch
+  // No sensor time: no node contributed data to the epoch (all failed or missing). There is
+  // nothing to observe, and fusing it at time 0 would put the tracker's clock 56 years back.
+  if (global.header.sensor_time_ns <= 0) return;
   const tracking::CloudFrame frame = observationsOf(global, alpha_);
   std::unique_lock lock(mutex_);
   const auto started = std::chrono::steady_clock::now();
@@ -117,7 +121,12 @@ void TrackerNode::publishFused(std::unique_lock<std::mutex>& lock, std::vector<t
   if (centroids_) report.centroids = centroids_->counters();
   report.tracks = snapshot.tracks;
   const std::int64_t now = now_();
-  for (const auto& [camera, captured] : tracker_.lastCapture()) report.camera_staleness_s[camera] = static_cast<double>(now - captured) * 1e-9;
+  // Seconds since each camera's newest capture; a camera not heard from yet counts from the start.
+  for (const auto& camera : tracker_.cameras()) {
+    const auto captured = tracker_.lastCapture().find(camera.name);
+    const std::int64_t since = captured == tracker_.lastCapture().end() ? started_ns_ : captured->second;
+    report.camera_staleness_s[camera.name] = static_cast<double>(now - since) * 1e-9;
+  }
   report.steps = std::move(steps);
   lock.unlock();
   snapshot.published_time_ns = now;

@@ -49,7 +49,7 @@ struct FusionReport {
   std::vector<tracking::StepStats> steps;
   tracking::TrackerCounters counters;
   std::vector<tracking::Track> tracks;
-  std::map<std::string, double> camera_staleness_s;  // seconds since each camera's newest capture
+  std::map<std::string, double> camera_staleness_s;  // per camera: seconds since its newest capture (or since the start)
   std::optional<CentroidCounters> centroids;          // with centroid input
 };
 
@@ -93,6 +93,7 @@ class TrackerNode {
   NowNs now_;
   Publish publish_;
   std::optional<CentroidCollector> centroids_;
+  std::int64_t started_ns_;  // when the node started: the staleness of a camera not heard from yet
 };
 
 }  // namespace fogmap

@@ -128,6 +128,44 @@ TEST(TrackerNode, LateRevisionsAreNotFusedTwice) {
   EXPECT_EQ(node.counters().steps, 1U);
 }
 
+TEST(TrackerNode, AGlobalMapWithoutSensorTimeHasNoDataAndIsNotFused) {
+  auto tracker = tracking::Tracker::create({}, {});
+  ASSERT_TRUE(tracker.ok());
+  std::vector<double> end_to_end;
+  TrackerNode node(std::move(*tracker), 1.5, [] { return std::int64_t{1000} * kMs; },
+                   [&](const TrackSnapshot&, const FusionReport& report) { end_to_end.push_back(report.end_to_end_seconds); });
+  // Every node failed the epoch: the root publishes it with sensor time 0 (unknown).
+  node.addGlobalMap(globalMapWith(0, {{5, 0, 0.5}}));
+  EXPECT_TRUE(end_to_end.empty());
+  EXPECT_EQ(node.counters().steps, 0U);
+  node.addGlobalMap(globalMapWith(900 * kMs, {{5, 0, 0.5}}));
+  ASSERT_EQ(end_to_end.size(), 1U);
+  EXPECT_DOUBLE_EQ(end_to_end.front(), 0.1);
+}
+
+TEST(TrackerNode, ACameraNotHeardFromIsStaleSinceTheStartAndFreshOnceItsFramesCome) {
+  auto tracker = tracking::Tracker::create({}, {frontCamera()});
+  ASSERT_TRUE(tracker.ok());
+  std::atomic<std::int64_t> now{1000 * kMs};
+  std::vector<std::map<std::string, double>> staleness;
+  TrackerNode node(std::move(*tracker), 1.5, [&] { return now.load(); },
+                   [&](const TrackSnapshot&, const FusionReport& report) { staleness.push_back(report.camera_staleness_s); });
+  // The LiDAR frame at 2.9 s waits for the camera at most max_detection_wait_s (0.25 s).
+  now = 3000 * kMs;
+  node.addGlobalMap(globalMapWith(2900 * kMs, {{5, 0, 0.5}}));
+  EXPECT_TRUE(staleness.empty());
+  now = 3200 * kMs;
+  node.tick();
+  ASSERT_EQ(staleness.size(), 1U);
+  EXPECT_NEAR(staleness.back().at("cam-1"), 2.2, 1e-9) << "stale since the node started at 1 s";
+  // The camera's first frame, captured at 3.25 s, arrives; the next LiDAR frame fuses with it.
+  node.addDetections(tracking::DetectionFrame{"cam-1", 3250 * kMs, {}});
+  now = 3300 * kMs;
+  node.addGlobalMap(globalMapWith(3200 * kMs, {{5, 0, 0.5}}));
+  ASSERT_EQ(staleness.size(), 2U);
+  EXPECT_NEAR(staleness.back().at("cam-1"), 0.05, 1e-9);
+}
+
 // A tracker core behind its adapter on a loopback server; with `edges`, its input is their
 // centroids (epochs of 100 ms, deadline 80 ms).
 class TrackerServer {
