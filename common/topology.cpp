@@ -432,7 +432,7 @@ Expected<CameraNodeConfig> parseCamera(const YAML::Node& node, const std::string
 }
 
 Expected<TrackerNodeConfig> parseTracker(const YAML::Node& node, const std::string& where) {
-  if (const Status st = checkSection(node, where, {"input", "centroid_merge_m", "association", "eps_sync_s", "rho_overlay_m", "rho_purecloud_m", "gate_chi2",
+  if (const Status st = checkSection(node, where, {"input", "centroid_merge_m", "visible_side_max_radius_m", "association", "eps_sync_s", "rho_overlay_m", "rho_purecloud_m", "gate_chi2",
                                                     "acceleration_sigma", "initial_speed_sigma", "min_measurement_sigma_m",
                                                     "confirm_hits", "tentative_timeout_s", "track_timeout_s",
                                                     "max_buffered_frames", "max_detection_wait_s"});
@@ -453,6 +453,15 @@ Expected<TrackerNodeConfig> parseTracker(const YAML::Node& node, const std::stri
       return bad(where + ".centroid_merge_m", "must be in [0, 100] metres (0: every centroid its own observation)");
     }
     t.centroid_merge_m = *merge;
+  }
+  if (node["visible_side_max_radius_m"]) {
+    if (t.input != TrackerInput::kCentroids) return bad(where + ".visible_side_max_radius_m", "goes with input: centroids only");
+    const auto radius = scalar<double>(node, "visible_side_max_radius_m", where, t.visible_side_max_radius_m);
+    if (!radius) return radius.error();
+    if (!(*radius >= 0.0 && *radius <= 10.0)) {
+      return bad(where + ".visible_side_max_radius_m", "must be in [0, 10] metres (0: centroids left on the visible side)");
+    }
+    t.visible_side_max_radius_m = *radius;
   }
   auto& c = t.tracking;
   const auto association = scalar<std::string>(node, "association", where, tracking::associationName(c.association));
@@ -1249,7 +1258,8 @@ std::string toYaml(const TopologyConfig& t) {
       out << YAML::Key << "tracker" << YAML::Value << YAML::BeginMap;
       if (n.tracker->input == TrackerInput::kCentroids) {
         out << YAML::Key << "input" << YAML::Value << trackerInputName(n.tracker->input) << YAML::Key << "centroid_merge_m"
-            << YAML::Value << n.tracker->centroid_merge_m;
+            << YAML::Value << n.tracker->centroid_merge_m << YAML::Key << "visible_side_max_radius_m" << YAML::Value
+            << n.tracker->visible_side_max_radius_m;
       }
       out << YAML::Key << "association" << YAML::Value
           << tracking::associationName(c.association) << YAML::Key << "eps_sync_s" << YAML::Value << c.eps_sync_s

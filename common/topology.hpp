@@ -17,6 +17,7 @@
 #include "common/preprocess.hpp"
 #include "common/cloud_io.hpp"
 #include "common/status.hpp"
+#include "common/tracking/centroid_merge.hpp"
 #include "common/tracking/displacement_config.hpp"
 #include "common/tracking/tracker_config.hpp"
 
@@ -114,6 +115,10 @@ struct TrackerNodeConfig {
   // Input centroids: centroids of one epoch (from any edges) closer than this on the ground are one
   // observation (common/tracking/centroid_merge.hpp); 0 keeps every centroid. Only with centroids.
   double centroid_merge_m = 1.0;
+  // Input centroids: each edge's centroids narrower than this radius are placed on the object's
+  // axis instead of the side its LiDAR sees (tracking::visibleSideCorrected: people and poles; the
+  // merge still groups them as seen); 0 leaves them as Algorithm 1 gives them. Only with centroids.
+  double visible_side_max_radius_m = tracking::kVisibleSideMaxRadiusM;
 };
 
 // An edge's displacement centroids (`displacement:`, DESIGN.md 2.4): the edge runs the displacement

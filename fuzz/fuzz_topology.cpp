@@ -76,7 +76,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (a.tracker) {
       fuzz::check(a.tracker->tracking.association == b.tracker->tracking.association &&
                       a.tracker->tracking.confirm_hits == b.tracker->tracking.confirm_hits &&
-                      a.tracker->input == b.tracker->input && close(a.tracker->centroid_merge_m, b.tracker->centroid_merge_m),
+                      a.tracker->input == b.tracker->input && close(a.tracker->centroid_merge_m, b.tracker->centroid_merge_m) &&
+                      close(a.tracker->visible_side_max_radius_m, b.tracker->visible_side_max_radius_m),
                   "a tracker's settings survive YAML");
     }
     if (a.displacement) {

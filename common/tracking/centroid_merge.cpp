@@ -1,11 +1,14 @@
 #include "common/tracking/centroid_merge.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <numeric>
 
 namespace fogmap::tracking {
 
-std::vector<CloudObservation> mergeCentroids(std::span<const DisplacementCentroid> centroids, double radius_m) {
+std::vector<CloudObservation> mergeCentroids(std::span<const DisplacementCentroid> centroids, double radius_m,
+                                             std::span<const DisplacementCentroid> located) {
   const std::size_t n = centroids.size();
   std::vector<std::size_t> parent(n);
   std::iota(parent.begin(), parent.end(), 0);
@@ -29,23 +32,40 @@ std::vector<CloudObservation> mergeCentroids(std::span<const DisplacementCentroi
     }
     groups[group_of_root[r]].push_back(i);
   }
+  // Grouped as seen, placed as located.
+  const std::span<const DisplacementCentroid> place = located.size() == n ? located : centroids;
   std::vector<CloudObservation> out;
   out.reserve(groups.size());
   for (const auto& members : groups) {
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (const std::size_t i : members) mean += centroids[i].position;
+    for (const std::size_t i : members) mean += place[i].position;
     mean /= static_cast<double>(members.size());
     Eigen::Matrix3d pooled = Eigen::Matrix3d::Zero();
     double weight = 0.0;
     for (const std::size_t i : members) {
-      const Eigen::Vector3d d = centroids[i].position - mean;
-      const auto w = static_cast<double>(centroids[i].point_count);
-      pooled += w * (centroids[i].covariance + d * d.transpose());
+      const Eigen::Vector3d d = place[i].position - mean;
+      const auto w = static_cast<double>(place[i].point_count);
+      pooled += w * (place[i].covariance + d * d.transpose());
       weight += w;
     }
-    out.push_back({mean, weight > 0.0 ? Eigen::Matrix3d(pooled / weight) : centroids[members.front()].covariance});
+    out.push_back({mean, weight > 0.0 ? Eigen::Matrix3d(pooled / weight) : place[members.front()].covariance});
   }
   return out;
+}
+
+DisplacementCentroid visibleSideCorrected(const DisplacementCentroid& centroid, const Eigen::Vector3d& sensor,
+                                          double max_radius_m) {
+  const Eigen::Vector2d sight = centroid.position.head<2>() - sensor.head<2>();
+  const double distance = sight.norm();
+  if (max_radius_m <= 0.0 || distance <= 0.0 || !std::isfinite(distance)) return centroid;
+  const Eigen::Vector2d along = sight / distance;
+  const Eigen::Vector2d across(-along.y(), along.x());
+  const double variance_across = std::max(0.0, across.dot(centroid.covariance.topLeftCorner<2, 2>() * across));
+  const double radius = std::sqrt(3.0 * variance_across);
+  if (!(radius <= max_radius_m)) return centroid;
+  DisplacementCentroid corrected = centroid;
+  corrected.position.head<2>() += along * (M_PI / 4.0 * radius);
+  return corrected;
 }
 
 }  // namespace fogmap::tracking

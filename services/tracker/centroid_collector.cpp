@@ -28,17 +28,32 @@ CentroidCollector::CentroidCollector(CentroidCollectorConfig config, EpochSchedu
   config_.max_open_epochs = std::max<std::size_t>(config_.max_open_epochs, 1);
 }
 
+CentroidCollectorConfig centroidCollectorConfigFor(const TopologyConfig& topology, const NodeConfig& tracker) {
+  CentroidCollectorConfig config;
+  for (const NodeConfig* e : topology.centroidEdgesOf(tracker.name)) config.edges.push_back(e->name);
+  if (tracker.tracker) {
+    config.merge_radius_m = tracker.tracker->centroid_merge_m;
+    config.visible_side_max_radius_m = tracker.tracker->visible_side_max_radius_m;
+  }
+  config.window_periods = topology.admission.window_periods;
+  return config;
+}
+
 tracking::CloudFrame CentroidCollector::merged(const std::vector<tracking::CentroidFrame>& frames) const {
   tracking::CloudFrame out;
   if (!frames.empty()) out.time_ns = frames.front().time_ns;
   std::vector<tracking::DisplacementCentroid> centroids;
+  std::vector<tracking::DisplacementCentroid> located;  // each moved to its object's axis (narrow ones)
   for (const auto& f : frames) {
     out.time_ns = std::min(out.time_ns, f.time_ns);
     out.sensor_position += f.sensor_position;
-    centroids.insert(centroids.end(), f.centroids.begin(), f.centroids.end());
+    for (const auto& c : f.centroids) {
+      centroids.push_back(c);
+      located.push_back(tracking::visibleSideCorrected(c, f.sensor_position, config_.visible_side_max_radius_m));
+    }
   }
   if (!frames.empty()) out.sensor_position /= static_cast<double>(frames.size());
-  out.observations = tracking::mergeCentroids(centroids, config_.merge_radius_m);
+  out.observations = tracking::mergeCentroids(centroids, config_.merge_radius_m, located);
   return out;
 }
 

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "common/epochs.hpp"
+#include "common/topology.hpp"
 #include "common/tracking/track.hpp"
 
 namespace fogmap {
@@ -33,7 +34,14 @@ struct CentroidCollectorConfig {
   // or a forged epoch would hold back every honest frame); topology admission.window_periods.
   double window_periods = 3.0;
   std::size_t max_open_epochs = 16;  // beyond, the oldest open epoch is emitted at once
+  // Topology visible_side_max_radius_m: each frame's centroids this narrow are placed on the
+  // object's axis, away from the side its LiDAR (the frame's sensor position) sees; 0: off.
+  double visible_side_max_radius_m = 0.0;
 };
+
+// The collector of tracker node `tracker` (input centroids) in `topology`: the edges that send to
+// it, its centroid_merge_m and visible_side_max_radius_m, the admission window.
+CentroidCollectorConfig centroidCollectorConfigFor(const TopologyConfig& topology, const NodeConfig& tracker);
 
 // What became of a centroid frame.
 enum class CentroidVerdict {
@@ -66,7 +74,8 @@ class CentroidCollector {
   std::vector<tracking::CloudFrame> expire(std::int64_t now_ns);
 
   // One epoch's LiDAR frame: the earliest sensor time of its frames, the mean of their sensors'
-  // positions, and their centroids merged within merge_radius_m.
+  // positions, and their centroids merged within merge_radius_m (grouped as seen, placed on the
+  // axis of narrow objects).
   tracking::CloudFrame merged(const std::vector<tracking::CentroidFrame>& frames) const;
 
   const CentroidCounters& counters() const { return counters_; }

@@ -109,8 +109,7 @@ int run(const Args& args, const sigset_t& stop_signals) {
       std::cerr << "tracker " << self->name << ": " << schedule.error().message << "\n";
       return kBadConfig;
     }
-    collector.emplace(CentroidCollectorConfig{edge_names, self->tracker->centroid_merge_m, topology->admission.window_periods},
-                      *schedule);
+    collector.emplace(centroidCollectorConfigFor(*topology, *self), *schedule);
   }
 
   std::unique_ptr<TrackerService> service;

@@ -3,9 +3,11 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <queue>
 #include <random>
+#include <span>
 #include <vector>
 
 #include "common/tracking/centroid_merge.hpp"
@@ -85,6 +87,71 @@ TEST(MergeCentroids, GroupsAreTheConnectedComponentsOfGapsBelowTheRadius) {
       EXPECT_LT((merged[k].position - means[k]).norm(), 1e-9) << "seed " << seed << ", group " << k;
     }
   }
+}
+
+TEST(MergeCentroids, LocatedCentroidsPlaceTheObservationsOfTheGroupsFoundAsSeen) {
+  // Seen: two people 1.2 m apart (two groups) and a third seen twice, 0.5 m apart (one group).
+  const std::vector<DisplacementCentroid> seen{centroidAt({0.0, 0.0, 1.0}, 0.01, 10), centroidAt({1.2, 0.0, 1.0}, 0.01, 10),
+                                               centroidAt({5.0, 0.0, 1.0}, 0.01, 10), centroidAt({5.5, 0.0, 1.0}, 0.03, 30)};
+  // Located: the first two moved within 0.2 m of each other, the third's views onto 5.3 and 5.2.
+  const std::vector<DisplacementCentroid> located{centroidAt({0.5, 0.0, 1.0}, 0.01, 10), centroidAt({0.7, 0.0, 1.0}, 0.01, 10),
+                                                  centroidAt({5.3, 0.0, 1.0}, 0.01, 10), centroidAt({5.2, 0.0, 1.0}, 0.03, 30)};
+  const auto merged = mergeCentroids(seen, 1.0, located);
+  ASSERT_EQ(merged.size(), 3U) << "grouped as seen";
+  EXPECT_LT((merged[0].position - Eigen::Vector3d(0.5, 0.0, 1.0)).norm(), 1e-12);
+  EXPECT_LT((merged[1].position - Eigen::Vector3d(0.7, 0.0, 1.0)).norm(), 1e-12);
+  EXPECT_LT((merged[2].position - Eigen::Vector3d(5.25, 0.0, 1.0)).norm(), 1e-12) << "placed as located";
+  // Pooled over the located views: (10 (0.01 I + d d^T) + 30 (0.03 I + d d^T)) / 40, d = 0.05 m in x.
+  Eigen::Matrix3d expected = Eigen::Matrix3d::Identity() * ((10 * 0.01 + 30 * 0.03) / 40.0);
+  expected(0, 0) += 0.05 * 0.05;
+  EXPECT_LT((merged[2].covariance - expected).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_EQ(mergeCentroids(seen, 1.0, std::span<const DisplacementCentroid>(located).first(2)).size(), 3U)
+      << "located of another length is ignored";
+}
+
+// The points a LiDAR at `sensor` sees of an upright cylinder of radius r at `axis`: its near half,
+// evenly spread across the line of sight (a far object: equal azimuth steps are equal lateral
+// steps), at heights 0.2 to 1.6 m. Summarised as the displacement detector does.
+DisplacementCentroid seenCylinder(const Eigen::Vector2d& sensor, const Eigen::Vector2d& axis, double r) {
+  const Eigen::Vector2d along = (axis - sensor).normalized();
+  const Eigen::Vector2d across(-along.y(), along.x());
+  std::vector<Eigen::Vector3d> points;
+  for (int i = 0; i < 201; ++i) {
+    const double lateral = -r + 2.0 * r * i / 200.0;
+    const Eigen::Vector2d p = axis + lateral * across - std::sqrt(std::max(0.0, r * r - lateral * lateral)) * along;
+    for (int k = 0; k < 8; ++k) points.emplace_back(p.x(), p.y(), 0.2 + 0.2 * k);
+  }
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : points) mean += p;
+  mean /= static_cast<double>(points.size());
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+  for (const auto& p : points) covariance += (p - mean) * (p - mean).transpose();
+  covariance /= static_cast<double>(points.size() - 1);
+  return {mean, covariance, points.size()};
+}
+
+TEST(VisibleSideCorrected, APersonsCentroidMovesFromItsVisibleSideToItsAxis) {
+  const Eigen::Vector2d axis(7.0, -3.0);
+  for (const Eigen::Vector2d& sensor : {Eigen::Vector2d(0, 0), Eigen::Vector2d(20, 20), Eigen::Vector2d(7, -25)}) {
+    const DisplacementCentroid seen = seenCylinder(sensor, axis, 0.25);
+    // Analytic: the mean of the visible half lies pi r / 4 = 0.196 m nearer the sensor.
+    EXPECT_NEAR((seen.position.head<2>() - axis).norm(), M_PI / 4.0 * 0.25, 0.005);
+    const DisplacementCentroid corrected = visibleSideCorrected(seen, Eigen::Vector3d(sensor.x(), sensor.y(), 1.8), 0.4);
+    EXPECT_LT((corrected.position.head<2>() - axis).norm(), 0.01) << "sensor at " << sensor.transpose();
+    EXPECT_EQ(corrected.position.z(), seen.position.z());
+    EXPECT_EQ(corrected.covariance, seen.covariance);
+    EXPECT_EQ(corrected.point_count, seen.point_count);
+  }
+}
+
+TEST(VisibleSideCorrected, WideClustersZeroRadiusAndACentroidAtTheSensorAreLeftAsTheyAre) {
+  const Eigen::Vector3d sensor(0, 0, 1.8);
+  // A car's face, 1.8 m wide, 10 m ahead: too wide to be taken for a cylinder.
+  const DisplacementCentroid face = seenCylinder({0, 0}, {10, 0}, 0.9);
+  EXPECT_EQ(visibleSideCorrected(face, sensor, 0.4).position, face.position);
+  const DisplacementCentroid person = seenCylinder({0, 0}, {10, 0}, 0.25);
+  EXPECT_EQ(visibleSideCorrected(person, sensor, 0.0).position, person.position) << "0: off";
+  EXPECT_EQ(visibleSideCorrected(person, person.position, 0.4).position, person.position) << "no line of sight";
 }
 
 }  // namespace

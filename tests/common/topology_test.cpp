@@ -71,6 +71,7 @@ void expectSameTopology(const TopologyConfig& a, const TopologyConfig& b) {
     if (x.tracker) {
       EXPECT_EQ(x.tracker->input, y.tracker->input);
       EXPECT_DOUBLE_EQ(x.tracker->centroid_merge_m, y.tracker->centroid_merge_m);
+      EXPECT_DOUBLE_EQ(x.tracker->visible_side_max_radius_m, y.tracker->visible_side_max_radius_m);
       EXPECT_EQ(x.tracker->tracking.association, y.tracker->tracking.association);
     }
     ASSERT_EQ(x.displacement.has_value(), y.displacement.has_value());
@@ -846,6 +847,10 @@ TEST(Topology, DisplacementAndCentroidInputMistakesAreNamed) {
                      {"nodes[3].tracker.centroid_merge_m", "[0, 100]"});
   expectRejectedWith(topologyYaml("", "", fusionNodes("", ", tracker: {centroid_merge_m: 1}")),
                      {"nodes[2].tracker.centroid_merge_m", "input: centroids"});
+  expectRejectedWith(topologyYaml("", "", centroidNodes("{tracker: fusion}", "{input: centroids, visible_side_max_radius_m: 11}")),
+                     {"nodes[3].tracker.visible_side_max_radius_m", "[0, 10]"});
+  expectRejectedWith(topologyYaml("", "", fusionNodes("", ", tracker: {visible_side_max_radius_m: 0.3}")),
+                     {"nodes[2].tracker.visible_side_max_radius_m", "input: centroids"});
   expectRejectedWith(topologyYaml("", "", kNodes + "  - {name: t, id: 3, role: tracker, port: 3, metrics_port: 2, "
                                                    "displacement: {tracker: t}, tracker: {input: centroids}}\n"),
                      {"nodes[2] (t).displacement", "only edges"});

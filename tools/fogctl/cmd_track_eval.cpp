@@ -12,7 +12,7 @@ namespace fogmap::cli {
 
 int runTrackEval(int argc, char** argv) {
   const std::string who = "fogctl track-eval";
-  const auto args = Args::parse(argc, argv, 2, {"people", "vehicles", "lidars", "cameras", "frames", "seed", "json"}, {});
+  const auto args = Args::parse(argc, argv, 2, {"people", "vehicles", "lidars", "cameras", "frames", "seed", "visible-side-radius", "merge-radius", "json"}, {});
   if (!args) return fail(args.error(), who);
   TrackingEvalConfig config;
   const auto count = [&](const std::string& flag, int fallback) -> Expected<int> {
@@ -31,6 +31,16 @@ int runTrackEval(int argc, char** argv) {
   const auto seed = args->getInt("seed", static_cast<long>(config.seed));
   if (!seed || *seed < 0) return fail(invalidArgument("--seed must be a non-negative integer"), who);
   config.seed = static_cast<std::uint64_t>(*seed);
+  const auto radius = args->getDouble("visible-side-radius", config.visible_side_max_radius_m);
+  if (!radius || !(*radius >= 0.0 && *radius <= 10.0)) {
+    return fail(invalidArgument("--visible-side-radius must be a radius in metres from 0 to 10"), who);
+  }
+  config.visible_side_max_radius_m = *radius;
+  const auto merge = args->getDouble("merge-radius", config.merge_radius_m);
+  if (!merge || !(*merge >= 0.0 && *merge <= 10.0)) {
+    return fail(invalidArgument("--merge-radius must be a distance in metres from 0 to 10"), who);
+  }
+  config.merge_radius_m = *merge;
 
   auto result = runTrackingEval(config);
   if (!result) return fail(result.error(), "fogctl");  // its errors say "track-eval: ..." already

@@ -31,6 +31,7 @@ struct Instant {
   tracking::CloudFrame cloud;
   std::vector<tracking::DisplacementCentroid> centroids;  // every LiDAR's, common frame
   std::vector<std::size_t> centroid_lidars;                 // the LiDAR of each centroid
+  std::vector<tracking::DisplacementCentroid> located;       // each centroid moved to its object's axis (narrow ones)
   std::vector<std::vector<sim::TruthDetectionFrame>> detections;  // [miss rate][camera]
   std::vector<tracking::MotObject> truth;                        // every moving object
   std::vector<bool> near_person;                                 // per truth entry
@@ -198,6 +199,8 @@ Expected<TrackingEvalResult> runTrackingEval(const TrackingEvalConfig& config) {
       const Eigen::Matrix3d rotation = lidar.pose.rotation();
       for (const auto& c : found.centroids) {
         instant.centroids.push_back({lidar.pose * c.position, rotation * c.covariance * rotation.transpose(), c.point_count});
+        instant.located.push_back(
+            tracking::visibleSideCorrected(instant.centroids.back(), lidar.pose.translation(), config.visible_side_max_radius_m));
         instant.centroid_lidars.push_back(l);
       }
     }
@@ -210,7 +213,7 @@ Expected<TrackingEvalResult> runTrackingEval(const TrackingEvalConfig& config) {
     // joining the views of one object (each extra view spawns a track).
     instant.cloud.time_ns = instant.time_ns;
     instant.cloud.sensor_position = lidar_mean;
-    instant.cloud.observations = tracking::mergeCentroids(instant.centroids, config.merge_radius_m);
+    instant.cloud.observations = tracking::mergeCentroids(instant.centroids, config.merge_radius_m, instant.located);
     for (const double miss : config.miss_rates) {
       sim::TruthReplayConfig replay;
       replay.miss_rate = miss;
@@ -456,8 +459,12 @@ std::string trackingTableMarkdown(const TrackingEvalResult& r) {
   out << "Displacement: voxel " << fixedText(c.displacement.voxel_m, 2) << " m, neighbour " << fixedText(c.displacement.neighbour_m, 2)
       << " m, " << c.displacement.min_neighbours << " neighbours, " << c.displacement.min_points
       << " points, z variance > " << fixedText(c.displacement.min_z_variance_m2, 3) << " m^2"
-      << (c.ground ? ", after the edge's ground removal" : ", on raw frames") << "; centroids of one instant merged within "
-      << fixedText(c.merge_radius_m, 2) << " m into one LiDAR frame.\n";
+      << (c.ground ? ", after the edge's ground removal" : ", on raw frames") << "; "
+      << (c.visible_side_max_radius_m > 0.0
+              ? "centroids narrower than " + fixedText(c.visible_side_max_radius_m, 2) + " m moved from the visible side to the axis, "
+              : std::string("centroids left on the visible side, "))
+      << "those of one instant merged within " << fixedText(c.merge_radius_m, 2)
+      << " m into one LiDAR frame.\n";
   out << "Cameras: truth replay, box jitter " << fixedText(c.box_jitter_px, 1) << " px, latency " << fixedText(c.camera_latency_ms, 0)
       << " ms; LiDAR frames delivered " << fixedText(c.lidar_delivery_ms, 0) << " ms after their stamp.\n";
   out << "Paper association: rho_overlay " << fixedText(c.paper.rho_overlay_m, 2) << " m, rho_purecloud "

@@ -15,6 +15,7 @@
 
 #include "common/preprocess.hpp"
 #include "common/status.hpp"
+#include "common/tracking/centroid_merge.hpp"
 #include "common/tracking/displacement.hpp"
 #include "common/tracking/mot_metrics.hpp"
 #include "common/tracking/tracker.hpp"
@@ -47,6 +48,10 @@ struct TrackingEvalConfig {
   // one object seen by several LiDARs must be one measurement, and the mean of views from
   // different sides cancels each view's bias towards its LiDAR. 0: every centroid is kept.
   double merge_radius_m = 1.0;
+  // Each LiDAR's centroids narrower than this radius are placed on the object's axis instead of
+  // the side it sees (tracking::visibleSideCorrected; the merge still groups them as seen); 0: as
+  // Algorithm 1 gives them.
+  double visible_side_max_radius_m = tracking::kVisibleSideMaxRadiusM;
   double near_range_m = 15.0;   // people this close to their nearest LiDAR are scored apart
   double match_distance_m = 1.0;  // the CLEAR MOT gate
   // The edge's ground removal before the displacement detector (none: the raw frame, as the paper).

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <string>
@@ -64,6 +65,28 @@ TEST(CentroidCollector, AnEpochIsOneLidarFrameOnceEveryEdgeSentIt) {
   EXPECT_EQ(c.counters().epochs_emitted, 1U);
   EXPECT_EQ(c.counters().epochs_partial, 0U);
   EXPECT_EQ(c.openEpochs(), 0U);
+}
+
+TEST(CentroidCollector, NarrowCentroidsArePlacedOnTheirAxisSeenFromTheirOwnEdgesLidar) {
+  CentroidCollectorConfig config;
+  config.edges = {"a", "b"};
+  config.visible_side_max_radius_m = 0.4;
+  CentroidCollector c(config, schedule());
+  const std::int64_t now = startOf(kEpoch) + 10 * kMs;
+  // A person of radius 0.3 m at (5, 0): LiDAR a at (0, 0) sees its near side, LiDAR b at (5, 10)
+  // its near side from the other direction. Spread across the line of sight: r^2 / 3.
+  const double r = 0.3;
+  const double offset = M_PI / 4.0 * r;
+  auto fa = frameOf("a", kEpoch, {{5.0 - offset, 0.0, 1.0}}, 2 * kMs, {0, 0, 1.8});
+  fa.centroids[0].covariance = Eigen::Vector3d(0.01, r * r / 3.0, 0.2).asDiagonal();
+  auto fb = frameOf("b", kEpoch, {{5.0, offset, 1.0}}, 2 * kMs, {5, 10, 1.8});
+  fb.centroids[0].covariance = Eigen::Vector3d(r * r / 3.0, 0.01, 0.2).asDiagonal();
+  EXPECT_TRUE(c.add(fa, now).ready.empty());
+  const auto added = c.add(fb, now);
+  ASSERT_EQ(added.ready.size(), 1U);
+  ASSERT_EQ(added.ready[0].observations.size(), 1U);
+  EXPECT_LT((added.ready[0].observations[0].position.head<2>() - Eigen::Vector2d(5.0, 0.0)).norm(), 1e-9)
+      << "each view moved to the axis, seen from its own LiDAR";
 }
 
 TEST(CentroidCollector, AnEdgeThatSentALaterEpochHasSpokenForTheEarlierOnes) {

@@ -122,8 +122,6 @@ TEST(CentroidTracking, EdgesStreamingCentroidsOfAMovingSceneGiveTracksThatFollow
     camera_names.push_back(c->name);
   }
   ASSERT_EQ(cameras.size(), 2U);
-  std::vector<std::string> edge_names;
-  for (const NodeConfig* e : edge_nodes) edge_names.push_back(e->name);
   auto tracker = tracking::Tracker::create(tracker_node.tracker->tracking, cameras);
   ASSERT_TRUE(tracker.ok()) << tracker.error().message;
   Arrivals arrivals;
@@ -134,9 +132,7 @@ TEST(CentroidTracking, EdgesStreamingCentroidsOfAMovingSceneGiveTracksThatFollow
         service->publish(snapshot);
         arrivals.published(snapshot);
       },
-      CentroidCollector(CentroidCollectorConfig{edge_names, tracker_node.tracker->centroid_merge_m,
-                                                topology.admission.window_periods},
-                        *epochs));
+      CentroidCollector(centroidCollectorConfigFor(topology, tracker_node), *epochs));
   TrackerServiceHooks hooks;
   hooks.on_detections = [&](const std::string&, std::size_t) { arrivals.detections(); };
   hooks.on_centroids = [&](const std::string&, std::size_t) { arrivals.centroids(); };
@@ -281,11 +277,12 @@ TEST(CentroidTracking, EdgesStreamingCentroidsOfAMovingSceneGiveTracksThatFollow
               covered, truths, coverage, mean_error, near_error, near_errors.size(), labelled, stray_tracks,
               confirmed_tracks, mean_ms, ms[ms.size() * 95 / 100], ms.back(), ms.size());
   EXPECT_GE(coverage, 0.8);
-  // A displacement centroid is the mean of the side its LiDAR sees: about 0.18 m towards it on a
-  // person near it, more on a far one seen by two or three rings (docs/tracking.md).
-  EXPECT_LT(mean_error, 0.45);
+  // A displacement centroid is the mean of the side its LiDAR sees, about 0.18 m towards it on a
+  // person; the tracker places a person's on the axis (visible_side_max_radius_m). Far people seen
+  // by two or three rings stay rougher (docs/tracking.md: 0.11 m within 15 m here, 0.25 m overall).
+  EXPECT_LT(mean_error, 0.35);
   ASSERT_FALSE(near_errors.empty());
-  EXPECT_LT(near_error, 0.3);
+  EXPECT_LT(near_error, 0.15);
   EXPECT_GE(static_cast<double>(labelled), 0.8 * static_cast<double>(covered)) << "the cameras name most tracks";
   EXPECT_LE(static_cast<double>(stray_tracks), 0.1 * static_cast<double>(confirmed_tracks));
   for (auto& link : camera_links) link.reset();
