@@ -14,9 +14,11 @@
 
 #include "common/topology.hpp"
 #include "tests/support/free_ports.hpp"
+#include "tests/support/process_cluster.hpp"
 #include "tests/support/recording_tracker.hpp"
 #include "tests/support/scratch_dir.hpp"
 #include "tests/support/tiny_detector.hpp"
+#include "tests/support/topology_builders.hpp"
 #include "tools/fogctl/launcher.hpp"
 
 namespace fogmap {
@@ -25,20 +27,12 @@ namespace {
 using namespace std::chrono_literals;
 namespace fs = std::filesystem;
 using test_support::makeTinyDetector;
+using test_support::node;
 using test_support::pythonWithOnnx;
 using test_support::RecordingTracker;
 using test_support::TestTracker;
 
 const fs::path kImages = fs::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a" / "image_02";
-
-NodeConfig node(std::uint32_t id, const std::string& name, Role role, const std::string& parent) {
-  NodeConfig n;
-  n.id = id;
-  n.name = name;
-  n.role = role;
-  n.parent = parent;
-  return n;
-}
 
 TEST(DetectionProcess, RunsTheUsersOnnxNetworkOnCameraFramesAndStreamsItsDetectionsToTheTracker) {
   SKIP_WITHOUT_ONNX(python);
@@ -88,22 +82,15 @@ TEST(DetectionProcess, RunsTheUsersOnnxNetworkOnCameraFramesAndStreamsItsDetecti
     if (n.role == Role::kTracker) n.port = static_cast<std::uint16_t>(tracker.port());
   }
   const fs::path topology_file = dir.path() / "topology.yaml";
-  {
-    std::ofstream out(topology_file);
-    out << toYaml(topology);
-  }
-  const auto reloaded = loadTopology(topology_file);
+  const auto reloaded = test_support::writeTopology(topology_file, topology);
   ASSERT_TRUE(reloaded.ok()) << reloaded.error().message;
 
   cli::StartOptions options;
   options.only = {"cam-front"};
   auto cluster = cli::startCluster(topology_file, *reloaded, dir.path() / "state", 30s, options);
   ASSERT_TRUE(cluster.ok()) << cluster.error().message;
+  const test_support::StopOnExit stop(*cluster);
   ASSERT_EQ(cluster->nodes.size(), 1U);
-  struct Stop {
-    const cli::Cluster& cluster;
-    ~Stop() { cli::stopCluster(cluster, 5s); }
-  } stop{*cluster};
 
   // Every bundled frame once, and the loop's first again.
   constexpr std::size_t kFrames = 4;

@@ -8,24 +8,20 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
-#include <map>
-#include <mutex>
+#include <optional>
 #include <set>
-#include <sstream>
 #include <string>
-#include <thread>
 #include <vector>
-
-#include <grpcpp/grpcpp.h>
 
 #include "common/camera/kitti.hpp"
 #include "common/topology.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
-#include "services/common/grpc_options.hpp"
 #include "services/common/proto_convert.hpp"
+#include "tests/support/cluster_streams.hpp"
 #include "tests/support/free_ports.hpp"
+#include "tests/support/process_cluster.hpp"
 #include "tests/support/scratch_dir.hpp"
+#include "tests/support/topology_builders.hpp"
 #include "tools/fogctl/launcher.hpp"
 
 namespace fogmap {
@@ -33,18 +29,10 @@ namespace {
 
 using namespace std::chrono_literals;
 namespace fs = std::filesystem;
+using test_support::node;
 
 const fs::path kDrive = fs::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a";
 constexpr std::uint64_t kScans = 5;
-
-NodeConfig node(std::uint32_t id, const std::string& name, Role role, const std::string& parent) {
-  NodeConfig n;
-  n.id = id;
-  n.name = name;
-  n.role = role;
-  n.parent = parent;
-  return n;
-}
 
 TopologyConfig kittiTopology() {
   TopologyConfig topology;
@@ -72,46 +60,16 @@ TEST(KittiTracking, TheCarsAheadKeepTheirTrackIdsFromFrameToFrame) {
   TopologyConfig topology = kittiTopology();
   test_support::useFreePorts(topology);
   const fs::path topology_file = dir.path() / "topology.yaml";
-  {
-    std::ofstream out(topology_file);
-    out << toYaml(topology);
-  }
-  const auto reloaded = loadTopology(topology_file);
+  const auto reloaded = test_support::writeTopology(topology_file, topology);
   ASSERT_TRUE(reloaded.ok()) << reloaded.error().message;
   auto cluster = cli::startCluster(topology_file, *reloaded, dir.path() / "state", 60s);
   ASSERT_TRUE(cluster.ok()) << cluster.error().message;
-  struct Stop {
-    const cli::Cluster& cluster;
-    ~Stop() { cli::stopCluster(cluster, 5s); }
-  } stop{*cluster};
+  const test_support::StopOnExit stop(*cluster);
 
   // The root's global maps by sensor time: the oracle for which objects are the cars ahead.
-  const NodeConfig* root = reloaded->root();
-  auto root_channel = makeChannel(root->host + ":" + std::to_string(root->port), 64U << 20);
-  auto root_stub = v1::GlobalMapService::NewStub(root_channel);
-  grpc::ClientContext root_context;
-  root_context.set_deadline(std::chrono::system_clock::now() + 60s);
-  v1::SubscribeRequest root_request;
-  root_request.set_on_time_only(true);
-  auto maps = root_stub->Subscribe(&root_context, root_request);
-  std::mutex mutex;
-  std::map<std::int64_t, Map> seen;
-  std::thread map_reader([&] {
-    v1::GlobalMap message;
-    while (maps->Read(&message)) {
-      auto global = fromProto(message);
-      if (!global) continue;
-      std::lock_guard lock(mutex);
-      seen[global->header.sensor_time_ns] = global->map;
-    }
-  });
+  test_support::GlobalMapRecorder maps(*reloaded->root(), 60s);
 
-  const NodeConfig* tracker = reloaded->find("tracker");
-  auto channel = makeChannel(tracker->host + ":" + std::to_string(tracker->port), 64U << 20);
-  auto stub = v1::TrackerService::NewStub(channel);
-  grpc::ClientContext context;
-  context.set_deadline(std::chrono::system_clock::now() + 60s);
-  auto reader = stub->Subscribe(&context, v1::TrackSubscribeRequest{});
+  test_support::TrackStream track_lists(*reloaded->find("tracker"), 60s);
 
   // After a warm-up of one pass (tracks confirm after 3 hits), 3 passes over the 5 scans. In each
   // frame, the cars ahead are the global map's car-sized obstacles in the ego lane (|y| below
@@ -126,16 +84,11 @@ TEST(KittiTracking, TheCarsAheadKeepTheirTrackIdsFromFrameToFrame) {
   int scored = 0;
   std::set<std::uint64_t> first_ids;
   std::size_t cars_seen = 0;
-  while (scored < kScored && lists < 200 && reader->Read(&list)) {
+  while (scored < kScored && lists < 200 && track_lists.read(list)) {
     ++lists;
     if (lists <= kWarmUp) continue;
-    Map map;
-    {
-      std::lock_guard lock(mutex);
-      const auto it = seen.find(list.lidar_time_ns());
-      if (it == seen.end()) continue;  // the tracks of a map this reader did not get
-      map = it->second;
-    }
+    const std::optional<Map> map = maps.find(list.lidar_time_ns());
+    if (!map) continue;  // the tracks of a map the recorder did not get
     ++scored;
     std::vector<tracking::Track> confirmed;
     for (const auto& proto : list.tracks()) {
@@ -144,7 +97,7 @@ TEST(KittiTracking, TheCarsAheadKeepTheirTrackIdsFromFrameToFrame) {
       if (track->state == tracking::TrackState::kConfirmed) confirmed.push_back(*track);
     }
     std::set<std::uint64_t> ids;
-    for (const MapObject& object : map.objects) {
+    for (const MapObject& object : map->objects) {
       const Eigen::Vector2d centre = (0.5 * (object.box.min + object.box.max)).head<2>();
       const Eigen::Vector2d extent = (object.box.max - object.box.min).head<2>();
       if (std::abs(centre.y()) >= 1.5 || centre.x() < 4.0 || centre.x() > 25.0 || extent.maxCoeff() < 1.0) continue;
@@ -162,9 +115,8 @@ TEST(KittiTracking, TheCarsAheadKeepTheirTrackIdsFromFrameToFrame) {
     EXPECT_EQ(ids, first_ids) << "the cars ahead changed track ids in frame " << scored << " (sensor time "
                               << list.lidar_time_ns() << ")";
   }
-  context.TryCancel();
-  root_context.TryCancel();
-  map_reader.join();
+  track_lists.cancel();
+  maps.stop();
   std::printf("kitti tracking: %d frames scored, %zu car observations ahead, track ids:", scored, cars_seen);
   for (const std::uint64_t id : first_ids) std::printf(" %lu", static_cast<unsigned long>(id));
   std::printf("\n");

@@ -5,26 +5,25 @@
 // instant.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <algorithm>
-#include <map>
-#include <mutex>
-#include <thread>
+#include <cstdio>
+#include <fstream>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
-
-#include <grpcpp/grpcpp.h>
 
 #include "common/epochs.hpp"
 #include "common/sim/generators.hpp"
 #include "common/sim/scene.hpp"
 #include "common/sim/scene_topology.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
-#include "services/common/grpc_options.hpp"
 #include "services/common/proto_convert.hpp"
+#include "tests/support/cluster_streams.hpp"
 #include "tests/support/free_ports.hpp"
+#include "tests/support/process_cluster.hpp"
 #include "tests/support/scratch_dir.hpp"
 #include "tools/fogctl/launcher.hpp"
 #include "tools/fogctl/scene_picture.hpp"
@@ -54,49 +53,18 @@ TEST(TrackingCluster, TracksFromLidarsAndCamerasFollowTheSimulatedPeopleWithThei
   topology.deadline_ms = 300.0;  // a loaded 2-core machine must not turn slow epochs into partial ones
   test_support::useFreePorts(topology);
   const fs::path topology_file = dir.path() / "topology.yaml";
-  {
-    std::ofstream out(topology_file);
-    out << toYaml(topology);
-  }
-  const auto reloaded = loadTopology(topology_file);
+  const auto reloaded = test_support::writeTopology(topology_file, topology);
   ASSERT_TRUE(reloaded.ok()) << reloaded.error().message;
   ASSERT_EQ(reloaded->camerasOf("tracker").size(), 2U);
 
   auto cluster = cli::startCluster(topology_file, *reloaded, dir.path() / "state", 60s);
   ASSERT_TRUE(cluster.ok()) << cluster.error().message;
-  struct Stop {
-    const cli::Cluster& cluster;
-    ~Stop() { cli::stopCluster(cluster, 5s); }
-  } stop{*cluster};
+  const test_support::StopOnExit stop(*cluster);
 
   // The root's global maps, by sensor time, read beside the tracks: what the LiDARs saw.
-  const NodeConfig* root = reloaded->root();
-  auto root_channel = makeChannel(root->host + ":" + std::to_string(root->port), 64U << 20);
-  auto root_stub = v1::GlobalMapService::NewStub(root_channel);
-  grpc::ClientContext root_context;
-  root_context.set_deadline(std::chrono::system_clock::now() + 60s);
-  v1::SubscribeRequest root_request;
-  root_request.set_on_time_only(true);
-  auto maps = root_stub->Subscribe(&root_context, root_request);
-  std::mutex mutex;
-  std::map<std::int64_t, Map> seen;  // by sensor time
-  std::thread map_reader([&] {
-    v1::GlobalMap message;
-    while (maps->Read(&message)) {
-      auto global = fromProto(message);
-      if (!global) continue;
-      std::lock_guard lock(mutex);
-      seen[global->header.sensor_time_ns] = global->map;
-    }
-  });
+  test_support::GlobalMapRecorder maps(*reloaded->root(), 60s);
 
-  const NodeConfig* tracker = reloaded->find("tracker");
-  auto channel = makeChannel(tracker->host + ":" + std::to_string(tracker->port), 64U << 20);
-  auto stub = v1::TrackerService::NewStub(channel);
-  grpc::ClientContext context;
-  context.set_deadline(std::chrono::system_clock::now() + 60s);
-  v1::TrackSubscribeRequest request;
-  auto reader = stub->Subscribe(&context, request);
+  test_support::TrackStream track_lists(*reloaded->find("tracker"), 60s);
 
   // Score the track lists of 10 s (100 LiDAR frames) after a 3 s warm-up. A moving object the
   // LiDARs saw (a global-map object's footprint, grown by 0.5 m, holds its truth position) is
@@ -114,17 +82,12 @@ TEST(TrackingCluster, TracksFromLidarsAndCamerasFollowTheSimulatedPeopleWithThei
   std::vector<double> person_errors;
   std::vector<cli::TrackingFrame> frames;
   std::int64_t first_ns = 0;
-  while (scored < 100 && reader->Read(&list)) {
+  while (scored < 100 && track_lists.read(list)) {
     ++lists;
     if (first_ns == 0) first_ns = list.lidar_time_ns();
     if (list.lidar_time_ns() - first_ns < 3'000'000'000) continue;
-    Map map;
-    {
-      std::lock_guard lock(mutex);
-      const auto it = seen.find(list.lidar_time_ns());
-      if (it == seen.end()) continue;  // the tracks of a map this reader did not get
-      map = it->second;
-    }
+    const std::optional<Map> map = maps.find(list.lidar_time_ns());
+    if (!map) continue;  // the tracks of a map the recorder did not get
     ++scored;
     // The LiDAR frame's instant: the scan its epoch replays, as the edges pick it.
     const double t = cli::sceneTimeOf(scene, *schedule, 1000.0 / reloaded->period_ms, list.lidar_time_ns());
@@ -139,7 +102,7 @@ TEST(TrackingCluster, TracksFromLidarsAndCamerasFollowTheSimulatedPeopleWithThei
     for (std::size_t i = 0; i < frame.mot.truth.size(); ++i) {
       const Eigen::Vector2d truth = frame.mot.truth[i].position;
       const std::string& label = frame.truth_labels[i];
-      const bool in_map = std::any_of(map.objects.begin(), map.objects.end(), [&](const MapObject& o) {
+      const bool in_map = std::any_of(map->objects.begin(), map->objects.end(), [&](const MapObject& o) {
         return truth.x() >= o.box.min.x() - 0.5 && truth.x() <= o.box.max.x() + 0.5 && truth.y() >= o.box.min.y() - 0.5 &&
                truth.y() <= o.box.max.y() + 0.5;
       });
@@ -161,9 +124,8 @@ TEST(TrackingCluster, TracksFromLidarsAndCamerasFollowTheSimulatedPeopleWithThei
       }
     }
   }
-  context.TryCancel();
-  root_context.TryCancel();
-  map_reader.join();
+  track_lists.cancel();
+  maps.stop();
   const double coverage = static_cast<double>(covered) / static_cast<double>(std::max<std::size_t>(observable, 1));
   double person_error = 0.0;
   for (const double e : person_errors) person_error += e / static_cast<double>(person_errors.size());

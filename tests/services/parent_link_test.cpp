@@ -19,23 +19,17 @@
 #include <grpcpp/grpcpp.h>
 
 #include "fogmap/v1/fogmap.grpc.pb.h"
-#include "services/common/grpc_options.hpp"
+#include "tests/support/eventually.hpp"
+#include "tests/support/test_server.hpp"
 
 namespace fogmap {
 namespace {
 
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;
-
-// Polls a condition that has no notification to wait on (state inside another object), bounded.
-bool eventually(const std::function<bool()>& condition, std::chrono::milliseconds timeout = 10s) {
-  const auto deadline = Clock::now() + timeout;
-  while (Clock::now() < deadline) {
-    if (condition()) return true;
-    std::this_thread::sleep_for(5ms);
-  }
-  return condition();
-}
+using test_support::eventually;
+// The parent: a real gRPC server on 127.0.0.1 serving a RecordingIngest; port 0 picks a free port.
+using TestParent = test_support::TestServer;
 
 // A one-shot event a test waits on, bounded.
 class Signal {
@@ -148,35 +142,6 @@ class RecordingIngest final : public v1::MapIngest::Service {
   int streams_ = 0;
   std::vector<v1::Upload> received_;
   std::vector<int> stream_of_;
-};
-
-// A real gRPC server on 127.0.0.1; port 0 picks a free port.
-class TestParent {
- public:
-  TestParent(RecordingIngest& service, int port = 0) {
-    grpc::ServerBuilder builder;
-    configureServer(builder, 64U << 20);
-    builder.AddListeningPort("127.0.0.1:" + std::to_string(port), grpc::InsecureServerCredentials(), &port_);
-    builder.RegisterService(&service);
-    server_ = builder.BuildAndStart();
-  }
-  ~TestParent() { stop(); }
-
-  bool started() const { return server_ != nullptr && port_ > 0; }
-  int port() const { return port_; }
-  std::string target() const { return "127.0.0.1:" + std::to_string(port_); }
-
-  // Cancels open streams at once: a Push handler would otherwise keep Shutdown waiting forever.
-  void stop() {
-    if (!server_) return;
-    server_->Shutdown(std::chrono::system_clock::now());
-    server_->Wait();
-    server_.reset();
-  }
-
- private:
-  int port_ = 0;
-  std::unique_ptr<grpc::Server> server_;
 };
 
 v1::Upload mapUpload(std::uint64_t epoch) {

@@ -5,11 +5,9 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
-#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include <grpcpp/grpcpp.h>
@@ -17,6 +15,7 @@
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "services/common/grpc_options.hpp"
 #include "services/common/proto_convert.hpp"
+#include "tests/support/eventually.hpp"
 #include "tests/support/recording_tracker.hpp"
 
 namespace fogmap {
@@ -25,17 +24,8 @@ namespace {
 using namespace std::chrono_literals;
 using test_support::RecordingTracker;
 using test_support::TestTracker;
+using test_support::eventually;
 using Clock = std::chrono::steady_clock;
-
-// Polls a condition that has no notification to wait on (state inside the link), bounded.
-bool eventually(const std::function<bool()>& condition, std::chrono::milliseconds timeout = 10s) {
-  const auto deadline = Clock::now() + timeout;
-  while (Clock::now() < deadline) {
-    if (condition()) return true;
-    std::this_thread::sleep_for(5ms);
-  }
-  return condition();
-}
 
 // A port that was free a moment ago and now has no listener.
 int closedPort() {

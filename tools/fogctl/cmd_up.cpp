@@ -34,6 +34,7 @@
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "services/common/grpc_options.hpp"
 #include "services/common/proto_convert.hpp"
+#include "tools/fogctl/epoch_latency.hpp"
 #include "tools/fogctl/args.hpp"
 #include "tools/fogctl/commands.hpp"
 #include "tools/fogctl/launcher.hpp"
@@ -498,14 +499,16 @@ void printGlobalMap(const v1::GlobalMap& message, long shown) {
     return;
   }
   const auto& h = global->header;
-  const double e2e_ms = static_cast<double>(global->published_time_ns - h.sensor_time_ns) / 1e6;
+  const std::optional<double> e2e_ms = endToEndLatencyMs(*global);
+  char e2e[32] = "no sensor time";
+  if (e2e_ms) std::snprintf(e2e, sizeof e2e, "%.1f ms", *e2e_ms);
   std::string contributing;
   for (const auto n : h.contributing_nodes) contributing += std::to_string(n) + " ";
   std::string missing;
   for (const auto n : h.missing_nodes) missing += std::to_string(n) + " ";
-  std::printf("epoch %lu  objects %zu  ellipsoids %zu  merge %.3f ms  e2e %.1f ms  nodes [ %s]  missing [ %s]\n",
+  std::printf("epoch %lu  objects %zu  ellipsoids %zu  merge %.3f ms  e2e %s  nodes [ %s]  missing [ %s]\n",
               static_cast<unsigned long>(h.epoch), global->map.objects.size(), global->map.ellipsoidCount(),
-              global->merge_seconds * 1e3, e2e_ms, contributing.c_str(), missing.c_str());
+              global->merge_seconds * 1e3, e2e, contributing.c_str(), missing.c_str());
   // The largest objects first: position (box centre) and size (box extent) in metres.
   std::vector<const MapObject*> objects;
   for (const auto& o : global->map.objects) objects.push_back(&o);

@@ -13,6 +13,7 @@
 
 #include "common/clustering.hpp"
 #include "common/madc.hpp"
+#include "tests/support/topology_builders.hpp"
 
 namespace fogmap {
 namespace {
@@ -576,17 +577,10 @@ TEST(MergeAggregator, AggregatorConfigForDerivesChildrenLevelsAndSchedule) {
   topology.period_ms = 50.0;
   topology.deadline_ms = 20.0;
   topology.admission.max_ellipsoids_per_map = 77;
-  const auto node = [](std::string name, Role role, std::uint32_t id, std::string parent) {
-    NodeConfig n;
-    n.name = std::move(name);
-    n.role = role;
-    n.id = id;
-    n.parent = std::move(parent);
-    return n;
-  };
-  topology.nodes = {node("root", Role::kAggregator, 100, ""), node("mid", Role::kAggregator, 20, "root"),
-                    node("leaf", Role::kAggregator, 10, "mid"), node("e1", Role::kEdge, 1, "leaf"),
-                    node("e2", Role::kEdge, 2, "leaf"), node("e3", Role::kEdge, 3, "root")};
+  using test_support::node;
+  topology.nodes = {node(100, "root", Role::kAggregator, ""), node(20, "mid", Role::kAggregator, "root"),
+                    node(10, "leaf", Role::kAggregator, "mid"), node(1, "e1", Role::kEdge, "leaf"),
+                    node(2, "e2", Role::kEdge, "leaf"), node(3, "e3", Role::kEdge, "root")};
   const auto root = aggregatorConfigFor(topology, "root");
   ASSERT_TRUE(root.ok()) << root.error().message;
   EXPECT_TRUE(root->is_root);

@@ -10,7 +10,6 @@
 #include <memory>
 #include <random>
 #include <string>
-#include <thread>
 
 #include <grpcpp/grpcpp.h>
 
@@ -23,11 +22,14 @@
 #include "services/merge_aggregator/aggregator_runtime.hpp"
 #include "services/merge_aggregator/global_map_service.hpp"
 #include "services/merge_aggregator/ingest_service.hpp"
+#include "tests/support/eventually.hpp"
 
 namespace fogmap {
 namespace {
 
 using namespace std::chrono_literals;
+// The server side of a call has no client-visible signal: tests poll it, bounded.
+using test_support::eventually;
 
 constexpr std::size_t kMaxMessageBytes = 64U << 20;
 constexpr std::uint32_t kRoot = 100;
@@ -55,17 +57,6 @@ class FakeClock {
  private:
   std::atomic<std::int64_t> now_;
 };
-
-// Waits for `condition`, bounded: the server side of a call has no client-visible signal.
-template <class F>
-bool eventually(F condition, std::chrono::milliseconds timeout = 5000ms) {
-  const auto end = std::chrono::steady_clock::now() + timeout;
-  while (std::chrono::steady_clock::now() < end) {
-    if (condition()) return true;
-    std::this_thread::sleep_for(1ms);
-  }
-  return condition();
-}
 
 AggregatorConfig rootConfig(Mode mode, std::vector<std::uint32_t> edges) {
   AggregatorConfig config;

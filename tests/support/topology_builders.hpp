@@ -1,0 +1,21 @@
+#pragma once
+// Nodes of hand-made topologies for tests: the fields every node has; a test adds its sensor,
+// camera or tracker section.
+#include <cstdint>
+#include <string>
+
+#include "common/topology.hpp"
+
+namespace fogmap::test_support {
+
+// Node `id` named `name` in role `role`, under `parent` (empty for a root or a tracker).
+inline NodeConfig node(std::uint32_t id, const std::string& name, Role role, const std::string& parent) {
+  NodeConfig n;
+  n.id = id;
+  n.name = name;
+  n.role = role;
+  n.parent = parent;
+  return n;
+}
+
+}  // namespace fogmap::test_support
