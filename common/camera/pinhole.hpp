@@ -8,6 +8,7 @@
 
 #include <Eigen/Geometry>
 
+#include "common/camera/detection.hpp"  // Box2d
 #include "common/status.hpp"
 
 namespace fogmap::camera {
@@ -31,8 +32,17 @@ struct PinholeCamera {
   // The pixel of a point of the common frame, or nothing when it lies less than `near_m` in front
   // of the camera. The pixel may be outside the image; inImage tells.
   std::optional<Eigen::Vector2d> project(const Eigen::Vector3d& world, double near_m = 0.1) const;
+  // The pixel of a point (x / z, y / z) of the camera's frame: distorted, then through the intrinsics.
+  Eigen::Vector2d pixelOf(const Eigen::Vector2d& normalized) const;
   bool inImage(const Eigen::Vector2d& pixel) const;
 };
+
+// The image box around an ellipsoid {x : (x - centre)^T shape^-1 (x - centre) <= 1} of the common
+// frame (a MAD-C ellipsoid): exact for a camera without distortion (the outline of the ellipsoid's
+// dual quadric), its outline traced and distorted otherwise. Nothing unless the whole ellipsoid lies
+// more than `near_m` in front of the camera. The box may reach outside the image.
+std::optional<Box2d> projectEllipsoid(const PinholeCamera& camera, const Eigen::Vector3d& centre, const Eigen::Matrix3d& shape,
+                                      double near_m = 0.1);
 
 // Checks that the intrinsics are finite and positive and the image has pixels; the error names
 // the camera and the field.

@@ -1,11 +1,16 @@
 // KITTI calibration and labels: the projection chain checked against KITTI's own annotations.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <random>
+
+#include <Eigen/Eigenvalues>
 #include <fstream>
 #include <sstream>
 
 #include "common/camera/kitti.hpp"
+#include "common/camera/pinhole.hpp"
 #include "common/cloud_io.hpp"
 #include "tests/common/test_data.hpp"
 
@@ -138,6 +143,96 @@ TEST(KittiCamera, PinholeCameraProjectsLidarPointsLikeTheProjectionMatrix) {
   ASSERT_FALSE(not_pinhole.ok());
   EXPECT_NE(not_pinhole.error().message.find("P2 is not of the form K [I | t]"), std::string::npos) << not_pinhole.error().message;
   EXPECT_FALSE(pinholeCamera(*calib, 2, 0, kHeight).ok()) << "an image without pixels";
+}
+
+// A camera at `position` looking along +x of the common frame (x right = -y, y down = -z).
+PinholeCamera lookingAlongX(const Eigen::Vector3d& position, Distortion distortion = {}) {
+  PinholeCamera cam;
+  cam.name = "ahead";
+  cam.fx = 700.0;
+  cam.fy = 690.0;
+  cam.cx = 620.0;
+  cam.cy = 180.0;
+  cam.width = 1240;
+  cam.height = 375;
+  cam.distortion = distortion;
+  Eigen::Matrix3d r;
+  r << 0, -1, 0, 0, 0, -1, 1, 0, 0;
+  cam.world_to_camera.linear() = r;
+  cam.world_to_camera.translation() = -r * position;
+  return cam;
+}
+
+// Brute force: the box of the projections of dense points on the ellipsoid's surface.
+Box2d sampledBox(const PinholeCamera& cam, const Eigen::Vector3d& centre, const Eigen::Matrix3d& shape) {
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(shape);
+  const Eigen::Matrix3d root = solver.eigenvectors() * solver.eigenvalues().cwiseSqrt().asDiagonal();
+  Box2d box{1e18, 1e18, -1e18, -1e18};
+  constexpr int kN = 720;
+  for (int i = 0; i <= kN / 2; ++i) {
+    const double theta = M_PI * i / (kN / 2);
+    for (int j = 0; j < kN; ++j) {
+      const double phi = 2.0 * M_PI * j / kN;
+      const Eigen::Vector3d unit(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta));
+      const auto pixel = cam.project(centre + root * unit, 0.01);
+      if (!pixel) continue;
+      box.left = std::min(box.left, pixel->x());
+      box.top = std::min(box.top, pixel->y());
+      box.right = std::max(box.right, pixel->x());
+      box.bottom = std::max(box.bottom, pixel->y());
+    }
+  }
+  return box;
+}
+
+TEST(ProjectEllipsoid, ASphereOnTheOpticalAxisIsTheBoxOfItsTangentCone) {
+  const PinholeCamera cam = lookingAlongX({0, 0, 1});
+  const double d = 10.0, r = 0.5;
+  const auto box = projectEllipsoid(cam, {d, 0, 1}, Eigen::Matrix3d::Identity() * r * r);
+  ASSERT_TRUE(box.has_value());
+  const double half = r / std::sqrt(d * d - r * r);  // tan of the cone's half angle
+  EXPECT_NEAR(box->left, cam.cx - cam.fx * half, 1e-9);
+  EXPECT_NEAR(box->right, cam.cx + cam.fx * half, 1e-9);
+  EXPECT_NEAR(box->top, cam.cy - cam.fy * half, 1e-9);
+  EXPECT_NEAR(box->bottom, cam.cy + cam.fy * half, 1e-9);
+}
+
+TEST(ProjectEllipsoid, TheBoxIsThatOfTheSurfaceProjectedPointByPointWithAndWithoutDistortion) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  for (const Distortion& distortion : {Distortion{}, Distortion{-0.3, 0.1, 0.001, -0.002, 0.0}}) {
+    const PinholeCamera cam = lookingAlongX({0, 0, 1.5}, distortion);
+    for (int k = 0; k < 20; ++k) {
+      // A random ellipsoid 6 to 20 m ahead, up to 2 m across, turned anyhow.
+      const Eigen::Vector3d centre(13.0 + 7.0 * unit(rng), 3.0 * unit(rng), 1.0 + 0.5 * unit(rng));
+      const Eigen::Matrix3d rotation =
+          Eigen::Quaterniond(Eigen::Vector4d(unit(rng), unit(rng), unit(rng), unit(rng)).normalized()).toRotationMatrix();
+      const Eigen::Vector3d axes(0.1 + std::abs(unit(rng)), 0.1 + std::abs(unit(rng)), 0.1 + std::abs(unit(rng)));
+      const Eigen::Matrix3d shape = rotation * axes.cwiseAbs2().asDiagonal() * rotation.transpose();
+      const auto box = projectEllipsoid(cam, centre, shape);
+      ASSERT_TRUE(box.has_value()) << "ellipsoid " << k;
+      const Box2d sampled = sampledBox(cam, centre, shape);
+      // Dense sampling reaches the outline to a fraction of a pixel, from inside.
+      const double tolerance = distortion.none() ? 0.2 : 0.5;
+      EXPECT_NEAR(box->left, sampled.left, tolerance) << "ellipsoid " << k;
+      EXPECT_NEAR(box->top, sampled.top, tolerance) << "ellipsoid " << k;
+      EXPECT_NEAR(box->right, sampled.right, tolerance) << "ellipsoid " << k;
+      EXPECT_NEAR(box->bottom, sampled.bottom, tolerance) << "ellipsoid " << k;
+      if (distortion.none()) {
+        EXPECT_LE(box->left, sampled.left + 1e-9);
+        EXPECT_GE(box->right, sampled.right - 1e-9);
+      }
+    }
+  }
+}
+
+TEST(ProjectEllipsoid, AnEllipsoidBehindOrAcrossTheCameraHasNoBox) {
+  const PinholeCamera cam = lookingAlongX({0, 0, 1});
+  EXPECT_FALSE(projectEllipsoid(cam, {-5, 0, 1}, Eigen::Matrix3d::Identity() * 0.25).has_value()) << "behind";
+  EXPECT_FALSE(projectEllipsoid(cam, {0.3, 0, 1}, Eigen::Matrix3d::Identity() * 0.25).has_value()) << "around the camera";
+  EXPECT_FALSE(projectEllipsoid(cam, {0.55, 0, 1}, Eigen::Matrix3d::Identity() * 0.25, 0.1).has_value())
+      << "its near side 0.05 m ahead, inside near_m";
+  EXPECT_TRUE(projectEllipsoid(cam, {0.65, 0, 1}, Eigen::Matrix3d::Identity() * 0.25, 0.1).has_value());
 }
 
 }  // namespace

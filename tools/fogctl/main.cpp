@@ -104,13 +104,16 @@ const std::vector<Command>& commands() {
        "  --json FILE  every figure as JSON\n",
        fogmap::cli::runTrackEval},
       {"overlay",
-       "--image IMG --calib CALIB --out PNG [--labels FILE] [--scan FILE] [--hog]   draw on a camera frame",
-       "usage: fogctl overlay --image IMG --calib CALIB --out PNG [--labels FILE] [--scan FILE] [--hog] [--hog-upscale 1.5]\n"
+       "--image IMG --calib CALIB --out PNG [--labels FILE] [--scan FILE [--objects]] [--hog]   draw on a camera frame",
+       "usage: fogctl overlay --image IMG --calib CALIB --out PNG [--labels FILE] [--scan FILE [--objects]] [--hog]\n"
+       "                      [--hog-upscale 1.5]\n"
        "Draws over a camera frame (KITTI camera 2) what fogmap knows: a LiDAR scan's points projected into\n"
        "the image (coloured by depth), the 3D boxes of a label_2 file as wireframes, and with --hog the\n"
        "people OpenCV's HOG detector finds; writes PNG. For checking a calibration and a detector by eye.\n"
        "  --calib FILE   KITTI calibration (P2, R0_rect, Tr_velo_to_cam)\n"
-       "  --labels FILE  KITTI label_2 objects; --scan FILE  a Velodyne scan (.bin, .pcd)\n",
+       "  --labels FILE  KITTI label_2 objects; --scan FILE  a Velodyne scan (.bin, .pcd)\n"
+       "  --objects      instead of the scan's points, the map an edge makes of it (the ready-made KITTI\n"
+       "                 topology's crop, ground and MAD-C): each object the box of its projected ellipsoids\n",
        fogmap::cli::runOverlay},
       {"up",
        "TOPOLOGY.yaml [--detach] [--state DIR]       start every service as a local process",
