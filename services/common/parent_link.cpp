@@ -14,16 +14,13 @@
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "services/common/grpc_options.hpp"
 #include "services/common/backoff.hpp"
+#include "services/common/stream_thread.hpp"
 
 namespace fogmap {
 namespace {
 
 using Clock = std::chrono::steady_clock;
 using Stream = grpc::ClientReaderWriter<v1::Upload, v1::Ack>;
-
-// Upper bound of every blocking wait, so that a stop request is seen within this long even when
-// a notification is missed.
-constexpr std::chrono::milliseconds kPollSlice{100};
 
 const char* kindOf(const v1::Upload& upload) {
   switch (upload.payload_case()) {
@@ -36,7 +33,7 @@ const char* kindOf(const v1::Upload& upload) {
 
 }  // namespace
 
-struct ParentLink::State {
+struct ParentLink::State : StreamThreadState {
   struct Pending {
     std::uint64_t sequence = 0;
     std::size_t bytes = 0;  // serialised size, counted against max_unacked_bytes
@@ -56,11 +53,9 @@ struct ParentLink::State {
 
   ParentLinkConfig config;
   ParentLinkHooks hooks;
-  std::shared_ptr<grpc::Channel> channel;
   std::unique_ptr<v1::MapIngest::Stub> stub;
 
-  mutable std::mutex mu;
-  std::condition_variable cv;  // any change: new upload, answer, settlement, broken stream, stop
+  // Under mu (cv: any change: new upload, answer, settlement, broken stream, stop).
   std::deque<Pending> unacked;  // ascending sequence
   std::size_t unacked_bytes = 0;
   std::uint64_t next_sequence = 0;
@@ -75,16 +70,14 @@ struct ParentLink::State {
   std::optional<Clock::time_point> awaiting_since;
   bool writing = false;  // a Write is in progress (it may block under flow control)
   bool drop_burst = false;  // a drop happened since the last answer or empty queue
-  bool stopping = false;
   bool connected = false;
   bool stream_broken = false;
   std::shared_ptr<grpc::ClientContext> context;  // the current stream's, for TryCancel
 
   State(ParentLinkConfig c, ParentLinkHooks h)
-      : config(std::move(c)),
+      : StreamThreadState(channelFor(c)),
+        config(std::move(c)),
         hooks(std::move(h)),
-        channel(config.credentials ? makeChannel(config.target, config.credentials, config.max_message_bytes, config.keepalive)
-                                   : makeChannel(config.target, config.max_message_bytes, config.keepalive)),
         stub(v1::MapIngest::NewStub(channel)),
         // The wall clock, not a counter from 1: a restarted sender must not reuse a sequence the
         // parent has already seen with other content.
@@ -115,26 +108,6 @@ struct ParentLink::State {
       settling -= settlements.size();
     }
     cv.notify_all();
-  }
-
-  bool stopRequested() const {
-    std::lock_guard lock(mu);
-    return stopping;
-  }
-
-  // Waits until the backoff has passed or a stop is requested; true when stopping.
-  bool sleepFor(std::chrono::milliseconds d) {
-    std::unique_lock lock(mu);
-    return cv.wait_for(lock, d, [&] { return stopping; });
-  }
-
-  // Waits in short slices so that the destructor never waits on a parent that is down. (gRPC
-  // converts only system_clock deadlines; a clock step merely lengthens or shortens one slice.)
-  bool waitConnected() {
-    while (!stopRequested()) {
-      if (channel->WaitForConnected(std::chrono::system_clock::now() + kPollSlice)) return true;
-    }
-    return false;
   }
 
   // Any answer settles its upload: it leaves the queue and is never re-sent.

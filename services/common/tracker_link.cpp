@@ -14,6 +14,7 @@
 #include "services/common/grpc_options.hpp"
 #include "services/common/proto_convert.hpp"
 #include "services/common/backoff.hpp"
+#include "services/common/stream_thread.hpp"
 
 namespace fogmap {
 namespace {
@@ -46,9 +47,6 @@ struct StreamKind<tracking::CentroidFrame> {
   }
 };
 
-// Upper bound of every blocking wait, so that a stop request is seen within this long even when a
-// notification is missed.
-constexpr std::chrono::milliseconds kPollSlice{100};
 // How long the destructor lets the tracker answer a half-closed stream before cancelling it.
 constexpr std::chrono::milliseconds kCloseGrace{500};
 
@@ -66,7 +64,7 @@ std::string describeEnd(const grpc::Status& status, const Summary& summary, cons
 }  // namespace
 
 template <class Frame>
-struct TrackerStreamLink<Frame>::State {
+struct TrackerStreamLink<Frame>::State : StreamThreadState {
   using Kind = StreamKind<Frame>;
   using Message = typename Kind::Message;
   using Writer = grpc::ClientWriter<Message>;
@@ -78,27 +76,22 @@ struct TrackerStreamLink<Frame>::State {
 
   TrackerLinkConfig config;
   TrackerLinkHooks hooks;
-  std::shared_ptr<grpc::Channel> channel;
   std::unique_ptr<v1::TrackerService::Stub> stub;
 
-  mutable std::mutex mu;
-  std::condition_variable cv;  // any change: a new frame, a write, a broken stream, a stop, the end
+  // Under mu (cv: any change: a new frame, a write, a broken stream, a stop, the end).
   std::deque<std::shared_ptr<const Message>> queue;
   std::uint64_t sent = 0;
   std::uint64_t dropped = 0;
   bool drop_burst = false;
   bool writing = false;
   bool connected = false;
-  bool stopping = false;
   bool finished = false;  // the stream thread has returned
   std::shared_ptr<grpc::ClientContext> context;  // the current stream's, for TryCancel
 
   State(TrackerLinkConfig c, TrackerLinkHooks h)
-      : config(std::move(c)),
+      : StreamThreadState(channelFor(c)),
+        config(std::move(c)),
         hooks(std::move(h)),
-        channel(config.credentials
-                    ? makeChannel(config.target, config.credentials, config.max_message_bytes, config.keepalive)
-                    : makeChannel(config.target, config.max_message_bytes, config.keepalive)),
         stub(v1::TrackerService::NewStub(channel)) {
     config.queue_frames = std::max<std::size_t>(1, config.queue_frames);
   }
@@ -113,25 +106,6 @@ struct TrackerStreamLink<Frame>::State {
   void reportDrops(const std::vector<Drop>& drops) const {
     if (!hooks.on_dropped) return;
     for (const Drop& d : drops) hooks.on_dropped(d.total, d.first_of_burst);
-  }
-
-  bool stopRequested() const {
-    std::lock_guard lock(mu);
-    return stopping;
-  }
-
-  // Waits until the backoff has passed or a stop is requested; true when stopping.
-  bool sleepFor(std::chrono::milliseconds d) {
-    std::unique_lock lock(mu);
-    return cv.wait_for(lock, d, [&] { return stopping; });
-  }
-
-  // In short slices, so that the destructor never waits on a tracker that is down.
-  bool waitConnected() {
-    while (!stopRequested()) {
-      if (channel->WaitForConnected(std::chrono::system_clock::now() + kPollSlice)) return true;
-    }
-    return false;
   }
 
   // Writes queued frames, oldest first, until a write fails or a stop is requested; true when it
