@@ -21,6 +21,7 @@
 #include "common/cloud_io.hpp"
 #include "services/common/metrics.hpp"
 #include "services/edge_cluster/edge_metrics.hpp"
+#include "tests/support/metric_values.hpp"
 
 namespace fogmap {
 namespace {
@@ -727,18 +728,7 @@ HostileReplay replayToTheEnd(ScanProvider& scans, const std::vector<HostileScan>
   return replay;
 }
 
-double counterValue(Metrics& metrics, const std::string& family, const std::string& label, const std::string& value) {
-  double sum = 0.0;
-  for (const auto& f : metrics.registry().Collect()) {
-    if (f.name != family) continue;
-    for (const auto& m : f.metric) {
-      for (const auto& l : m.label) {
-        if (l.name == label && l.value == value) sum += m.counter.value;
-      }
-    }
-  }
-  return sum;
-}
+using test_support::counterValue;
 
 TEST(EdgeMetrics, DisplacementTimeCentroidsAndTheCentroidLinksFramesAreExported) {
   Metrics metrics("", "edge-cluster", "edge-5");

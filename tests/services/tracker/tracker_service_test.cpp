@@ -25,6 +25,7 @@
 #include "services/tracker/tracker_metrics.hpp"
 #include "services/tracker/tracker_node.hpp"
 #include "services/tracker/tracker_service.hpp"
+#include "tests/support/metric_values.hpp"
 
 namespace fogmap {
 namespace {
@@ -413,18 +414,7 @@ TEST(TrackerNode, AnEpochOfCentroidsAnEdgeMissedIsFusedAtItsDeadlineOnTick) {
   EXPECT_FALSE(global.centroidCounters().has_value());
 }
 
-double counterValue(Metrics& metrics, const std::string& family, const std::string& label, const std::string& value) {
-  double sum = 0.0;
-  for (const auto& f : metrics.registry().Collect()) {
-    if (f.name != family) continue;
-    for (const auto& m : f.metric) {
-      for (const auto& l : m.label) {
-        if (l.name == label && l.value == value) sum += m.counter.value;
-      }
-    }
-  }
-  return sum;
-}
+using test_support::counterValue;
 
 TEST(TrackerMetrics, CentroidFramesReceivedRejectedAndPartialEpochsAreExported) {
   Metrics metrics("", "tracker", "tracker");
