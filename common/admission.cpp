@@ -31,8 +31,8 @@ Status validateAdmissionLimits(const AdmissionLimits& l) {
       return invalidArgument(std::string("admission ") + name + " must be a positive number, got " + num(value));
     }
   }
-  if (l.max_ellipsoids_per_map == 0 || l.max_map_bytes == 0) {
-    return invalidArgument("admission max_ellipsoids_per_map and max_map_bytes must be at least 1");
+  if (l.max_ellipsoids_per_map == 0 || l.max_map_bytes == 0 || l.max_subscribers == 0) {
+    return invalidArgument("admission max_ellipsoids_per_map, max_map_bytes and max_subscribers must be at least 1");
   }
   if (l.min_eigenvalue_m2 >= l.max_eigenvalue_m2) {
     return invalidArgument("admission min_eigenvalue_m2 (" + num(l.min_eigenvalue_m2) +

@@ -24,6 +24,10 @@ struct AdmissionLimits {
   double min_eigenvalue_m2 = 1e-10;            // shape eigenvalues (squared semi-axes)
   double max_eigenvalue_m2 = 1e8;              // 10 km semi-axis
   double max_condition = 1e12;                 // largest / smallest eigenvalue
+  // Subscriber streams a service serves at once (the root's global maps, a tracker's tracks):
+  // each holds a bounded queue (about 0.8 MB for global maps), so their number is bounded too;
+  // one more is refused as RESOURCE_EXHAUSTED and counted.
+  std::size_t max_subscribers = 32;
   bool operator==(const AdmissionLimits&) const = default;
 };
 

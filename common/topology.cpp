@@ -744,7 +744,7 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
   if (const YAML::Node a = root["admission"]) {
     if (const Status s = checkSection(a, "admission", {"window_periods", "world_extent_m", "max_ellipsoids_per_map",
                                                        "max_map_bytes", "min_eigenvalue_m2", "max_eigenvalue_m2",
-                                                       "max_condition"});
+                                                       "max_condition", "max_subscribers"});
         !s) {
       return s.error();
     }
@@ -759,7 +759,8 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
       *value = *read;
     }
     for (const auto& [key, value] : {std::pair{"max_ellipsoids_per_map", &limits.max_ellipsoids_per_map},
-                                     std::pair{"max_map_bytes", &limits.max_map_bytes}}) {
+                                     std::pair{"max_map_bytes", &limits.max_map_bytes},
+                                     std::pair{"max_subscribers", &limits.max_subscribers}}) {
       const auto read = scalar<long long>(a, key, "admission", static_cast<long long>(*value));
       if (!read) return read.error();
       // Only what a count cannot hold; the value rules are validateAdmissionLimits's.
@@ -1108,7 +1109,8 @@ std::string toYaml(const TopologyConfig& t) {
       << "max_ellipsoids_per_map" << YAML::Value << a.max_ellipsoids_per_map << YAML::Key << "max_map_bytes"
       << YAML::Value << a.max_map_bytes << YAML::Key << "min_eigenvalue_m2" << YAML::Value << a.min_eigenvalue_m2
       << YAML::Key << "max_eigenvalue_m2" << YAML::Value << a.max_eigenvalue_m2 << YAML::Key << "max_condition"
-      << YAML::Value << a.max_condition << YAML::EndMap;
+      << YAML::Value << a.max_condition << YAML::Key << "max_subscribers" << YAML::Value << a.max_subscribers
+      << YAML::EndMap;
   out << YAML::Key << "madc" << YAML::Value << YAML::BeginMap << YAML::Key << "eps_m" << YAML::Value << t.madc.clustering.eps_m
       << YAML::Key << "min_points" << YAML::Value << t.madc.clustering.min_points << YAML::Key << "alpha" << YAML::Value
       << t.madc.alpha << YAML::Key << "threads" << YAML::Value << t.madc.clustering.threads << YAML::EndMap;

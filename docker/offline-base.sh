@@ -1,23 +1,33 @@
 #!/usr/bin/env bash
 # Makes the base images docker/Dockerfile builds on, debian:bookworm and debian:bookworm-slim,
-# from the Debian mirror with debootstrap: no container registry needed (fog sites often have
+# from a Debian mirror with debootstrap: no container registry needed (fog sites often have
 # none). Run as root, with the Docker daemon running.
-#   docker/offline-base.sh [--mirror URL] [--force]
+#   docker/offline-base.sh [--mirror URL] [--security-mirror URL] [--force]
+# The mirror is --mirror, else $FOGMAP_DEBIAN_MIRROR, else the one this host's apt uses
+# (docker/apt-mirror.sh); the security mirror likewise (--security-mirror,
+# $FOGMAP_DEBIAN_SECURITY_MIRROR, the host's bookworm-security source). None found: it stops.
 # debian:bookworm is a minbase system; debian:bookworm-slim is the same packages without
 # documentation, manual pages and translations, as Debian's own slim images. Grafana's image cannot
 # be made this way (it is not a Debian package): the compose files keep it in the grafana profile.
 set -euo pipefail
 
-mirror=http://deb.debian.org/debian
+mirror=${FOGMAP_DEBIAN_MIRROR:-}
+security=${FOGMAP_DEBIAN_SECURITY_MIRROR:-}
 force=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --mirror) mirror=$2; shift 2 ;;
+    --security-mirror) security=$2; shift 2 ;;
     --force) force=1; shift ;;
-    -h | --help) sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h | --help) sed -n '2,11p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "offline-base.sh: unknown argument '$1'" >&2; exit 2 ;;
   esac
 done
+
+here=$(dirname "$0")
+[ -n "$mirror" ] || mirror=$("$here/apt-mirror.sh") || { echo "offline-base.sh: no Debian mirror: give --mirror URL" >&2; exit 1; }
+[ -n "$security" ] || security=$("$here/apt-mirror.sh" --security) ||
+  { echo "offline-base.sh: no Debian security mirror: give --security-mirror URL" >&2; exit 1; }
 
 command -v debootstrap > /dev/null || { echo "offline-base.sh: debootstrap is missing (tools/install-deps.sh --deploy)" >&2; exit 1; }
 docker info > /dev/null 2>&1 || { echo "offline-base.sh: the Docker daemon does not answer" >&2; exit 1; }
@@ -42,7 +52,7 @@ Components: main
 Signed-By: /usr/share/keyrings/debian-archive-keyring.gpg
 
 Types: deb
-URIs: ${mirror%/debian}/debian-security
+URIs: $security
 Suites: bookworm-security
 Components: main
 Signed-By: /usr/share/keyrings/debian-archive-keyring.gpg
