@@ -116,8 +116,14 @@ Metrics::Metrics(const std::string& bind_address, const std::string& service, co
   refused_ = &counterFamily(r, "fogmap_refused_uploads_total",
                             "Uploads refused by an admission rule, by reason (clock_skew, forged_node, ...).", c);
   dropped_epochs_ = &counter(r, "fogmap_dropped_epochs_total", "Epochs dropped without being emitted.", c);
+  caught_up_epochs_ = &counter(r, "fogmap_caught_up_epochs_total",
+                               "Root: epochs published late because the emitter did not poll in time (a stall).", c);
+  longest_poll_gap_ = &gauge(r, "fogmap_emitter_longest_poll_gap_seconds",
+                             "The longest time between two polls of the aggregator's emitter.", c);
   subscriber_drops_ = &counter(r, "fogmap_subscriber_drops_total",
                                "Global maps a slow subscriber lost from its bounded queue.", c);
+  subscribers_refused_ = &counter(r, "fogmap_subscribers_refused_total",
+                                  "Subscribe calls refused: the service already serves admission.max_subscribers.", c);
   geofences_denied_ = &counter(r, "fogmap_geofence_denied_total",
                                "SetGeofence calls refused: the peer's certificate is not a geofence client.", c);
   late_emits_ = &counter(r, "fogmap_late_emits_total",
@@ -228,7 +234,10 @@ void Metrics::refused(const std::string& reason, std::uint64_t n) {
   refused_->Add({{"reason", reason}}).Increment(static_cast<double>(n));
 }
 void Metrics::droppedEpochs(std::uint64_t n) { dropped_epochs_->Increment(static_cast<double>(n)); }
+void Metrics::caughtUpEpochs(std::uint64_t n) { caught_up_epochs_->Increment(static_cast<double>(n)); }
+void Metrics::longestPollGapSeconds(double s) { longest_poll_gap_->Set(s); }
 void Metrics::subscriberDrops(std::uint64_t n) { subscriber_drops_->Increment(static_cast<double>(n)); }
+void Metrics::subscribersRefused() { subscribers_refused_->Increment(); }
 void Metrics::lateEmits(std::uint64_t n) { late_emits_->Increment(static_cast<double>(n)); }
 void Metrics::geofencesDenied() { geofences_denied_->Increment(); }
 

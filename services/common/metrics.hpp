@@ -51,8 +51,14 @@ class Metrics {
   void refused(const std::string& reason, std::uint64_t n = 1);
   // Epochs evicted or abandoned without being emitted (beyond the pending bound).
   void droppedEpochs(std::uint64_t n = 1);
+  // Root: epochs published late because it did not poll in time (a stall of its own), and the
+  // longest time between two polls of its emitter.
+  void caughtUpEpochs(std::uint64_t n = 1);
+  void longestPollGapSeconds(double s);
   // Global maps a slow subscriber lost from its bounded queue.
   void subscriberDrops(std::uint64_t n = 1);
+  // Subscribe calls refused because the service already serves admission.max_subscribers.
+  void subscribersRefused();
   // SetGeofence calls refused because the peer's certificate is not a geofence client (TLS).
   void geofencesDenied();
   // Revisions of already emitted epochs (late maps merged in) and epochs emitted late (stall).
@@ -110,7 +116,10 @@ class Metrics {
   prometheus::Counter* frames_;
   prometheus::Family<prometheus::Counter>* refused_;
   prometheus::Counter* dropped_epochs_;
+  prometheus::Counter* caught_up_epochs_;
+  prometheus::Gauge* longest_poll_gap_;
   prometheus::Counter* subscriber_drops_;
+  prometheus::Counter* subscribers_refused_;
   prometheus::Counter* geofences_denied_;
   prometheus::Counter* late_emits_;
   prometheus::Counter* uploads_refused_;

@@ -573,35 +573,52 @@ void MergeAggregator::forgetOldEpochs(std::int64_t now_ns) {
 
 void MergeAggregator::openSilentEpochs(std::int64_t now_ns) {
   // The root publishes every epoch, with every sensor missing when nothing came: a silent map is
-  // news (every child dead or cut off), silence from the root is not. Epochs from the first poll
-  // on, and only within the admission window: after a stall of the root itself, older ones are
-  // not invented.
-  const std::int64_t due_ns = now_ns - static_cast<std::int64_t>(config_.levels) * schedule_.deadlineNs();
-  if (due_ns <= 0) return;
-  const std::uint64_t last_due = schedule_.epochAt(due_ns);  // the latest epoch whose deadline has passed
-  if (!silent_from_) silent_from_ = last_due + 1;
-  const std::uint64_t window_epochs = static_cast<std::uint64_t>(windowNs() / schedule_.periodNs()) + 1;
-  std::uint64_t from = std::max(*silent_from_, last_due > window_epochs ? last_due - window_epochs : 0);
-  for (std::uint64_t e = from; e <= last_due; ++e) {
-    if (!pending_.contains(e) && !emitted_.contains(e)) openEpoch(e);
+  // news (every child dead or cut off), silence from the root is not. It opens every epoch as it
+  // begins (empty until maps arrive), so poll, which emits in order, never emits an epoch before
+  // an older one, reported or not. Epochs from the first poll on (those already due then are not
+  // invented); after a stall of the root itself (SIGSTOP, a starved process) every epoch it missed
+  // is published late and flagged, never left out. Only beyond max_pending_epochs (a stall of
+  // many seconds) are the oldest of them dropped, counted in dropped_epochs as openEpoch does.
+  if (now_ns < 0) return;
+  const std::uint64_t current = schedule_.epochAt(now_ns);  // the latest epoch that has begun
+  if (!silent_from_) {
+    const std::int64_t due_ns = now_ns - static_cast<std::int64_t>(config_.levels) * schedule_.deadlineNs();
+    silent_from_ = due_ns <= 0 ? 0 : schedule_.epochAt(due_ns) + 1;
   }
-  silent_from_ = std::max(*silent_from_, last_due + 1);
+  std::uint64_t from = *silent_from_;
+  if (current >= from && current - from + 1 > config_.max_pending_epochs) {
+    const std::uint64_t skipped = current - from + 1 - config_.max_pending_epochs;
+    for (std::uint64_t e = from; e < from + skipped; ++e) {
+      if (!pending_.contains(e) && !emitted_.contains(e)) ++counters_.dropped_epochs;
+    }
+    from += skipped;
+  }
+  for (std::uint64_t e = from; e <= current; ++e) {
+    if (pending_.contains(e) || emitted_.contains(e)) continue;
+    openEpoch(e);
+    if (now_ns > schedule_.deadlineNs(e, config_.levels) + schedule_.periodNs()) ++counters_.caught_up;
+  }
+  silent_from_ = std::max(*silent_from_, current + 1);
 }
 
 std::vector<EpochOutput> MergeAggregator::poll(std::int64_t now_ns) {
   std::vector<EpochOutput> outputs;
+  if (last_poll_ns_) counters_.longest_poll_gap_ns = std::max(counters_.longest_poll_gap_ns, now_ns - *last_poll_ns_);
+  last_poll_ns_ = std::max(last_poll_ns_.value_or(now_ns), now_ns);
   if (config_.is_root) openSilentEpochs(now_ns);
+  // Oldest first, and in order: an epoch complete before an older one is due waits for it, so
+  // every epoch's first emission comes after the previous epoch's.
   for (auto it = pending_.begin(); it != pending_.end();) {
     // Never before the epoch has begun: an early upload cannot make an epoch look complete.
     const bool begun = now_ns >= schedule_.startNs(it->first);
     const bool complete = begun && isComplete(it->second, now_ns);
-    if (complete || now_ns >= schedule_.deadlineNs(it->first, config_.levels)) {
-      outputs.push_back(emit(it->first, it->second, complete, now_ns));
-      emitted_.insert_or_assign(it->first, std::move(it->second));
-      it = pending_.erase(it);
-    } else {
-      ++it;
-    }
+    // An epoch nobody reported (the root opens every epoch as it begins) waits for its deadline
+    // even when no child is live: a child that connects in time still makes it.
+    const bool heard = !it->second.reported_children.empty() || !it->second.points.empty();
+    if (!(complete && heard) && now_ns < schedule_.deadlineNs(it->first, config_.levels)) break;
+    outputs.push_back(emit(it->first, it->second, complete, now_ns));
+    emitted_.insert_or_assign(it->first, std::move(it->second));
+    it = pending_.erase(it);
   }
   for (auto& [epoch_id, epoch] : emitted_) {
     if (epoch.dirty) outputs.push_back(emit(epoch_id, epoch, isComplete(epoch, now_ns), now_ns));

@@ -124,6 +124,10 @@ struct AggregatorCounters {
   std::uint64_t revisions = 0;       // emissions of an epoch after its first
   std::uint64_t late_emits = 0;      // emissions flagged late (revisions and stale epochs)
   std::uint64_t dropped_epochs = 0;  // open epochs evicted beyond max_pending_epochs
+  // Root: epochs nobody reported that it opened more than a period after their deadline, because
+  // it did not poll in time (a stall of its own: SIGSTOP, a starved process); published late.
+  std::uint64_t caught_up = 0;
+  std::int64_t longest_poll_gap_ns = 0;  // the longest time between two polls
   std::map<Refusal, std::uint64_t> refused;  // by reason
   std::uint64_t refusedTotal() const;
 };
@@ -170,8 +174,10 @@ class MergeAggregator {
   // one) and returns it, so every refusal shows in counters().refused.
   Refused refuse(Refusal reason, std::string message);
 
-  // Emits every epoch that is complete or past its deadline, and a revision of every retained
-  // epoch that took late maps, oldest epoch first.
+  // Emits every epoch that is complete or past its deadline, in epoch order (an epoch complete
+  // before an older one is due waits for it), and a revision of every retained epoch that took
+  // late maps, oldest epoch first. The root also publishes the epochs nobody reported, every one
+  // of them after a stall of its own (late and flagged), up to max_pending_epochs.
   std::vector<EpochOutput> poll(std::int64_t now_ns);
   // Emits every open epoch now, complete or not (shutdown: nothing acknowledged is abandoned).
   std::vector<EpochOutput> drain(std::int64_t now_ns);
@@ -237,6 +243,7 @@ class MergeAggregator {
 
   explicit MergeAggregator(AggregatorConfig config, EpochSchedule schedule);
   std::optional<std::uint64_t> silent_from_;  // the root: first epoch not yet checked for silence
+  std::optional<std::int64_t> last_poll_ns_;
 
   std::optional<std::uint32_t> childOf(std::uint32_t node) const;
   bool isLive(const Child& child, std::int64_t now_ns) const;

@@ -47,6 +47,7 @@ GlobalMapService::GlobalMapService(SharedAggregator& aggregator, Metrics* metric
     : aggregator_(aggregator),
       metrics_(metrics),
       queue_capacity_(std::max<std::size_t>(1, queue_capacity)),
+      max_subscribers_(aggregator.with([](MergeAggregator& core) { return core.config().admission.max_subscribers; })),
       poll_wait_(poll_wait) {}
 
 void GlobalMapService::publish(const GlobalMapMessage& message) {
@@ -97,6 +98,11 @@ std::uint64_t GlobalMapService::droppedMessages() const {
   return dropped_;
 }
 
+std::uint64_t GlobalMapService::refusedSubscribers() const {
+  std::lock_guard lock(mutex_);
+  return refused_subscribers_;
+}
+
 grpc::Status GlobalMapService::Subscribe(grpc::ServerContext* context, const v1::SubscribeRequest* request,
                                          grpc::ServerWriter<v1::GlobalMap>* writer) {
   auto subscriber = std::make_shared<Subscriber>();
@@ -105,6 +111,13 @@ grpc::Status GlobalMapService::Subscribe(grpc::ServerContext* context, const v1:
   {
     std::lock_guard lock(mutex_);
     if (shutting_down_) return {grpc::StatusCode::UNAVAILABLE, "the aggregator is shutting down"};
+    if (subscribers_.size() >= max_subscribers_) {
+      ++refused_subscribers_;
+      if (metrics_ != nullptr) metrics_->subscribersRefused();
+      return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+              "the root already serves " + std::to_string(subscribers_.size()) +
+                  " subscribers, its bound (topology admission.max_subscribers); retry later"};
+    }
     subscribers_.push_back(subscriber);
   }
   struct Unsubscribe {

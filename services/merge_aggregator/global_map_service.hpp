@@ -3,7 +3,9 @@
 // geofences set and queried on the latest global map.
 //
 // Every subscriber has its own bounded queue: a slow subscriber loses its oldest global maps
-// (counted) and never slows the emitter or the other subscribers.
+// (counted) and never slows the emitter or the other subscribers. At most the topology's
+// admission.max_subscribers streams are served at once; one more is refused RESOURCE_EXHAUSTED
+// (counted), so subscribers that never read cannot hold memory without bound.
 //
 // With TLS (allowGeofenceSetters) only the certificate names listed may call SetGeofence; any other
 // peer is answered PERMISSION_DENIED and counted. Subscribe and QueryGeofences are open to every
@@ -40,6 +42,8 @@ class GlobalMapService final : public v1::GlobalMapService::Service {
   void shutdown(std::chrono::milliseconds drain = std::chrono::milliseconds(500));
   std::size_t subscriberCount() const;
   std::uint64_t droppedMessages() const;
+  // Subscribe calls refused because max_subscribers streams were being served.
+  std::uint64_t refusedSubscribers() const;
   // From now on SetGeofence is allowed only to peers whose certificate names one of `names`. Set
   // before the server starts.
   void allowGeofenceSetters(std::vector<std::string> names) { geofence_setters_ = std::move(names); }
@@ -68,12 +72,14 @@ class GlobalMapService final : public v1::GlobalMapService::Service {
   SharedAggregator& aggregator_;
   Metrics* metrics_;
   std::size_t queue_capacity_;
+  std::size_t max_subscribers_;  // the core's admission.max_subscribers
   std::chrono::milliseconds poll_wait_;
   mutable std::mutex mutex_;
   std::condition_variable published_;
   std::condition_variable drained_;  // a subscriber left
   std::vector<std::shared_ptr<Subscriber>> subscribers_;
   std::uint64_t dropped_ = 0;
+  std::uint64_t refused_subscribers_ = 0;
   std::optional<std::vector<std::string>> geofence_setters_;  // none: everyone may (plaintext)
   std::atomic<std::uint64_t> denied_geofences_{0};
   bool shutting_down_ = false;

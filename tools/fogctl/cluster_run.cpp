@@ -51,6 +51,7 @@ struct Collection {
   std::condition_variable changed;
   bool subscribed = false;
   bool ended = false;
+  bool during_done = false;  // the caller's `during` returned: from then on `frames` epochs end the run
   RunResult result;
 };
 
@@ -77,7 +78,8 @@ static void collect(const std::string& target, const std::shared_ptr<grpc::Chann
   auto stub = v1::GlobalMapService::NewStub(channel);
   v1::SubscribeRequest request;
   request.set_include_point_labels(labels);
-  request.set_on_time_only(true);  // the live picture, as geofences see it; revisions would overwrite it
+  // Every epoch's first publication, late ones (after a stall of the root) included and flagged;
+  // revisions are skipped below: they would overwrite the live picture geofences saw.
   auto reader = stub->Subscribe(&context, request);
   {
     std::lock_guard lock(out.mutex);
@@ -87,10 +89,11 @@ static void collect(const std::string& target, const std::shared_ptr<grpc::Chann
   v1::GlobalMap message;
   while (reader->Read(&message)) {
     auto global = fromProto(message);
-    if (!global) continue;
+    if (!global || global->revision != 0) continue;
     std::lock_guard lock(out.mutex);
     out.result.epochs[global->header.epoch] = std::move(*global);
-    if (out.result.epochs.size() >= frames) break;
+    // Never while `during` runs: what it does (queries, attacks) is judged against these epochs.
+    if (out.result.epochs.size() >= frames && out.during_done) break;
   }
   context.TryCancel();
   end();
@@ -128,6 +131,10 @@ Expected<RunResult> runCluster(const std::filesystem::path& dir, const TopologyC
     return cluster.error();
   }
   if (during) during(*cluster);
+  {
+    std::lock_guard lock(collection.mutex);
+    collection.during_done = true;
+  }
   // Wait for every epoch, or until the edges have finished their frames and the last epoch had
   // time to drain (one deadline and a margin), or the timeout.
   std::optional<std::chrono::steady_clock::time_point> edges_done;

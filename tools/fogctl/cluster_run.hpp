@@ -46,8 +46,10 @@ struct RunOptions {
 
 // Writes the topology to dir/<name>.yaml, starts it (logs under dir/<name>/), subscribes to the
 // root (with TLS as options.identity), waits for `frames` epochs or the timeout, scrapes every
-// service's metrics and stops it.
-// `during` (may be empty) runs once the cluster is up, e.g. to kill a node.
+// service's metrics and stops it. The epochs are every epoch's first publication (late ones
+// flagged), revisions left out.
+// `during` (may be empty) runs once the cluster is up, e.g. to kill a node; the subscriber keeps
+// collecting until it has returned, whatever `frames` says.
 Expected<RunResult> runCluster(const std::filesystem::path& dir, const TopologyConfig& topology, const RunOptions& options,
                                const std::function<void(const Cluster&)>& during = {});
 

@@ -92,6 +92,9 @@ struct FaultReport {
   double max_silence_ms = 0.0;          // longest time without a publication while loaded
   std::uint64_t publications = 0;       // every revision counted
   std::uint64_t late_publications = 0;
+  std::uint64_t out_of_order = 0;       // first publications of an epoch older than one published before
+  std::uint64_t root_caught_up = 0;     // epochs the root published late after a stall of its own
+  double root_longest_poll_gap_ms = 0.0;  // the longest time between two polls of the root's emitter
 
   // Sent vs applied.
   std::uint64_t maps_sent = 0;           // map uploads journalled by the edges

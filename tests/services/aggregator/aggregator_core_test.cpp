@@ -295,11 +295,96 @@ TEST(MergeAggregator, TheRootPublishesEveryEpochEvenWhenNoChildSendsAnything) {
   ASSERT_EQ(revision.size(), 1U);
   EXPECT_EQ(revision[0].revision, 1U);
   EXPECT_TRUE(revision[0].late);
-  // After a stall of the root, only the epochs within the admission window are published.
-  const auto after_stall = aggregator.poll(at(105, 80));
-  ASSERT_FALSE(after_stall.empty());
-  EXPECT_LE(after_stall.size(), aggregator.windowEpochs());
-  EXPECT_EQ(after_stall.back().epoch, E(105));
+  // After a stall of the root (it polls next at epoch 25), every epoch it missed is published, in
+  // order, those more than a period past their deadline flagged late.
+  const auto after_stall = aggregator.poll(at(25, 80));
+  ASSERT_EQ(after_stall.size(), 20U);
+  for (std::size_t i = 0; i < after_stall.size(); ++i) {
+    EXPECT_EQ(after_stall[i].epoch, E(6 + static_cast<std::int64_t>(i)));
+    EXPECT_EQ(after_stall[i].revision, 0U);
+    EXPECT_EQ(after_stall[i].late, after_stall[i].epoch < E(24)) << "epoch +" << i;
+  }
+  EXPECT_LE(aggregator.pendingEpochs() + aggregator.retainedEpochs(), aggregator.windowEpochs());
+  EXPECT_EQ(aggregator.counters().dropped_epochs, 0U);
+  EXPECT_EQ(aggregator.counters().caught_up, 18U) << "epochs 6 to 23 were opened after their deadline + a period";
+  EXPECT_EQ(aggregator.counters().longest_poll_gap_ns, at(25, 80) - at(5, 91));
+  // A stall beyond max_pending_epochs (64 periods): the newest 64 are published, the older ones
+  // are counted as dropped, never silently left out.
+  const auto after_long_stall = aggregator.poll(at(205, 80));
+  ASSERT_EQ(after_long_stall.size(), 64U);
+  EXPECT_EQ(after_long_stall.front().epoch, E(142));
+  EXPECT_EQ(after_long_stall.back().epoch, E(205));
+  EXPECT_EQ(aggregator.counters().dropped_epochs, 116U);
+  EXPECT_EQ(aggregator.counters().caught_up, 18U + 62U);
+  EXPECT_LE(aggregator.pendingEpochs() + aggregator.retainedEpochs(), aggregator.windowEpochs());
+}
+
+TEST(MergeAggregator, TheRootPublishesEveryEpochInOrderUnderAnySchedule) {
+  // Random arrival schedules (children skipping epochs, maps a period ahead or after the deadline,
+  // polls at random instants with gaps of up to a second): the first emission of every epoch
+  // from the first poll's due epoch on comes exactly once, in epoch order, and is flagged late
+  // exactly when it came more than a period after its deadline.
+  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+    std::mt19937_64 rng(seed);
+    Streams streams;
+    auto aggregator = makeAggregator(starConfig({1, 2, 3}));
+    connectAll(aggregator, {1, 2, 3});
+    std::uniform_int_distribution<int> step_ms(1, 120);
+    std::uniform_int_distribution<int> coin(0, 9);
+    std::int64_t now = at(0, 0);
+    std::vector<std::pair<std::uint64_t, bool>> first;  // (epoch, late) of first emissions
+    ASSERT_TRUE(aggregator.poll(now).empty());  // the first poll: the root publishes from here on
+    std::int64_t last_poll = now;
+    std::set<std::pair<std::uint32_t, std::uint64_t>> sent;
+    for (int i = 0; i < 400; ++i) {
+      now += step_ms(rng) * kMs * (coin(rng) == 0 ? 8 : 1);
+      const auto epoch_now = static_cast<std::int64_t>(static_cast<std::uint64_t>(now / kPeriodNs) - kE0);
+      for (std::uint32_t child = 1; child <= 3; ++child) {
+        // A map of this epoch, the last one or the next one, now and then; some epochs never.
+        const std::int64_t k = epoch_now + (coin(rng) % 3) - 1;
+        if (coin(rng) < 4 || !sent.emplace(child, E(k)).second) continue;
+        (void)send(aggregator, streams, child, mapMessage(child, E(k), randomLocalMap(rng, child, E(k), 2)), now);
+      }
+      for (const auto& out : aggregator.poll(now)) {
+        if (out.revision != 0) continue;
+        first.emplace_back(out.epoch, out.late);
+        const std::int64_t deadline = static_cast<std::int64_t>(out.epoch) * kPeriodNs + 80 * kMs;
+        EXPECT_EQ(out.late, now > deadline + kPeriodNs) << "seed " << seed;
+      }
+      last_poll = now;
+    }
+    ASSERT_FALSE(first.empty());
+    for (std::size_t i = 1; i < first.size(); ++i) {
+      ASSERT_EQ(first[i].first, first[i - 1].first + 1) << "seed " << seed << ": epoch after " << first[i - 1].first;
+    }
+    // At least up to the last poll's due epoch (later ones when complete early).
+    EXPECT_GE(first.back().first, static_cast<std::uint64_t>((last_poll - 80 * kMs) / kPeriodNs)) << "seed " << seed;
+    EXPECT_EQ(aggregator.counters().dropped_epochs, 0U);
+  }
+}
+
+TEST(MergeAggregator, AnEpochCompleteEarlyWaitsForTheOlderOneSoEpochsAreEmittedInOrder) {
+  std::mt19937_64 rng(12);
+  Streams streams;
+  // A deadline longer than the period (as at a root over several levels): epoch 2 can be complete
+  // while epoch 1 is not yet due.
+  auto config = starConfig({1, 2});
+  config.deadline_ms = 250.0;
+  auto aggregator = makeAggregator(config);
+  connectAll(aggregator, {1, 2});
+  // Child 2 skips epoch 1 (behind its schedule) and sends epoch 2 at once: epoch 2 is complete
+  // before epoch 1 is due, but it is not emitted before it.
+  accept(aggregator, streams, mapMessage(1, E(1), randomLocalMap(rng, 1, E(1), 2)), at(1, 10));
+  accept(aggregator, streams, mapMessage(1, E(2), randomLocalMap(rng, 1, E(2), 2)), at(2, 5));
+  accept(aggregator, streams, mapMessage(2, E(2), randomLocalMap(rng, 2, E(2), 2)), at(2, 6));
+  EXPECT_TRUE(aggregator.poll(at(2, 7)).empty()) << "epoch 2 waits for epoch 1 (due at +250 ms)";
+  auto outputs = aggregator.poll(at(1, 250));  // epoch 1's deadline
+  std::erase_if(outputs, [](const EpochOutput& o) { return o.epoch < E(1); });  // silent epoch 0
+  ASSERT_EQ(outputs.size(), 2U);
+  EXPECT_EQ(outputs[0].epoch, E(1));
+  EXPECT_FALSE(outputs[0].complete);
+  EXPECT_EQ(outputs[1].epoch, E(2));
+  EXPECT_TRUE(outputs[1].complete);
 }
 
 TEST(MergeAggregator, AnIntermediateInventsNoEpochs) {

@@ -210,6 +210,8 @@ class Subscription {
     if (!reader_->Read(&map)) return std::nullopt;
     return map;
   }
+  // The call's status, once the stream has ended (next() returned nullopt).
+  grpc::Status finish() { return reader_->Finish(); }
 
  private:
   grpc::ClientContext context_;
@@ -736,6 +738,43 @@ TEST(AggregatorService, SlowSubscriberLosesItsOldestMapsCountedAndExported) {
     ++received;
   }
   EXPECT_EQ(last_epoch, E(kPublished - 1));
+}
+
+TEST(AggregatorService, SubscribersBeyondTheBoundAreRefusedCountedAndExported) {
+  Metrics metrics("", "merge-aggregator", "sink");
+  FakeClock clock(at(1, 5));
+  AggregatorConfig config = rootConfig(Mode::kMadc, {1});
+  config.admission.max_subscribers = 2;
+  AggregatorServer server(std::move(config), clock, "", &metrics);
+  ASSERT_TRUE(server.started());
+  auto global_stub = server.globalStub();
+  auto first = std::make_unique<Subscription>(*global_stub, false);
+  Subscription second(*global_stub, false);
+  ASSERT_TRUE(eventually([&] { return server.globalMaps().subscriberCount() == 2; }));
+  {
+    Subscription third(*global_stub, false);
+    EXPECT_FALSE(third.next().has_value());
+    const grpc::Status status = third.finish();
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << status.error_message();
+    EXPECT_NE(status.error_message().find("max_subscribers"), std::string::npos) << status.error_message();
+  }
+  EXPECT_EQ(server.globalMaps().refusedSubscribers(), 1U);
+  EXPECT_EQ(counterValue(metrics, "fogmap_subscribers_refused_total", {}), 1.0);
+  // A subscriber that leaves frees its place; the two served still get every map.
+  first.reset();
+  ASSERT_TRUE(eventually([&] { return server.globalMaps().subscriberCount() == 1; }));
+  Subscription fourth(*global_stub, false);
+  ASSERT_TRUE(eventually([&] { return server.globalMaps().subscriberCount() == 2; }));
+  GlobalMapMessage global;
+  global.header.node = kRoot;
+  global.header.epoch = E(1);
+  server.globalMaps().publish(global);
+  for (Subscription* s : {&second, &fourth}) {
+    const auto map = s->next();
+    ASSERT_TRUE(map.has_value());
+    EXPECT_EQ(map->header().epoch(), E(1));
+  }
+  EXPECT_EQ(server.globalMaps().refusedSubscribers(), 1U);
 }
 
 TEST(AggregatorService, DrainAtShutdownPublishesEveryOpenEpoch) {

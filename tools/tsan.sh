@@ -1,0 +1,61 @@
+#!/usr/bin/env bash
+# ThreadSanitizer over the threaded parts: the merge-aggregator (core, ingest, emitter, global-map
+# service), the tracker service, the client links (parent link, tracker link) and the integration
+# tests that run them as real processes. Builds with g++ -fsanitize=thread -O1 -g into build-tsan/
+# (services and tests), runs the chosen tests with every service process instrumented too, and
+# counts the reports. Exit status: 0 no report, 1 reports (listed in build-tsan/tsan-logs/), 2 bad
+# usage or a failed build.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+usage() {
+  cat <<'USAGE'
+Usage: tools/tsan.sh [--tests REGEX] [--no-build]
+
+Builds fogmap with ThreadSanitizer into build-tsan/ and runs the threaded tests under it.
+
+  --tests REGEX  ctest -R pattern (default: the aggregator service, tracker service, link and
+                 integration tests: AggregatorService|TlsService|TrackerService|TrackerNode|
+                 ParentLink|DetectionLink|CentroidLink|GlobalMapFeed|Cluster.|HostileClient|Shutdown)
+  --no-build     run what build-tsan/ holds
+  --help         this text
+
+Reports go to build-tsan/tsan-logs/<process>.<pid>; the summary counts them.
+USAGE
+}
+
+tests='AggregatorService|TlsService|TrackerService|TrackerNode|ParentLink|DetectionLink|CentroidLink|GlobalMapFeed|Cluster\.|HostileClient|Shutdown'
+build=1
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --tests) [ $# -ge 2 ] || { echo "tsan.sh: --tests needs a value" >&2; exit 2; }; tests=$2; shift 2 ;;
+    --no-build) build=0; shift ;;
+    -h | --help) usage; exit 0 ;;
+    *) echo "tsan.sh: unknown argument '$1'" >&2; usage >&2; exit 2 ;;
+  esac
+done
+
+dir=build-tsan
+if [ $build -eq 1 ]; then
+  cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    -DCMAKE_CXX_FLAGS="-fsanitize=thread -fno-omit-frame-pointer" -DCMAKE_C_FLAGS="-fsanitize=thread" \
+    -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=thread" -DCMAKE_SHARED_LINKER_FLAGS="-fsanitize=thread" > /dev/null ||
+    { echo "tsan.sh: configure failed" >&2; exit 2; }
+  cmake --build "$dir" -j "$(nproc)" --target merge-aggregator edge-cluster tracker detection fogctl \
+    fogmap_aggregator_tests fogmap_service_tests fogmap_tracker_service_tests fogmap_integration_tests ||
+    { echo "tsan.sh: build failed" >&2; exit 2; }
+fi
+logs=$PWD/$dir/tsan-logs
+rm -rf "$logs"
+mkdir -p "$logs"
+# Every process the tests start inherits this: one log file per process, all reports kept.
+export TSAN_OPTIONS="log_path=$logs/tsan halt_on_error=0 second_deadlock_stack=1 history_size=4"
+status=0
+ctest --test-dir "$dir" -R "$tests" --output-on-failure -j 2 --timeout 900 || status=$?
+reports=$(cat "$logs"/tsan.* 2> /dev/null | grep -c '^WARNING: ThreadSanitizer' || true)
+echo "tsan.sh: $reports ThreadSanitizer reports (logs: $dir/tsan-logs/); ctest exit $status"
+if [ "$reports" -gt 0 ]; then
+  grep -h -A3 '^WARNING: ThreadSanitizer' "$logs"/tsan.* | head -40
+  exit 1
+fi
+[ $status -eq 0 ] || exit 1
