@@ -1,15 +1,104 @@
 // libFuzzer target: parseTopology over arbitrary text. A document it accepts must describe a
 // tree every service can start from: one root, every node's subtree answerable, every aggregator's
 // core created from it, every edge's centroids going to a tracker that takes them, and the document
-// it writes back (toYaml) accepted again with the same settings.
+// it writes back (toYaml) accepted again with the same settings. And what fogctl does with it
+// before starting anything must answer, never throw: up's checks and plan (fogctl up --dry-run)
+// and the compose deployment (fogctl compose), with the topology read from a scratch project
+// directory (holding the files the seeds name) and from the working directory (loadTopology of a
+// bare file name). Nothing is started, written or sent.
+#include <stdlib.h>
+#include <unistd.h>
+
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <filesystem>
+#include <fstream>
 #include <string>
+#include <system_error>
+#include <vector>
 
 #include "common/topology.hpp"
 #include "fuzz/fuzz_check.hpp"
 #include "services/merge_aggregator/aggregator_core.hpp"
+#include "tools/fogctl/compose.hpp"
+#include "tools/fogctl/launcher.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace fogmap;
+
+// A scratch project directory, made once and removed at exit, holding the files the seeds name
+// (scans/, images/, s.yaml, cascade.xml, m.onnx, m.cfg, n.txt) so that their topologies get past
+// the checks to the plan and the compose file.
+struct Project {
+  Project() {
+    std::string pattern = (fs::temp_directory_path() / "fogmap-fuzz-topology-XXXXXX").string();
+    if (::mkdtemp(pattern.data()) == nullptr) std::abort();
+    dir = pattern;
+    for (const char* d : {"scans", "images"}) fs::create_directories(dir / d);
+    for (const char* f : {"s.yaml", "cascade.xml", "m.onnx", "m.cfg", "n.txt"}) std::ofstream(dir / f) << "x\n";
+  }
+  ~Project() {
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+  }
+  fs::path dir;
+};
+
+const Project& project() {
+  static const Project p;
+  return p;
+}
+
+// The checks fogctl up, up --dry-run and compose make before anything starts, on a topology whose
+// relative paths were resolved against `project_dir`.
+void checkDeployment(const TopologyConfig& topology, const fs::path& project_dir) {
+  const Status startable = cli::checkStartable(topology);
+  if (!startable) {
+    const Error& e = startable.error();
+    fuzz::check(e.code == ErrorCode::kInvalidArgument || e.code == ErrorCode::kNotFound || e.code == ErrorCode::kIo,
+                "a topology that cannot start is refused as bad input, a missing file or an unreadable one");
+    fuzz::check(e.message.starts_with("node '") && e.message.find("': ") != std::string::npos && e.message.size() > 16,
+                "a topology that cannot start is refused naming the node and the field");
+  }
+  const fs::path state = project_dir / ".fogmap" / topology.name;
+  const auto plan = cli::planCluster(project_dir / "topology.yaml", topology, state);
+  fuzz::check(plan.ok() == startable.ok(), "up --dry-run refuses exactly what checkStartable refuses");
+  if (plan) {
+    fuzz::check(plan->size() == topology.nodes.size(), "up starts every node once");
+    const auto serves = [](Role r) { return r == Role::kAggregator || r == Role::kTracker; };
+    fuzz::check(std::is_partitioned(plan->begin(), plan->end(), [&](const cli::PlannedNode& n) { return serves(n.role); }),
+                "up starts the aggregators and trackers before the edges and cameras");
+    for (const cli::PlannedNode& n : *plan) {
+      const auto node = std::find(n.command.begin(), n.command.end(), "--node");
+      fuzz::check(node != n.command.end() && node + 1 != n.command.end() && *(node + 1) == n.name &&
+                      topology.find(n.name) != nullptr && n.log.parent_path() == state / "logs",
+                  "each planned service runs its node and logs under the state directory");
+    }
+  }
+
+  cli::ComposeOptions options;
+  options.topology_file = project_dir / "topology.yaml";
+  options.project_dir = project_dir;
+  options.prometheus_config = "prometheus.yml";
+  options.command = "fogctl compose topology.yaml";
+  const auto compose = cli::composeFile(topology, options);
+  if (!compose) {
+    fuzz::check(compose.error().code == ErrorCode::kInvalidArgument && compose.error().message.size() > 8,
+                "compose refuses what it cannot deploy as bad input, saying what");
+  } else {
+    for (const NodeConfig& node : topology.nodes) {
+      fuzz::check(compose->find("\n  " + node.name + ":\n") != std::string::npos, "compose runs every node as a service");
+    }
+  }
+  const std::string scrape = cli::prometheusConfig(topology, {});
+  fuzz::check(scrape.find("scrape_configs:") != std::string::npos, "the Prometheus configuration scrapes");
+}
+
+}  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace fogmap;
@@ -19,6 +108,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     fuzz::checkRejection(topology.error(), "topology: ");
     return 0;
   }
+  // Where the topology file lies does not decide whether it is valid, only where its files are.
+  const Expected<TopologyConfig> in_project = parseTopology(text, project().dir);
+  fuzz::check(in_project.ok(), "a topology valid in one directory is valid in another");
+  checkDeployment(*in_project, project().dir);
+  const Expected<TopologyConfig> in_working_dir = parseTopology(text, "");
+  fuzz::check(in_working_dir.ok(), "a topology valid in one directory is valid in the working directory");
+  checkDeployment(*in_working_dir, ".");
   fuzz::check(topology->root() != nullptr, "a valid topology has a root");
   for (const NodeConfig& node : topology->nodes) {
     fuzz::check(topology->find(node.id) == &node && topology->find(node.name) == &node, "ids and names are unique");

@@ -444,6 +444,117 @@ nodes:
     write(t, "host_names_and_nul", "nodes:\n  - {name: sink, id: 1, role: aggregator, host: localhost, port: 1,"
                                    " metrics_port: 2}\n  - {name: \"e\\0x\", id: 2, role: aggregator,"
                                    " host: \"127.0.0.1\\0evil\", port: 3, metrics_port: 4, parent: sink}\n")
+    write(t, "cameras_and_tracker", """name: fusion
+nodes:
+  - {name: sink, id: 100, role: aggregator, port: 50000, metrics_port: 50200}
+  - {name: edge-1, id: 1, role: edge, parent: sink, metrics_port: 50101, sensor: {source: sim, scene: s.yaml, lidar: l1}}
+  - name: tracker
+    id: 300
+    role: tracker
+    port: 50300
+    metrics_port: 50301
+    tracker: {association: paper, eps_sync_s: 0.1, rho_overlay_m: 5, max_detection_wait_s: 0.25}
+  - name: cam-1
+    id: 401
+    role: detection
+    parent: tracker
+    metrics_port: 50401
+    camera:
+      source: sim
+      scene: s.yaml
+      camera: c1
+      detector: {kind: truth, truth: {miss_rate: 0.3, box_jitter_px: 2, latency_ms: 40}}
+      calibration: {fx: 500, fy: 500, cx: 320, cy: 240, width: 640, height: 480, distortion: [0.1, 0, 0, 0, 0],
+                    pose: {translation_m: [-20, 0, 2], rpy_deg: [-90, 0, -90]}}
+  - name: cam-2
+    id: 402
+    role: detection
+    parent: tracker
+    metrics_port: 50402
+    camera:
+      source: images
+      detector: {kind: dnn, dnn: {model_path: m.onnx, names_path: n.txt, output: yolo-export, mean: [0, 0, 0]}}
+      calibration: {fx: 500, fy: 500, cx: 320, cy: 240, width: 640, height: 480}
+""")
+    write(t, "centroids_to_tracker", """name: centroids
+nodes:
+  - {name: sink, id: 100, role: aggregator, port: 50000, metrics_port: 50200}
+  - name: edge-1
+    id: 1
+    role: edge
+    parent: sink
+    metrics_port: 50101
+    sensor: {source: sim, scene: s.yaml, lidar: l1}
+    displacement: {tracker: tracker, preset: outdoor, min_points: 6}
+  - name: edge-2
+    id: 2
+    role: edge
+    parent: sink
+    metrics_port: 50102
+    sensor: {source: scans}
+    displacement: {tracker: tracker, voxel_m: 0.1, neighbour_m: 1.0, min_neighbours: 3, min_points: 6, min_z_variance_m2: 0.01}
+  - name: tracker
+    id: 300
+    role: tracker
+    port: 50300
+    metrics_port: 50301
+    tracker: {input: centroids, centroid_merge_m: 1.0, association: kalman}
+  - name: cam-1
+    id: 401
+    role: detection
+    parent: tracker
+    metrics_port: 50401
+    camera:
+      source: images
+      calibration: {fx: 500, fy: 500, cx: 320, cy: 240, width: 640, height: 480}
+""")
+
+    # What fogctl up --dry-run and compose make of accepted topologies (the target's project
+    # directory holds scans/, images/, s.yaml, cascade.xml, m.onnx, m.cfg and n.txt).
+    fusion = """name: %(name)s
+nodes:
+  - {name: %(root)s, id: 100, role: aggregator, port: 50000, metrics_port: 50200}
+  - {name: edge-1, id: 1, role: edge, parent: %(root)s, metrics_port: 50101, sensor: {source: %(scans)s}}
+  - {name: tracker, id: 300, role: tracker, port: 50300, metrics_port: 50301}
+  - name: cam-1
+    id: 401
+    role: detection
+    parent: tracker
+    metrics_port: 50401
+    camera:
+      source: %(source)s
+      detector: %(detector)s
+      calibration: {fx: 500, fy: 500, cx: 320, cy: 240, width: 640, height: 480}
+%(more)s"""
+    dnn_camera = """  - name: cam-2
+    id: 402
+    role: detection
+    parent: tracker
+    metrics_port: 50402
+    camera:
+      source: images
+      detector: {kind: dnn, dnn: {model_path: m.onnx, config_path: m.cfg, names_path: n.txt, output: ssd}}
+      calibration: {fx: 500, fy: 500, cx: 320, cy: 240, width: 640, height: 480}
+"""
+
+    def camera_seed(name, detector, source="images", scans="scans", root="sink", more=""):
+        write(t, name, fusion % {"name": name.replace("_", "-"), "detector": detector, "source": source, "scans": scans,
+                                 "root": root, "more": more})
+
+    camera_seed("cascade_without_path", "{kind: cascade}")
+    camera_seed("cascade_section_without_path", "{kind: cascade, cascade: {label: face, min_neighbors: 2}}")
+    camera_seed("cascade_path_empty", "{kind: cascade, cascade: {cascade_path: ''}}")
+    camera_seed("cascade_path_missing_file", "{kind: cascade, cascade: {cascade_path: no-such.xml}}")
+    camera_seed("dnn_without_names", "{kind: dnn, dnn: {model_path: m.onnx}}")
+    camera_seed("deployable_cascade_and_dnn", "{kind: cascade, cascade: {cascade_path: cascade.xml, scale_factor: 1.2}}",
+                more=dnn_camera)
+    camera_seed("cascade_bad_scale_factor", "{kind: cascade, cascade: {cascade_path: cascade.xml, scale_factor: 7}}")
+    camera_seed("camera_device_hog", "{kind: hog}", source="/dev/video0")
+    camera_seed("camera_source_missing", "{kind: hog}", source="no-such-frames")
+    camera_seed("scans_outside_the_project", "{kind: hog}", scans="/no/such/scans")
+    camera_seed("node_named_prometheus", "{kind: hog}", root="prometheus")
+    write(t, "tls_ca_beside_the_topology", small % {"mode": "madc", "parent": "sink", "metrics": 50101} +
+          "tls: {ca: ca.crt, geofence_clients: [operator]}\n")
 
 
 def main():

@@ -986,5 +986,158 @@ TEST(FogctlTopologyCameras, ComposeRunsTheTrackerAndCamerasWithTheirFilesInsideT
   EXPECT_TRUE(contains(*device, "    devices: [\"/dev/video0:/dev/video0\"]\n    group_add: [video]\n")) << *device;
 }
 
+// ---------------------------------------------------------------------------------------------
+// up --dry-run and compose check a topology before deploying it; no command aborts on one
+
+// A fusion topology whose camera runs a cascade detector without saying which cascade: the parser
+// accepts it (detector values are the detection service's to check); its scans and frames exist.
+fs::path writeCascadeWithoutPath(const fs::path& dir) {
+  fs::create_directories(dir / "scans");
+  fs::create_directories(dir / "images");
+  const fs::path file = dir / "cascade.yaml";
+  std::ofstream(file) << "name: cascade\n"
+                         "nodes:\n"
+                         "  - {name: sink, id: 100, role: aggregator, port: 50000, metrics_port: 50200}\n"
+                         "  - {name: edge-1, id: 1, role: edge, parent: sink, metrics_port: 50101, sensor: {source: scans}}\n"
+                         "  - {name: tracker, id: 300, role: tracker, port: 50300, metrics_port: 50301}\n"
+                         "  - name: cam-1\n"
+                         "    id: 401\n"
+                         "    role: detection\n"
+                         "    parent: tracker\n"
+                         "    metrics_port: 50401\n"
+                         "    camera:\n"
+                         "      source: images\n"
+                         "      detector: {kind: cascade}\n"
+                         "      calibration: {fx: 500, fy: 500, cx: 320, cy: 240, width: 640, height: 480}\n";
+  return file;
+}
+
+constexpr const char* kCascadeProblem = "node 'cam-1': camera.detector.cascade.cascade_path: is required";
+
+TEST(FogctlCompose, RefusesACascadeWithoutItsPathNamingTheFieldAndWritesNothing) {
+  ScratchDir dir("compose-cascade");
+  writeCascadeWithoutPath(dir.path());
+  const Outcome o = fogctl({"compose", "cascade.yaml", "--out", "compose.yaml", "--prometheus", "prometheus.yml"}, dir.path());
+  EXPECT_TRUE(o.code == 1 || o.code == 2) << "refused, not aborted\n" << describe(o);
+  EXPECT_TRUE(contains(o.err, std::string("cascade.yaml: ") + kCascadeProblem)) << describe(o);
+  EXPECT_FALSE(fs::exists(dir.path() / "compose.yaml"));
+  EXPECT_FALSE(fs::exists(dir.path() / "prometheus.yml"));
+}
+
+TEST(FogctlUp, DryRunRefusesACascadeWithoutItsPathAsUpDoesAndStartsNothing) {
+  ScratchDir dir("up-cascade");
+  writeCascadeWithoutPath(dir.path());
+  for (const bool dry_run : {true, false}) {
+    std::vector<std::string> args{"up", "cascade.yaml"};
+    if (dry_run) args.push_back("--dry-run");
+    const Outcome o = fogctl(args, dir.path(), 30s);
+    EXPECT_TRUE(o.code == 1 || o.code == 2) << "refused, not aborted\n" << describe(o);
+    EXPECT_TRUE(contains(o.err, std::string("cascade.yaml: ") + kCascadeProblem)) << describe(o);
+    EXPECT_FALSE(contains(o.out, "would start")) << describe(o);
+  }
+  EXPECT_FALSE(fs::exists(dir.path() / ".fogmap")) << "no state directory, no logs: nothing was started";
+}
+
+TEST(FogctlUp, DryRunPrintsEveryServiceServersFirstAndStartsNothing) {
+  ScratchDir dir("up-dry-run");
+  const fs::path topology = writeTopology(dir.path(), "dry-star");
+  ASSERT_FALSE(topology.empty());
+  const Outcome o = fogctl({"up", topology.string(), "--dry-run", "--state", "state"}, dir.path(), 30s);
+  ASSERT_EQ(o.code, 0) << describe(o);
+  const auto sink = o.out.find("would start sink (aggregator): ");
+  const auto edge = o.out.find("would start edge-1 (edge): ");
+  ASSERT_NE(sink, std::string::npos) << describe(o);
+  ASSERT_NE(edge, std::string::npos) << describe(o);
+  EXPECT_LT(sink, edge) << "the root is started before its edge\n" << describe(o);
+  EXPECT_TRUE(contains(o.out, "edge-cluster --topology " + topology.string() + " --node edge-1\n")) << describe(o);
+  EXPECT_TRUE(contains(o.out, "2 services")) << describe(o);
+  EXPECT_TRUE(contains(o.out, "nothing started")) << describe(o);
+  EXPECT_FALSE(fs::exists(dir.path() / "state")) << "a dry run creates no state directory";
+}
+
+// The same topology in process: parsed, then refused by the check up and compose run, by up's plan,
+// and answered (not thrown at) by the compose generation that has no check of its own.
+TEST(FogctlChecks, ACascadeWithoutItsPathIsRefusedInProcessWithoutThrowing) {
+  ScratchDir dir("checks-cascade");
+  const fs::path file = writeCascadeWithoutPath(dir.path());
+  const auto topology = loadTopology(file);
+  ASSERT_TRUE(topology.ok()) << "the parser leaves detector values to the services: " << topology.error().message;
+
+  const Status startable = cli::checkStartable(*topology);
+  ASSERT_FALSE(startable.ok());
+  EXPECT_EQ(startable.error().code, ErrorCode::kInvalidArgument);
+  EXPECT_EQ(startable.error().message, kCascadeProblem);
+  const auto loaded = cli::loadStartableTopology(file);
+  ASSERT_FALSE(loaded.ok());
+  EXPECT_EQ(loaded.error().message, file.string() + ": " + kCascadeProblem);
+  const auto plan = cli::planCluster(file, *topology, dir.path() / "state");
+  ASSERT_FALSE(plan.ok());
+  EXPECT_EQ(plan.error().message, kCascadeProblem);
+  EXPECT_FALSE(fs::exists(dir.path() / "state"));
+
+  cli::ComposeOptions options;
+  options.topology_file = file;
+  options.project_dir = dir.path();
+  options.prometheus_config = "prometheus.yml";
+  Expected<std::string> compose = invalidArgument("not run");
+  ASSERT_NO_THROW(compose = cli::composeFile(*topology, options));
+  ASSERT_FALSE(compose.ok());
+  EXPECT_TRUE(contains(compose.error().message, "cam-1's cascade: no path given")) << compose.error().message;
+}
+
+TEST(FogctlChecks, AMissingInputFileIsRefusedNamingTheNodeAndField) {
+  ScratchDir dir("checks-missing");
+  const fs::path file = writeCascadeWithoutPath(dir.path());
+  auto topology = loadTopology(file);
+  ASSERT_TRUE(topology.ok()) << topology.error().message;
+  for (NodeConfig& node : topology->nodes) {
+    if (node.camera) node.camera->detector.kind = camera::DetectorKind::kHog;
+  }
+  EXPECT_TRUE(cli::checkStartable(*topology).ok()) << cli::checkStartable(*topology).error().message;
+  fs::remove(dir.path() / "images");
+  const Status missing = cli::checkStartable(*topology);
+  ASSERT_FALSE(missing.ok());
+  EXPECT_EQ(missing.error().code, ErrorCode::kNotFound);
+  EXPECT_EQ(missing.error().message,
+            "node 'cam-1': camera.source: no such file or directory: " + (dir.path() / "images").string());
+}
+
+// A topology read by its bare file name has the working directory as its own: a CA named beside
+// it leaves the certificate directory empty, which compose once took for a path to resolve.
+TEST(FogctlCompose, ATlsTopologyInTheWorkingDirectoryIsDeployed) {
+  ScratchDir dir("compose-tls-here");
+  fs::create_directories(dir.path() / "scans");
+  std::ofstream(dir.path() / "tls-here.yaml")
+      << "name: tls-here\n"
+         "tls: {ca: ca.crt}\n"
+         "nodes:\n"
+         "  - {name: sink, id: 100, role: aggregator, port: 50000, metrics_port: 50200}\n"
+         "  - {name: edge-1, id: 1, role: edge, parent: sink, metrics_port: 50101, sensor: {source: scans}}\n";
+  const Outcome o = fogctl({"compose", "tls-here.yaml", "--out", "compose.yaml", "--prometheus", "prometheus.yml"}, dir.path());
+  ASSERT_EQ(o.code, 0) << describe(o);
+  EXPECT_TRUE(contains(readFile(dir.path() / "compose.yaml"), "#   fogctl certs tls-here.yaml --out . --owner 10001\n"))
+      << readFile(dir.path() / "compose.yaml");
+}
+
+TEST(FogctlPaths, EmptyPathsAreRefusedWithAMessageNeverAnAbort) {
+  ScratchDir dir("empty-paths");
+  const fs::path topology = writeTopology(dir.path(), "empty-paths");
+  ASSERT_FALSE(topology.empty());
+  for (const auto& args : {std::vector<std::string>{"up", topology.string(), "--dry-run", "--state", ""},
+                           std::vector<std::string>{"up", "", "--dry-run"},
+                           std::vector<std::string>{"down", "--state", ""},
+                           std::vector<std::string>{"compose", topology.string(), "--out", ""},
+                           std::vector<std::string>{"compose", topology.string(), "--prometheus", ""},
+                           std::vector<std::string>{"certs", "", "--out", "certs"},
+                           std::vector<std::string>{"faults", ""},
+                           std::vector<std::string>{"watch", ""}}) {
+    const Outcome o = fogctl(args, dir.path(), 30s);
+    std::string line;
+    for (const auto& a : args) line += "'" + a + "' ";
+    EXPECT_TRUE(o.code == 1 || o.code == 2) << line << "\n" << describe(o);
+    EXPECT_FALSE(o.err.empty()) << line << "\n" << describe(o);
+  }
+}
+
 }  // namespace
 }  // namespace fogmap

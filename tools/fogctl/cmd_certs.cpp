@@ -151,14 +151,15 @@ int runCerts(int argc, char** argv) {
               topology->nodes.size() + clients.size(), topology->nodes.size(), client_list.empty() ? "none" : client_list.c_str(),
               out.c_str(), dateOf(not_after).c_str());
   // Relative paths in a topology are taken from its own directory.
-  const auto topology_dir = std::filesystem::absolute(args->positional()[0]).parent_path();
-  const auto ca_path = std::filesystem::absolute(out / "ca.crt").lexically_normal();
+  // Only what to print is left: a path that cannot be resolved must not throw now that all is written.
+  const auto topology_dir = std::filesystem::absolute(args->positional()[0], ec).parent_path();
+  const auto ca_path = std::filesystem::absolute(out / "ca.crt", ec).lexically_normal();
   const auto relative = ca_path.lexically_relative(topology_dir);
   const bool below = !relative.empty() && *relative.begin() != "..";
   if (!topology->tls) {
     std::printf("TLS is on once the topology says: tls: {ca: %s, geofence_clients: [operator]}\n",
                 (below ? relative : ca_path).c_str());
-  } else if (std::filesystem::absolute(topology->tls->ca).lexically_normal() != ca_path) {
+  } else if (std::filesystem::absolute(topology->tls->ca, ec).lexically_normal() != ca_path) {
     std::printf("note: the topology's tls.ca is %s, not this CA\n", topology->tls->ca.c_str());
   }
   return 0;

@@ -11,6 +11,7 @@
 #include "tools/fogctl/args.hpp"
 #include "tools/fogctl/commands.hpp"
 #include "tools/fogctl/compose.hpp"
+#include "tools/fogctl/launcher.hpp"
 
 namespace fogmap::cli {
 namespace {
@@ -27,6 +28,16 @@ Status writeText(const fs::path& path, const std::string& text) {
   return {};
 }
 
+// `path` taken from the working directory, normal ("." is the directory itself).
+Expected<fs::path> absolutePath(const fs::path& path) {
+  std::error_code ec;
+  const fs::path absolute = fs::absolute(path, ec);
+  if (ec) return ioError("cannot resolve " + path.string() + ": " + ec.message());
+  fs::path normal = absolute.lexically_normal();
+  if (!normal.has_filename() && normal.has_parent_path() && normal != normal.root_path()) normal = normal.parent_path();
+  return normal;
+}
+
 }  // namespace
 
 int runCompose(int argc, char** argv) {
@@ -38,7 +49,8 @@ int runCompose(int argc, char** argv) {
   if (!args) return fail(args.error(), "fogctl compose");
   if (args->positional().size() != 1) return fail(invalidArgument(usage), "fogctl compose");
   const fs::path topology_file = args->positional()[0];
-  const auto topology = loadTopology(topology_file);
+  // Checked as fogctl up checks it: what would not start as a process does not start as a container.
+  const auto topology = loadStartableTopology(topology_file);
   if (!topology) return fail(topology.error(), "fogctl compose");
 
   std::string command = "fogctl compose";
@@ -48,10 +60,19 @@ int runCompose(int argc, char** argv) {
 
   ComposeOptions options;
   options.topology_file = topology_file;
-  options.project_dir = args->has("out") ? fs::absolute(args->get("out")).parent_path() : fs::current_path();
+  for (const char* flag : {"out", "prometheus"}) {
+    if (args->has(flag) && args->get(flag).empty()) {
+      return fail(invalidArgument(std::string("--") + flag + " needs a file name"), "fogctl compose");
+    }
+  }
+  const auto project_dir = absolutePath(args->has("out") ? fs::path(args->get("out")) : fs::path("."));
+  if (!project_dir) return fail(project_dir.error(), "fogctl compose");
+  options.project_dir = args->has("out") ? project_dir->parent_path() : *project_dir;
   const fs::path prometheus =
       args->has("prometheus") ? fs::path(args->get("prometheus")) : fs::path("docker/prometheus") / (topology->name + ".yml");
-  options.prometheus_config = fs::absolute(prometheus).lexically_relative(options.project_dir);
+  const auto prometheus_path = absolutePath(prometheus);
+  if (!prometheus_path) return fail(prometheus_path.error(), "fogctl compose");
+  options.prometheus_config = prometheus_path->lexically_relative(options.project_dir);
   options.image = args->get("image", options.image);
   options.prometheus_listen = args->get("prometheus-listen", options.prometheus_listen);
   options.grafana_listen = args->get("grafana-listen", options.grafana_listen);

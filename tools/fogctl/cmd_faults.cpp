@@ -18,7 +18,7 @@ int runFaults(int argc, char** argv) {
   if (!args) return fail(args.error(), "fogctl faults");
   if (args->positional().size() != 1) return fail(invalidArgument("expected one topology file (see fogctl faults --help)"), "fogctl faults");
   const std::filesystem::path file = args->positional()[0];
-  const auto topology = loadTopology(file);
+  const auto topology = loadStartableTopology(file);
   if (!topology) return fail(topology.error(), "fogctl faults");
 
   FaultPlan plan;

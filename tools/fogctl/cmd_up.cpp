@@ -46,15 +46,20 @@ namespace {
 // State directories are absolute, so that up and down find the same one from any working
 // directory: --state is taken relative to where fogctl runs, the default (.fogmap/NAME) relative
 // to the topology file.
-std::filesystem::path absoluteDir(const std::filesystem::path& dir) {
+Expected<std::filesystem::path> absoluteDir(const std::filesystem::path& dir) {
   std::error_code ec;
-  const auto absolute = std::filesystem::weakly_canonical(std::filesystem::absolute(dir), ec);
-  return ec ? std::filesystem::absolute(dir).lexically_normal() : absolute;
+  const auto absolute = std::filesystem::absolute(dir, ec);
+  if (ec || dir.empty()) return invalidArgument("cannot use '" + dir.string() + "' as a directory: " + (ec ? ec.message() : "it is empty"));
+  const auto canonical = std::filesystem::weakly_canonical(absolute, ec);
+  return ec ? absolute.lexically_normal() : canonical;
 }
 
-std::filesystem::path stateDir(const Args& args, const std::filesystem::path& topology_file, const TopologyConfig& t) {
+Expected<std::filesystem::path> stateDir(const Args& args, const std::filesystem::path& topology_file, const TopologyConfig& t) {
   if (args.has("state")) return absoluteDir(args.get("state"));
-  return absoluteDir(std::filesystem::absolute(topology_file).parent_path() / ".fogmap" / t.name);
+  std::error_code ec;
+  const auto file = std::filesystem::absolute(topology_file, ec);
+  if (ec) return invalidArgument("cannot resolve " + topology_file.string() + ": " + ec.message());
+  return absoluteDir(file.parent_path() / ".fogmap" / t.name);
 }
 
 // A word the shell reads back unchanged: as is when it is plain, else in single quotes.
@@ -158,17 +163,35 @@ Expected<std::vector<double>> numberList(const std::string& text, std::size_t co
 }  // namespace
 
 int runUp(int argc, char** argv) {
-  const auto args = Args::parse(argc, argv, 2, {"state", "timeout-s"}, {"detach"});
+  const std::string usage = "usage: fogctl up TOPOLOGY.yaml [--detach] [--state DIR] [--timeout-s 30] [--dry-run]";
+  const auto args = Args::parse(argc, argv, 2, {"state", "timeout-s"}, {"detach", "dry-run"});
   if (!args) return fail(args.error());
-  if (args->positional().size() != 1) return fail(invalidArgument("usage: fogctl up TOPOLOGY.yaml [--detach] [--state DIR]"));
+  if (args->positional().size() != 1) return fail(invalidArgument(usage));
   const std::filesystem::path file = args->positional()[0];
-  const auto topology = loadTopology(file);
+  const auto topology = loadStartableTopology(file);
   if (!topology) return fail(topology.error());
   const auto timeout_s = args->getDouble("timeout-s", 30.0);
   if (!timeout_s) return fail(timeout_s.error());
-  const std::filesystem::path state = stateDir(*args, file, *topology);
+  if (!(*timeout_s > 0.0 && *timeout_s <= 24 * 3600.0)) return fail(invalidArgument("--timeout-s must be in (0, 86400]"));
+  const auto state = stateDir(*args, file, *topology);
+  if (!state) return fail(state.error());
+  const auto plan = planCluster(file, *topology, *state);
+  if (!plan) return fail(plan.error());
+  if (args->has("dry-run")) {
+    for (const PlannedNode& node : *plan) {
+      std::string command;
+      for (const std::string& word : node.command) {
+        if (!command.empty()) command += ' ';
+        command += shellWord(word);
+      }
+      std::printf("would start %s (%s): %s\n", node.name.c_str(), roleName(node.role), command.c_str());
+    }
+    std::printf("cluster '%s': %zu services, mode %s, %s; logs would go to %s; nothing started\n", topology->name.c_str(),
+                plan->size(), modeName(topology->mode), topology->tls ? "mutual TLS" : "plaintext", (*state / "logs").c_str());
+    return 0;
+  }
   installStopHandlers();
-  auto cluster = startCluster(file, *topology, state, std::chrono::milliseconds(static_cast<long>(*timeout_s * 1000)));
+  auto cluster = startCluster(file, *topology, *state, std::chrono::milliseconds(static_cast<long>(*timeout_s * 1000)));
   if (!cluster) return fail(cluster.error());
   std::printf("%-14s %-11s %-22s %-8s %s\n", "node", "role", "listen", "metrics", "parent");
   for (const auto& n : topology->nodes) {
@@ -177,14 +200,14 @@ int runUp(int argc, char** argv) {
                 n.metrics_port, n.parent.empty() ? (n.role == Role::kAggregator ? "(root)" : "-") : n.parent.c_str());
   }
   std::printf("cluster '%s' is up (%zu services, mode %s, %s); logs in %s\n", topology->name.c_str(), topology->nodes.size(),
-              modeName(topology->mode), topology->tls ? "mutual TLS" : "plaintext", (state / "logs").c_str());
+              modeName(topology->mode), topology->tls ? "mutual TLS" : "plaintext", (*state / "logs").c_str());
   if (args->has("detach")) {
-    std::printf("stop it with: fogctl down --state %s\n", shellWord(state.string()).c_str());
+    std::printf("stop it with: fogctl down --state %s\n", shellWord(state->string()).c_str());
     return 0;
   }
   std::printf("Ctrl-C stops the cluster\n");
   while (!stopRequested() && allRunning(*cluster)) std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  if (!allRunning(*cluster)) std::fprintf(stderr, "fogctl: a service exited; stopping the cluster (see %s)\n", (state / "logs").c_str());
+  if (!allRunning(*cluster)) std::fprintf(stderr, "fogctl: a service exited; stopping the cluster (see %s)\n", (*state / "logs").c_str());
   stopCluster(*cluster, std::chrono::milliseconds(5000));
   std::printf("cluster '%s' stopped\n", topology->name.c_str());
   return 0;
@@ -193,17 +216,16 @@ int runUp(int argc, char** argv) {
 int runDown(int argc, char** argv) {
   const auto args = Args::parse(argc, argv, 2, {"state"}, {});
   if (!args) return fail(args.error());
-  std::filesystem::path state;
+  Expected<std::filesystem::path> state = invalidArgument("usage: fogctl down TOPOLOGY.yaml | --state DIR");
   if (args->has("state")) {
     state = absoluteDir(args->get("state"));
   } else if (args->positional().size() == 1) {
     const auto topology = loadTopology(args->positional()[0]);
     if (!topology) return fail(topology.error());
     state = stateDir(*args, args->positional()[0], *topology);
-  } else {
-    return fail(invalidArgument("usage: fogctl down TOPOLOGY.yaml | --state DIR"));
   }
-  const auto report = stopRecorded(state, std::chrono::milliseconds(5000));
+  if (!state) return fail(state.error());
+  const auto report = stopRecorded(*state, std::chrono::milliseconds(5000));
   if (!report) return fail(report.error());
   for (const auto& n : report->gone) {
     std::fprintf(stderr, "fogctl: pid %d (%s) has already exited\n", static_cast<int>(n.pid), n.name.c_str());
@@ -212,7 +234,7 @@ int runDown(int argc, char** argv) {
     std::fprintf(stderr, "fogctl: pid %d (%s) is no longer the service fogctl started; left alone\n", static_cast<int>(n.pid),
                  n.name.c_str());
   }
-  std::printf("stopped %zu service(s) of the cluster recorded in %s\n", report->stopped.size(), state.c_str());
+  std::printf("stopped %zu service(s) of the cluster recorded in %s\n", report->stopped.size(), state->c_str());
   return 0;
 }
 

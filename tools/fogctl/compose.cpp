@@ -6,6 +6,8 @@
 #include <system_error>
 #include <utility>
 
+#include "tools/fogctl/launcher.hpp"
+
 namespace fogmap::cli {
 namespace {
 
@@ -14,55 +16,34 @@ namespace fs = std::filesystem;
 constexpr const char* kMountPoint = "/fogmap";
 const std::set<std::string> kInfrastructure = {"prometheus", "grafana"};
 
+// `path` made absolute (from the working directory) and normal, with symbolic links of its
+// existing part resolved; an error naming `what` when it is empty or cannot be resolved.
+Expected<fs::path> resolved(const fs::path& path, const std::string& what) {
+  if (path.empty()) return invalidArgument(what + ": no path given");
+  std::error_code ec;
+  const fs::path absolute = fs::absolute(path, ec);
+  if (ec) return invalidArgument(what + ": cannot resolve " + path.string() + ": " + ec.message());
+  const fs::path full = fs::weakly_canonical(absolute, ec);
+  if (ec) return invalidArgument(what + ": cannot resolve " + path.string() + ": " + ec.message());
+  return full;
+}
+
 // `path` (absolute or relative to the working directory) as seen inside a container, where
 // `project_dir` is mounted at /fogmap; an error when it lies outside.
 Expected<std::string> inContainer(const fs::path& path, const fs::path& project_dir, const std::string& what) {
-  std::error_code ec;
-  const fs::path root = fs::weakly_canonical(fs::absolute(project_dir), ec);
-  const fs::path full = fs::weakly_canonical(fs::absolute(path), ec);
-  if (ec) return invalidArgument(what + ": cannot resolve " + path.string() + ": " + ec.message());
-  const fs::path relative = full.lexically_relative(root);
+  const auto root = resolved(project_dir, "the directory the deployment mounts");
+  if (!root) return root.error();
+  const auto full = resolved(path, what);
+  if (!full) return full.error();
+  const fs::path relative = full->lexically_relative(*root);
   if (relative.empty() || *relative.begin() == "..") {
-    return invalidArgument(what + " " + path.string() + " lies outside " + root.string() +
+    return invalidArgument(what + " " + path.string() + " lies outside " + root->string() +
                            ", the directory the deployment mounts; move it inside or write the compose file higher up");
   }
   return relative == "." ? std::string(kMountPoint) : std::string(kMountPoint) + "/" + relative.generic_string();
 }
 
 std::string endpoint(const NodeConfig& node, std::uint16_t port) { return node.host + ":" + std::to_string(port); }
-
-// A camera source the topology keeps as written (common/topology.cpp): a device, not a file.
-bool isDevice(const fs::path& source) { return source.string().rfind("/dev/", 0) == 0; }
-
-// The files a node reads besides the topology and its TLS files, each with what it is for errors:
-// an edge's scans or scene; a camera's frames or scene and its detector's model files.
-std::vector<std::pair<fs::path, std::string>> inputFiles(const NodeConfig& node) {
-  std::vector<std::pair<fs::path, std::string>> files;
-  if (node.sensor) {
-    // A simulated LiDAR reads its scene file ("sim" is no path); a recorded one its scans.
-    const bool simulated = node.sensor->simulated();
-    files.emplace_back(simulated ? node.sensor->scene : node.sensor->source,
-                       node.name + (simulated ? "'s scene" : "'s sensor source"));
-  }
-  if (node.camera) {
-    const CameraNodeConfig& c = *node.camera;
-    if (c.simulated()) {
-      files.emplace_back(c.scene, node.name + "'s scene");
-    } else if (!isDevice(c.source)) {
-      files.emplace_back(c.source, node.name + "'s camera source");
-    }
-    if (!c.truth) {
-      const camera::DetectorConfig& d = c.detector;
-      if (d.kind == camera::DetectorKind::kCascade) files.emplace_back(d.cascade.cascade_path, node.name + "'s cascade");
-      if (d.kind == camera::DetectorKind::kDnn) {
-        files.emplace_back(d.dnn.model_path, node.name + "'s model");
-        if (!d.dnn.config_path.empty()) files.emplace_back(d.dnn.config_path, node.name + "'s model configuration");
-        files.emplace_back(d.dnn.names_path, node.name + "'s class names");
-      }
-    }
-  }
-  return files;
-}
 
 // The lines of a bash command that exits 0 when `host:port` answers `path` with HTTP 200, for
 // images without curl (bash's /dev/tcp).
@@ -91,8 +72,8 @@ Expected<std::string> composeFile(const TopologyConfig& topology, const ComposeO
       return invalidArgument("node '" + node.name + "' has the name of the deployment's " + node.name +
                              " service; rename the node");
     }
-    for (const auto& [file, what] : inputFiles(node)) {
-      const auto in = inContainer(file, options.project_dir, what);
+    for (const NodeFile& file : inputFiles(node)) {
+      const auto in = inContainer(file.path, options.project_dir, file.what);
       if (!in) return in.error();
     }
     if (const auto tls = topology.tlsIdentity(node.name)) {
@@ -103,15 +84,24 @@ Expected<std::string> composeFile(const TopologyConfig& topology, const ComposeO
     }
   }
 
+  // Where `fogctl certs` writes the certificates, as seen from the compose file's directory.
+  std::string cert_dir;
+  if (topology.tls) {
+    const auto dir = resolved(topology.tls->cert_dir.empty() ? fs::path(".") : topology.tls->cert_dir, "tls.cert_dir");
+    if (!dir) return dir.error();
+    const auto root = resolved(options.project_dir, "the directory the deployment mounts");
+    if (!root) return root.error();
+    cert_dir = dir->lexically_relative(*root).generic_string();
+    if (cert_dir.empty()) cert_dir = dir->generic_string();
+  }
+
   std::ostringstream out;
   header(out, topology, options.command, "Docker compose deployment");
   out << "# Every container uses the host's network: a service listens on the address its topology entry\n"
          "# gives, exactly as under `fogctl up`. This file's directory is mounted read-only at /fogmap.\n";
   if (topology.tls) {
     out << "# Mutual TLS is on: make the certificates first (the services run as uid " << kImageUid << "):\n"
-        << "#   fogctl certs " << options.topology_file.generic_string() << " --out "
-        << fs::absolute(topology.tls->cert_dir).lexically_normal().lexically_relative(fs::absolute(options.project_dir).lexically_normal()).generic_string()
-        << " --owner " << kImageUid
+        << "#   fogctl certs " << options.topology_file.generic_string() << " --out " << cert_dir << " --owner " << kImageUid
         << "\n";
   }
   out << "# Build the images (docker/README.md), then: docker-compose -f THIS_FILE up -d\n";

@@ -36,7 +36,8 @@ struct ComposeOptions {
 // trackers alike; host networking, so it listens on the address its topology entry gives; a V4L2
 // camera's device passed in), Prometheus, and Grafana in the `grafana` profile. Errors name what
 // cannot be deployed: a file outside project_dir (scans, scenes, camera frames, detector models,
-// TLS files), a node named like an infrastructure service.
+// TLS files), a path that is empty or cannot be resolved, a node named like an infrastructure
+// service. It checks no more than that: `fogctl compose` runs checkStartable (launcher.hpp) first.
 Expected<std::string> composeFile(const TopologyConfig& topology, const ComposeOptions& options);
 
 struct PrometheusOptions {

@@ -15,6 +15,7 @@
 #include <iterator>
 #include <optional>
 #include <sstream>
+#include <system_error>
 #include <thread>
 
 namespace fogmap::cli {
@@ -44,7 +45,8 @@ namespace {
 
 Expected<pid_t> spawn(const std::filesystem::path& binary, const std::vector<std::string>& args,
                       const std::filesystem::path& log, bool append = false) {
-  if (!std::filesystem::exists(binary)) return notFound("service binary not found: " + binary.string());
+  std::error_code ec;
+  if (!std::filesystem::exists(binary, ec)) return notFound("service binary not found: " + binary.string());
   const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | (append ? O_APPEND : O_TRUNC) | O_CLOEXEC, 0644);
   if (fd < 0) return ioError("cannot open log file " + log.string());
   std::vector<std::string> argv_storage{binary.string()};
@@ -181,24 +183,65 @@ Expected<std::string> httpGet(const std::string& host, std::uint16_t port, const
 
 namespace {
 
+// Aggregators and trackers serve the other nodes: they start first.
+bool serves(const NodeConfig& node) { return node.role == Role::kAggregator || node.role == Role::kTracker; }
+
+// The program and arguments that run `node` of `topology_file` (absolute): its service binary
+// beside fogctl, behind the node's prefix when StartOptions gives one.
+std::vector<std::string> nodeCommand(const std::filesystem::path& topology_file, const NodeConfig& node,
+                                     const StartOptions& options) {
+  std::vector<std::string> command;
+  if (const auto prefix = options.prefixes.find(node.name); prefix != options.prefixes.end()) {
+    command = prefix->second;
+  }
+  command.push_back((binaryDir() / serviceName(node.role)).string());
+  command.insert(command.end(), {"--topology", topology_file.string(), "--node", node.name});
+  if (node.role == Role::kEdge && !options.journal_dir.empty()) {
+    command.push_back("--journal");
+    command.push_back((options.journal_dir / (node.name + ".journal")).string());
+  }
+  return command;
+}
+
+std::filesystem::path logFile(const std::filesystem::path& state_dir, const NodeConfig& node) {
+  return state_dir / "logs" / (node.name + ".log");
+}
+
+// The nodes startCluster starts, in its order: servers (aggregators, trackers) before their
+// clients (edges, cameras); only those StartOptions::only names when it names any.
+Expected<std::vector<const NodeConfig*>> startOrder(const std::filesystem::path& topology_file, const TopologyConfig& topology,
+                                                    const StartOptions& options) {
+  for (const std::string& name : options.only) {
+    if (topology.find(name) == nullptr) return notFound("no node '" + name + "' in " + topology_file.string());
+  }
+  const auto starts = [&](const NodeConfig& n) {
+    return options.only.empty() || std::find(options.only.begin(), options.only.end(), n.name) != options.only.end();
+  };
+  std::vector<const NodeConfig*> order;
+  for (const bool servers : {true, false}) {
+    for (const auto& n : topology.nodes) {
+      if (serves(n) == servers && starts(n)) order.push_back(&n);
+    }
+  }
+  return order;
+}
+
+// The topology file as the services are given it: absolute, so that they find it from any directory.
+Expected<std::filesystem::path> absoluteTopologyFile(const std::filesystem::path& topology_file) {
+  std::error_code ec;
+  const auto absolute = std::filesystem::absolute(topology_file, ec);
+  if (ec || topology_file.empty()) {
+    return invalidArgument("topology file '" + topology_file.string() + "': cannot make the path absolute: " +
+                           (ec ? ec.message() : std::string("it is empty")));
+  }
+  return absolute;
+}
+
 // Forks the service for `node` (its log under state_dir/logs, truncated unless `append`).
 Expected<RunningNode> spawnNode(const Cluster& cluster, const NodeConfig& node, const StartOptions& options, bool append) {
-  const auto binary = binaryDir() / serviceName(node.role);
-  const auto log = cluster.state_dir / "logs" / (node.name + ".log");
-  std::vector<std::string> args{"--topology", cluster.topology_file.string(), "--node", node.name};
-  if (node.role == Role::kEdge && !options.journal_dir.empty()) {
-    args.push_back("--journal");
-    args.push_back((options.journal_dir / (node.name + ".journal")).string());
-  }
-  if (const auto prefix = options.prefixes.find(node.name); prefix != options.prefixes.end() && !prefix->second.empty()) {
-    std::vector<std::string> wrapped(prefix->second.begin() + 1, prefix->second.end());
-    wrapped.push_back(binary.string());
-    wrapped.insert(wrapped.end(), args.begin(), args.end());
-    auto pid = spawn(prefix->second.front(), wrapped, log, append);
-    if (!pid) return pid.error();
-    return RunningNode{node.name, *pid, log, startTicks(*pid).value_or(0)};
-  }
-  auto pid = spawn(binary, args, log, append);
+  const std::vector<std::string> command = nodeCommand(cluster.topology_file, node, options);
+  const auto log = logFile(cluster.state_dir, node);
+  auto pid = spawn(command.front(), std::vector<std::string>(command.begin() + 1, command.end()), log, append);
   if (!pid) return pid.error();
   // The child's start time is fixed at fork, so reading it now is reading the service's.
   return RunningNode{node.name, *pid, log, startTicks(*pid).value_or(0)};
@@ -233,7 +276,7 @@ Expected<RunningNode> restartNode(Cluster& cluster, const TopologyConfig& topolo
     const auto journal = options.journal_dir / (name + ".journal");
     for (int life = 1; life < 1000; ++life) {
       const auto kept = options.journal_dir / (name + ".journal." + std::to_string(life));
-      if (!std::filesystem::exists(kept)) {
+      if (!std::filesystem::exists(kept, ec)) {
         std::filesystem::rename(journal, kept, ec);
         break;
       }
@@ -272,30 +315,101 @@ bool stopNodes(const std::vector<RunningNode>& nodes, std::chrono::milliseconds 
   return all_exited;
 }
 
+bool isDevice(const std::filesystem::path& source) { return source.string().rfind("/dev/", 0) == 0; }
+
+std::vector<NodeFile> inputFiles(const NodeConfig& node) {
+  std::vector<NodeFile> files;
+  if (node.sensor) {
+    // A simulated LiDAR reads its scene file ("sim" is no path); a recorded one its scans.
+    if (node.sensor->simulated()) {
+      files.push_back({node.sensor->scene, "sensor.scene", node.name + "'s scene"});
+    } else {
+      files.push_back({node.sensor->source, "sensor.source", node.name + "'s sensor source"});
+    }
+  }
+  if (node.camera) {
+    const CameraNodeConfig& c = *node.camera;
+    if (c.simulated()) {
+      files.push_back({c.scene, "camera.scene", node.name + "'s scene"});
+    } else if (!isDevice(c.source)) {
+      files.push_back({c.source, "camera.source", node.name + "'s camera source"});
+    }
+    if (!c.truth) {
+      const camera::DetectorConfig& d = c.detector;
+      if (d.kind == camera::DetectorKind::kCascade) {
+        files.push_back({d.cascade.cascade_path, "camera.detector.cascade.cascade_path", node.name + "'s cascade"});
+      }
+      if (d.kind == camera::DetectorKind::kDnn) {
+        files.push_back({d.dnn.model_path, "camera.detector.dnn.model_path", node.name + "'s model"});
+        if (!d.dnn.config_path.empty()) {
+          files.push_back({d.dnn.config_path, "camera.detector.dnn.config_path", node.name + "'s model configuration"});
+        }
+        files.push_back({d.dnn.names_path, "camera.detector.dnn.names_path", node.name + "'s class names"});
+      }
+    }
+  }
+  return files;
+}
+
+Status checkStartable(const TopologyConfig& topology) {
+  for (const NodeConfig& node : topology.nodes) {
+    const std::string where = "node '" + node.name + "': ";
+    // The detection service's own check, with its words (services/detection/main.cpp).
+    if (node.camera && !node.camera->truth) {
+      if (const Status s = camera::validate(node.camera->detector); !s) {
+        return Error{s.error().code, where + "camera.detector." + s.error().message};
+      }
+    }
+    for (const NodeFile& file : inputFiles(node)) {
+      if (file.path.empty()) return invalidArgument(where + file.field + ": is required");
+      std::error_code ec;
+      const bool present = std::filesystem::exists(file.path, ec);
+      if (ec && ec != std::errc::no_such_file_or_directory) {
+        return ioError(where + file.field + ": cannot check " + file.path.string() + ": " + ec.message());
+      }
+      if (!present) return notFound(where + file.field + ": no such file or directory: " + file.path.string());
+    }
+  }
+  return {};
+}
+
+Expected<TopologyConfig> loadStartableTopology(const std::filesystem::path& file) {
+  auto topology = loadTopology(file);
+  if (!topology) return topology.error();
+  if (const Status startable = checkStartable(*topology); !startable) {
+    return Error{startable.error().code, file.string() + ": " + startable.error().message};
+  }
+  return topology;
+}
+
+Expected<std::vector<PlannedNode>> planCluster(const std::filesystem::path& topology_file, const TopologyConfig& topology,
+                                               const std::filesystem::path& state_dir, const StartOptions& options) {
+  if (const Status startable = checkStartable(topology); !startable) return startable.error();
+  const auto absolute = absoluteTopologyFile(topology_file);
+  if (!absolute) return absolute.error();
+  const auto order = startOrder(topology_file, topology, options);
+  if (!order) return order.error();
+  std::vector<PlannedNode> plan;
+  for (const NodeConfig* node : *order) {
+    plan.push_back({node->name, node->role, nodeCommand(*absolute, *node, options), logFile(state_dir, *node)});
+  }
+  return plan;
+}
+
 Expected<Cluster> startCluster(const std::filesystem::path& topology_file, const TopologyConfig& topology,
                                const std::filesystem::path& state_dir, std::chrono::milliseconds timeout,
                                const StartOptions& options) {
   Cluster cluster;
-  cluster.topology_file = std::filesystem::absolute(topology_file);
+  const auto absolute = absoluteTopologyFile(topology_file);
+  if (!absolute) return absolute.error();
+  cluster.topology_file = *absolute;
   cluster.state_dir = state_dir;
+  const auto started_order = startOrder(topology_file, topology, options);
+  if (!started_order) return started_order.error();
+  const std::vector<const NodeConfig*>& order = *started_order;
   std::error_code ec;
   std::filesystem::create_directories(state_dir / "logs", ec);
   if (ec) return ioError("cannot create " + (state_dir / "logs").string() + ": " + ec.message());
-  // Servers (aggregators, trackers) before their clients (edges, cameras).
-  const auto serves = [](const NodeConfig* n) { return n->role == Role::kAggregator || n->role == Role::kTracker; };
-  const auto starts = [&](const NodeConfig& n) {
-    return options.only.empty() || std::find(options.only.begin(), options.only.end(), n.name) != options.only.end();
-  };
-  for (const std::string& name : options.only) {
-    if (topology.find(name) == nullptr) return notFound("no node '" + name + "' in " + topology_file.string());
-  }
-  std::vector<const NodeConfig*> order;
-  for (const auto& n : topology.nodes) {
-    if (serves(&n) && starts(n)) order.push_back(&n);
-  }
-  for (const auto& n : topology.nodes) {
-    if (!serves(&n) && starts(n)) order.push_back(&n);
-  }
   if (!options.journal_dir.empty()) {
     std::filesystem::create_directories(options.journal_dir, ec);
     if (ec) return ioError("cannot create " + options.journal_dir.string() + ": " + ec.message());
@@ -307,7 +421,7 @@ Expected<Cluster> startCluster(const std::filesystem::path& topology_file, const
   // aggregators_ready hook) is subscribed before the first map can come.
   // Ready = every service answers on /metrics (servers listen before metrics start).
   const auto deadline = std::chrono::steady_clock::now() + timeout;
-  const auto first_edge = std::find_if(order.begin(), order.end(), [&](const NodeConfig* n) { return !serves(n); });
+  const auto first_edge = std::find_if(order.begin(), order.end(), [](const NodeConfig* n) { return !serves(*n); });
   for (const auto& [from, to] : {std::pair{order.begin(), first_edge}, std::pair{first_edge, order.end()}}) {
     for (auto n = from; n != to; ++n) {
       auto started = spawnNode(cluster, **n, options, /*append=*/false);

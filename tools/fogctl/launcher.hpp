@@ -50,6 +50,42 @@ struct StartOptions {
   std::vector<std::string> only;
 };
 
+// A file a node reads besides the topology and its TLS files: where it is, the node's field that
+// names it ("camera.detector.cascade.cascade_path") and what it is in messages ("cam-1's cascade").
+struct NodeFile {
+  std::filesystem::path path;
+  std::string field;
+  std::string what;
+};
+// An edge's scans or scene; a camera's frames or scene (not a V4L2 device) and, unless it replays
+// the truth, its detector's model files. A path the topology leaves empty is listed empty.
+std::vector<NodeFile> inputFiles(const NodeConfig& node);
+// A camera source that is a device (/dev/videoN), kept as written by the topology, not a file.
+bool isDevice(const std::filesystem::path& source);
+
+// What the services check about their own nodes before they start, for every node at once and
+// without starting or opening anything: each camera's detector (camera::validate: its values and
+// model files) and every input file present. TLS files are left to the services (fogctl certs may
+// make them after this). Errors name the node and its field, as the services do:
+// "node 'cam-1': camera.detector.cascade.cascade_path: is required".
+Status checkStartable(const TopologyConfig& topology);
+
+// loadTopology, then checkStartable: what fogctl up, compose and faults read a topology with.
+// Errors begin with the file's name.
+Expected<TopologyConfig> loadStartableTopology(const std::filesystem::path& file);
+
+// One service as startCluster starts it.
+struct PlannedNode {
+  std::string name;
+  Role role = Role::kEdge;
+  std::vector<std::string> command;  // the program and its arguments
+  std::filesystem::path log;
+};
+// What startCluster would start, in its order (aggregators and trackers, then edges and cameras),
+// once checkStartable passes; starts, creates and writes nothing (fogctl up --dry-run).
+Expected<std::vector<PlannedNode>> planCluster(const std::filesystem::path& topology_file, const TopologyConfig& topology,
+                                               const std::filesystem::path& state_dir, const StartOptions& options = {});
+
 // Starts every node of the topology (the aggregators, and once they are ready the edges), logs under state_dir/logs, records the
 // pids (with their start times) in state_dir/pids, and waits until every /metrics endpoint answers (bounded by timeout).
 // On failure everything started is stopped again.

@@ -1,6 +1,7 @@
 // fogctl: the command-line front of fogmap.
 #include <cstdio>
 #include <cstring>
+#include <exception>
 #include <string>
 #include <vector>
 
@@ -116,9 +117,14 @@ const std::vector<Command>& commands() {
        "                 topology's crop, ground and MAD-C): each object the box of its projected ellipsoids\n",
        fogmap::cli::runOverlay},
       {"up",
-       "TOPOLOGY.yaml [--detach] [--state DIR]       start every service as a local process",
-       "usage: fogctl up TOPOLOGY.yaml [--detach] [--state DIR] [--timeout-s 30]\n"
+       "TOPOLOGY.yaml [--detach] [--state DIR] [--dry-run]   start every service as a local process",
+       "usage: fogctl up TOPOLOGY.yaml [--detach] [--state DIR] [--timeout-s 30] [--dry-run]\n"
        "Starts every service of the topology as a local process and waits until each serves /metrics.\n"
+       "First checks what each service checks before it starts (every camera's detector settings and\n"
+       "model files, every file a node reads; not the TLS files) and refuses the topology naming the node\n"
+       "and the field.\n"
+       "  --dry-run      check, and print the command of every service it would start and where its log\n"
+       "                 would go; start, create and write nothing\n"
        "  --detach       leave the cluster running and print the command that stops it\n"
        "  --state DIR    where the pids and logs go (default: .fogmap/NAME next to the topology file)\n"
        "  --timeout-s S  how long the services may take to start (default 30)\n",
@@ -199,7 +205,8 @@ const std::vector<Command>& commands() {
        "says, as under fogctl up), Prometheus scraping every service with the alert rules of\n"
        "docker/prometheus/rules.yml, and Grafana with the provisioned dashboard (profile grafana). The\n"
        "directory of the compose file is mounted read-only at /fogmap: the topology and every file it\n"
-       "names must lie inside it. Also writes the Prometheus configuration the deployment uses.\n"
+       "names must lie inside it. Also writes the Prometheus configuration the deployment uses. The\n"
+       "topology is checked first as fogctl up checks it.\n"
        "  --prometheus FILE  where (default: docker/prometheus/NAME.yml, NAME the topology's name)\n"
        "  --image NAME       the fogmap image (default fogmap:latest, built from docker/Dockerfile)\n"
        "  --check            write nothing; exit 1 when --out or the Prometheus file differ from what\n"
@@ -310,5 +317,11 @@ int main(int argc, char** argv) {
     std::fputs(command->usage.c_str(), stdout);
     return 0;
   }
-  return command->run(argc, argv);
+  try {
+    return command->run(argc, argv);
+  } catch (const std::exception& e) {
+    // The commands return errors as values; this only keeps one that escapes from aborting.
+    std::fprintf(stderr, "fogctl %s: %s\n", first.c_str(), e.what());
+    return 1;
+  }
 }
