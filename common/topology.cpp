@@ -377,7 +377,7 @@ Expected<camera::PinholeCamera> parseCalibration(const YAML::Node& node, const s
 Expected<CameraNodeConfig> parseCamera(const YAML::Node& node, const std::string& where, const std::filesystem::path& base_dir,
                                        const std::string& node_name) {
   if (const Status st = checkSection(node, where, {"source", "scene", "camera", "rate_hz", "loop", "frames", "queue_frames",
-                                                    "detector", "calibration"});
+                                                    "max_image_pixels", "detector", "calibration"});
       !st) {
     return st.error();
   }
@@ -416,6 +416,13 @@ Expected<CameraNodeConfig> parseCamera(const YAML::Node& node, const std::string
   c.rate_hz = *rate;
   c.loop = *loop;
   c.queue_frames = static_cast<std::size_t>(*queue);
+  const auto max_pixels = scalar<long long>(node, "max_image_pixels", where, static_cast<long long>(c.max_image_pixels));
+  if (!max_pixels) return max_pixels.error();
+  if (*max_pixels < 1 || static_cast<unsigned long long>(*max_pixels) > camera::kMaxImagePixelsBound) {
+    return bad(where + ".max_image_pixels", "must be in [1, " + std::to_string(camera::kMaxImagePixelsBound) +
+                                                "] (16384 x 16384), got " + std::to_string(*max_pixels));
+  }
+  c.max_image_pixels = static_cast<std::uint64_t>(*max_pixels);
   if (node["frames"]) {
     const auto frames = scalar<long long>(node, "frames", where, 0);
     if (!frames) return frames.error();
@@ -1199,6 +1206,9 @@ std::string toYaml(const TopologyConfig& t) {
       out << YAML::Key << "loop" << YAML::Value << c.loop;
       if (c.frames) out << YAML::Key << "frames" << YAML::Value << *c.frames;
       out << YAML::Key << "queue_frames" << YAML::Value << c.queue_frames;
+      if (c.max_image_pixels != camera::kDefaultMaxImagePixels) {
+        out << YAML::Key << "max_image_pixels" << YAML::Value << c.max_image_pixels;
+      }
       out << YAML::Key << "detector" << YAML::Value << YAML::BeginMap;
       if (c.truth) {
         out << YAML::Key << "kind" << YAML::Value << "truth";

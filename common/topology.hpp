@@ -11,6 +11,7 @@
 
 #include "common/admission.hpp"
 #include "common/camera/detector_config.hpp"
+#include "common/camera/image_limits.hpp"
 #include "common/camera/pinhole.hpp"
 #include "common/madc.hpp"
 #include "common/messages.hpp"
@@ -82,6 +83,8 @@ struct CameraNodeConfig {
   bool loop = true;
   std::optional<std::uint64_t> frames;  // stop after this many frames
   std::size_t queue_frames = 2;         // frames waiting for a slower detector; beyond, the oldest is dropped
+  // Frames with more pixels are refused from their header, before decoding (common/camera/image_limits.hpp).
+  std::uint64_t max_image_pixels = camera::kDefaultMaxImagePixels;
   bool truth = false;                   // detector kind truth: replay the scene's objects (source sim only)
   camera::DetectorConfig detector;      // kind hog, cascade or dnn (paths resolved against the topology)
   TruthReplayConfig truth_replay;

@@ -15,6 +15,18 @@
 namespace fogmap::camera {
 namespace {
 
+DetectResult refuse(DetectFailure reason, Error error) {
+  DetectResult r;
+  r.refusal = DetectRefusal{reason, std::move(error)};
+  return r;
+}
+
+DetectResult found(std::vector<Detection> detections) {
+  DetectResult r;
+  r.detections = std::move(detections);
+  return r;
+}
+
 Status checkImage(const cv::Mat& image) {
   if (image.empty()) return badField("image_bgr", "is empty");
   if (image.type() != CV_8UC3) {
@@ -42,6 +54,12 @@ std::vector<Detection> finish(std::vector<Detection> raw, const cv::Size& image,
   return nonMaximumSuppression(std::move(inside), nms_iou);
 }
 
+std::string num(double value) {
+  std::ostringstream out;
+  out << value;
+  return out.str();
+}
+
 Box2d boxOf(const cv::Rect& r, double scale) {
   return {r.x / scale, r.y / scale, (r.x + r.width) / scale, (r.y + r.height) / scale};
 }
@@ -52,13 +70,25 @@ class HogDetector final : public Detector {
     hog_.setSVMDetector(cv::HOGDescriptor::getDefaultPeopleDetector());
   }
 
-  Expected<std::vector<Detection>> detect(const cv::Mat& image_bgr, const std::string& camera,
-                                          std::int64_t capture_time_ns) override {
-    if (Status s = checkImage(image_bgr); !s) return s.error();
+  DetectResult detectFrame(const cv::Mat& image_bgr, const std::string& camera, std::int64_t capture_time_ns) override {
+    if (Status s = checkImage(image_bgr); !s) return refuse(DetectFailure::kBadImage, s.error());
+    // The upscaled image is what HOG's buffers and time grow with: bounded before it is made.
+    const double search_pixels = static_cast<double>(image_bgr.cols) * image_bgr.rows * config_.upscale * config_.upscale;
+    if (search_pixels > static_cast<double>(kMaxHogSearchPixels)) {
+      return refuse(DetectFailure::kTooLarge,
+                    badField("hog.upscale", "a " + std::to_string(image_bgr.cols) + " x " + std::to_string(image_bgr.rows) +
+                                                " image upscaled by " + num(config_.upscale) + " is " +
+                                                std::to_string(std::llround(search_pixels)) + " pixels, above the " +
+                                                std::to_string(kMaxHogSearchPixels) + " HOG searches"));
+    }
     cv::Mat input = image_bgr;
-    if (config_.upscale > 1.0) cv::resize(image_bgr, input, cv::Size(), config_.upscale, config_.upscale, cv::INTER_LINEAR);
+    try {
+      if (config_.upscale > 1.0) cv::resize(image_bgr, input, cv::Size(), config_.upscale, config_.upscale, cv::INTER_LINEAR);
+    } catch (const cv::Exception& e) {
+      return refuse(DetectFailure::kOpenCvFailed, Error{ErrorCode::kInternal, std::string("hog: OpenCV failed to upscale: ") + e.what()});
+    }
     // The image must hold one window, or OpenCV has no pyramid level to search.
-    if (input.cols < hog_.winSize.width || input.rows < hog_.winSize.height) return std::vector<Detection>{};
+    if (input.cols < hog_.winSize.width || input.rows < hog_.winSize.height) return found({});
 
     std::vector<cv::Rect> windows;
     std::vector<double> margins;
@@ -70,7 +100,7 @@ class HogDetector final : public Detector {
       hog_.detectMultiScale(input, windows, margins, config_.hit_threshold, stride, cv::Size(0, 0), config_.scale,
                             kNoGrouping, false);
     } catch (const cv::Exception& e) {
-      return Error{ErrorCode::kInternal, std::string("hog: OpenCV failed: ") + e.what()};
+      return refuse(DetectFailure::kOpenCvFailed, Error{ErrorCode::kInternal, std::string("hog: OpenCV failed: ") + e.what()});
     }
     std::vector<Detection> raw;
     raw.reserve(windows.size());
@@ -82,7 +112,7 @@ class HogDetector final : public Detector {
       d.score = i < margins.size() ? margins[i] : 0.0;
       raw.push_back(std::move(d));
     }
-    return finish(std::move(raw), image_bgr.size(), config_.nms_iou, camera, capture_time_ns);
+    return found(finish(std::move(raw), image_bgr.size(), config_.nms_iou, camera, capture_time_ns));
   }
 
  private:
@@ -94,9 +124,8 @@ class CascadeDetector final : public Detector {
  public:
   CascadeDetector(CascadeConfig config, cv::CascadeClassifier cascade) : config_(std::move(config)), cascade_(std::move(cascade)) {}
 
-  Expected<std::vector<Detection>> detect(const cv::Mat& image_bgr, const std::string& camera,
-                                          std::int64_t capture_time_ns) override {
-    if (Status s = checkImage(image_bgr); !s) return s.error();
+  DetectResult detectFrame(const cv::Mat& image_bgr, const std::string& camera, std::int64_t capture_time_ns) override {
+    if (Status s = checkImage(image_bgr); !s) return refuse(DetectFailure::kBadImage, s.error());
     cv::Mat gray;
     std::vector<cv::Rect> objects;
     std::vector<int> neighbours;
@@ -107,7 +136,8 @@ class CascadeDetector final : public Detector {
       cascade_.detectMultiScale(gray, objects, neighbours, config_.scale_factor, config_.min_neighbors, 0,
                                 cv::Size(config_.min_size_px, config_.min_size_px));
     } catch (const cv::Exception& e) {
-      return Error{ErrorCode::kInternal, std::string("cascade: OpenCV failed: ") + e.what()};
+      return refuse(DetectFailure::kOpenCvFailed,
+                    Error{ErrorCode::kInternal, std::string("cascade: OpenCV failed: ") + e.what()});
     }
     std::vector<Detection> raw;
     raw.reserve(objects.size());
@@ -118,7 +148,7 @@ class CascadeDetector final : public Detector {
       d.score = i < neighbours.size() ? neighbours[i] : 0.0;
       raw.push_back(std::move(d));
     }
-    return finish(std::move(raw), image_bgr.size(), config_.nms_iou, camera, capture_time_ns);
+    return found(finish(std::move(raw), image_bgr.size(), config_.nms_iou, camera, capture_time_ns));
   }
 
  private:
@@ -137,9 +167,8 @@ class DnnDetector final : public Detector {
   DnnDetector(DnnConfig config, cv::dnn::Net net, std::vector<std::string> names)
       : config_(std::move(config)), net_(std::move(net)), names_(std::move(names)), outputs_(net_.getUnconnectedOutLayersNames()) {}
 
-  Expected<std::vector<Detection>> detect(const cv::Mat& image_bgr, const std::string& camera,
-                                          std::int64_t capture_time_ns) override {
-    if (Status s = checkImage(image_bgr); !s) return s.error();
+  DetectResult detectFrame(const cv::Mat& image_bgr, const std::string& camera, std::int64_t capture_time_ns) override {
+    if (Status s = checkImage(image_bgr); !s) return refuse(DetectFailure::kBadImage, s.error());
     std::vector<cv::Mat> outs;
     try {
       const cv::Mat blob = cv::dnn::blobFromImage(image_bgr, config_.scale, cv::Size(config_.input_width, config_.input_height),
@@ -149,21 +178,23 @@ class DnnDetector final : public Detector {
       net_.forward(outs, outputs_);
     } catch (const cv::Exception& e) {
       // Mostly a config that does not fit the model (input size, channels).
-      return invalidArgument(std::string("dnn: OpenCV failed to run the network on a ") + std::to_string(image_bgr.cols) +
-                             " x " + std::to_string(image_bgr.rows) + " image: " + e.what());
+      return refuse(DetectFailure::kModelFailed,
+                    invalidArgument(std::string("dnn: OpenCV failed to run the network on a ") + std::to_string(image_bgr.cols) +
+                                    " x " + std::to_string(image_bgr.rows) + " image: " + e.what()));
     }
     std::vector<Detection> raw;
     for (std::size_t i = 0; i < outs.size(); ++i) {
       const std::string name = i < outputs_.size() ? outputs_[i] : std::to_string(i);
       if (outs[i].depth() != CV_32F || !outs[i].isContinuous()) {
-        return invalidArgument("dnn: output '" + name + "' is not a contiguous float32 tensor");
+        return refuse(DetectFailure::kModelOutputMismatch,
+                      invalidArgument("dnn: output '" + name + "' is not a contiguous float32 tensor"));
       }
       Expected<std::vector<Detection>> parsed = config_.output == DnnOutput::kSsd ? parseSsd(outs[i], name, image_bgr.size())
                                                                                    : parseYolo(outs[i], name, image_bgr.size());
-      if (!parsed) return parsed.error();
+      if (!parsed) return refuse(DetectFailure::kModelOutputMismatch, parsed.error());
       raw.insert(raw.end(), std::make_move_iterator(parsed->begin()), std::make_move_iterator(parsed->end()));
     }
-    return finish(std::move(raw), image_bgr.size(), config_.nms_threshold, camera, capture_time_ns);
+    return found(finish(std::move(raw), image_bgr.size(), config_.nms_threshold, camera, capture_time_ns));
   }
 
  private:
@@ -268,6 +299,24 @@ Expected<std::unique_ptr<Detector>> makeDnn(const DnnConfig& config) {
 }
 
 }  // namespace
+
+const char* detectFailureName(DetectFailure failure) {
+  switch (failure) {
+    case DetectFailure::kBadImage: return "bad_image";
+    case DetectFailure::kTooLarge: return "too_large";
+    case DetectFailure::kModelFailed: return "model_failed";
+    case DetectFailure::kModelOutputMismatch: return "model_output_mismatch";
+    case DetectFailure::kOpenCvFailed: return "opencv_failed";
+  }
+  return "unknown";
+}
+
+Expected<std::vector<Detection>> Detector::detect(const cv::Mat& image_bgr, const std::string& camera,
+                                                  std::int64_t capture_time_ns) {
+  DetectResult result = detectFrame(image_bgr, camera, capture_time_ns);
+  if (result.refusal) return std::move(result.refusal->error);
+  return std::move(result.detections);
+}
 
 Expected<std::unique_ptr<Detector>> makeDetector(const DetectorConfig& config) {
   if (Status s = validate(config); !s) return s.error();

@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -17,17 +18,52 @@
 
 namespace fogmap::camera {
 
+// Why a detector refused a frame: the reason label of the service's failure counter.
+enum class DetectFailure {
+  kBadImage,             // empty, or not 8-bit BGR
+  kTooLarge,             // the image asks for more work than the detector's bound (HOG's upscaled image)
+  kModelFailed,          // OpenCV could not run the network on the image (input size, channels, layers)
+  kModelOutputMismatch,  // the network's outputs are not the configured layout, or name classes the names file lacks
+  kOpenCvFailed,         // OpenCV threw inside HOG or a cascade
+};
+const char* detectFailureName(DetectFailure failure);  // "bad_image", "too_large", ...
 
+// Every failure, for counters that list their reasons up front.
+inline constexpr DetectFailure kDetectFailures[] = {DetectFailure::kBadImage, DetectFailure::kTooLarge,
+                                                    DetectFailure::kModelFailed, DetectFailure::kModelOutputMismatch,
+                                                    DetectFailure::kOpenCvFailed};
+
+// The most pixels HOG searches: the image after `hog.upscale`. 8192 x 4096 holds a KITTI frame
+// (1242 x 375) at the largest upscale (8) and a 4096 x 4096 frame at 2; the detector's buffers
+// are about 10 bytes a pixel on each pyramid level being searched.
+inline constexpr long long kMaxHogSearchPixels = 8192LL * 4096LL;
+
+// A refused frame: the reason for counters, the error (naming the field, shape or size) for people.
+struct DetectRefusal {
+  DetectFailure reason = DetectFailure::kOpenCvFailed;
+  Error error;
+};
+
+// One frame's detections, or its refusal.
+struct DetectResult {
+  std::vector<Detection> detections;     // best first; empty when refused
+  std::optional<DetectRefusal> refusal;  // set when the frame was refused
+  bool ok() const { return !refusal; }
+};
 
 class Detector {
  public:
   virtual ~Detector() = default;
 
   // The objects in one 8-bit, 3-channel BGR image: boxes in its pixels, best first, stamped with
-  // `camera` and `capture_time_ns`. An empty or differently typed image is an error. Not
-  // thread-safe (OpenCV's detectors keep buffers): one detector per thread.
-  virtual Expected<std::vector<Detection>> detect(const cv::Mat& image_bgr, const std::string& camera,
-                                                  std::int64_t capture_time_ns) = 0;
+  // `camera` and `capture_time_ns`; or the refusal of the image (empty or differently typed, too
+  // large, a network whose outputs do not fit the config). Not thread-safe (OpenCV's detectors
+  // keep buffers): one detector per thread.
+  virtual DetectResult detectFrame(const cv::Mat& image_bgr, const std::string& camera, std::int64_t capture_time_ns) = 0;
+
+  // detectFrame with the refusal's error only, for callers that do not count reasons.
+  Expected<std::vector<Detection>> detect(const cv::Mat& image_bgr, const std::string& camera,
+                                          std::int64_t capture_time_ns);
 };
 
 // Validates the config and loads what the kind needs (cascade, network, class names). Errors name

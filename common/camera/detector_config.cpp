@@ -55,9 +55,19 @@ Status validateDnn(const DnnConfig& c) {
     if (Status s = checkFile("dnn.config_path", c.config_path); !s) return s;
   }
   if (Status s = checkFile("dnn.names_path", c.names_path); !s) return s;
-  if (c.input_width < 1 || c.input_height < 1) {
-    return badField("dnn.input_width/input_height", "must be at least 1 pixel, got " + std::to_string(c.input_width) + " x " +
-                                                        std::to_string(c.input_height));
+  const auto checkSide = [](const std::string& field, int px) -> Status {
+    if (px < 1 || px > kMaxDnnInputSidePx) {
+      return badField(field, "must be in [1, " + std::to_string(kMaxDnnInputSidePx) + "] pixels, got " + std::to_string(px));
+    }
+    return {};
+  };
+  if (Status s = checkSide("dnn.input_width", c.input_width); !s) return s;
+  if (Status s = checkSide("dnn.input_height", c.input_height); !s) return s;
+  const long long pixels = static_cast<long long>(c.input_width) * c.input_height;
+  if (pixels > kMaxDnnInputPixels) {
+    return badField("dnn.input_width x dnn.input_height",
+                    std::to_string(c.input_width) + " x " + std::to_string(c.input_height) + " = " + std::to_string(pixels) +
+                        " pixels, above the " + std::to_string(kMaxDnnInputPixels) + " (2048 x 2048) a network input may have");
   }
   for (double m : c.mean) {
     if (!std::isfinite(m)) return badField("dnn.mean", "must be finite");

@@ -53,6 +53,13 @@ enum class DnnOutput {
 const char* dnnOutputName(DnnOutput output);  // "ssd", "yolo-darknet", "yolo-export"
 Expected<DnnOutput> parseDnnOutput(const std::string& name);
 
+// The largest network input accepted: each side at most kMaxDnnInputSidePx, both together at most
+// kMaxDnnInputPixels. Common detectors take 300 x 300 (SSD) to 1280 x 1280 (YOLO); the input blob
+// alone is 12 bytes a pixel and a network's activations grow with it, so a 100,000 x 100,000 input
+// would ask for terabytes before the first layer ran.
+inline constexpr int kMaxDnnInputSidePx = 8192;
+inline constexpr long long kMaxDnnInputPixels = 2048LL * 2048LL;
+
 // A network read by cv::dnn::readNet (ONNX, Caffe, TensorFlow, Darknet). The image is resized to
 // the input size (no letterbox), mean-subtracted then scaled.
 struct DnnConfig {
@@ -60,7 +67,7 @@ struct DnnConfig {
   std::string config_path;  // .prototxt, .pbtxt, .cfg; empty when the model file is enough
   std::string names_path;   // class names, one a line: line i names class id i; required
   DnnOutput output = DnnOutput::kSsd;
-  int input_width = 300, input_height = 300;  // pixels
+  int input_width = 300, input_height = 300;  // pixels, within the bounds above
   std::array<double, 3> mean = {0.0, 0.0, 0.0};  // subtracted per channel (after swap_rb)
   double scale = 1.0;       // multiplies the mean-subtracted pixels (1/255 for most YOLOs)
   bool swap_rb = false;     // feed RGB instead of BGR
@@ -75,8 +82,9 @@ struct DetectorConfig {
   DnnConfig dnn;          // read when kind is dnn
 };
 
-// Checks the section of the chosen kind: numbers in range and files present. Errors name the
-// field ("dnn.confidence_threshold: ..."); a missing file is kNotFound and names the path.
+// Checks the section of the chosen kind: numbers in range (the network's input size within
+// kMaxDnnInputSidePx and kMaxDnnInputPixels) and files present. Errors name the field
+// ("dnn.confidence_threshold: ..."); a missing file is kNotFound and names the path.
 Status validate(const DetectorConfig& config);
 
 // The error of a detector setting: "FIELD: WHAT" (what validate and the detectors report).

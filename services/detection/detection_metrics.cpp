@@ -1,5 +1,7 @@
 #include "services/detection/detection_metrics.hpp"
 
+#include <prometheus/counter.h>
+#include <prometheus/gauge.h>
 #include <prometheus/registry.h>
 
 #include "common/topology.hpp"
@@ -19,6 +21,30 @@ DetectionMetrics::DetectionMetrics(Metrics& metrics, const std::string& node) : 
   frames_dropped_ = &frames.Add({{"outcome", "dropped"}});
   frames_detected_ = &frames.Add({{"outcome", "detected"}});
   frames_unreadable_ = &frames.Add({{"outcome", "unreadable"}});
+  failures_ = &prometheus::BuildCounter()
+                   .Name("fogmap_detection_failures_total")
+                   .Help("Frames that gave no detections, by stage and reason. stage frame: the source could not "
+                         "give the frame (unreadable, unknown_format, bad_header, too_large: above the camera's "
+                         "max_image_pixels, refused before decoding; decode_failed, not_colour, grab_failed). "
+                         "stage detector: the detector refused it (bad_image, too_large, model_failed, "
+                         "model_output_mismatch, opencv_failed, truth_replay_failed).")
+                   .Labels(c)
+                   .Register(r);
+  // Every reason from the start, so a rate over a reason that has not happened yet reads 0.
+  for (FrameFailure f : kFrameFailures) {
+    frame_failures_[frameFailureName(f)] = &failures_->Add({{"stage", "frame"}, {"reason", frameFailureName(f)}});
+  }
+  for (camera::DetectFailure f : camera::kDetectFailures) {
+    const std::string reason = camera::detectFailureName(f);
+    detector_failures_[reason] = &failures_->Add({{"stage", "detector"}, {"reason", reason}});
+  }
+  detector_failures_["truth_replay_failed"] = &failures_->Add({{"stage", "detector"}, {"reason", "truth_replay_failed"}});
+  detecting_ = &prometheus::BuildGauge()
+                    .Name("fogmap_detection_in_progress")
+                    .Help("1 while the detector works on a frame: a detector stuck at 1 is one slow frame.")
+                    .Labels(c)
+                    .Register(r)
+                    .Add({});
   detections_ = &prometheus::BuildCounter()
                      .Name("fogmap_detections_total")
                      .Help("2D detections in the detected frames.")
@@ -51,7 +77,21 @@ DetectionMetrics::DetectionMetrics(Metrics& metrics, const std::string& node) : 
 
 void DetectionMetrics::frameRead() { frames_read_->Increment(); }
 
-void DetectionMetrics::frameUnreadable() { frames_unreadable_->Increment(); }
+void DetectionMetrics::frameUnreadable(FrameFailure failure) {
+  frames_unreadable_->Increment();
+  frame_failures_.at(frameFailureName(failure))->Increment();
+}
+
+void DetectionMetrics::detectFailed(const std::string& reason) {
+  auto it = detector_failures_.find(reason);
+  if (it == detector_failures_.end()) {
+    // A reason not listed up front still counts; only the detector thread adds series.
+    it = detector_failures_.emplace(reason, &failures_->Add({{"stage", "detector"}, {"reason", reason}})).first;
+  }
+  it->second->Increment();
+}
+
+void DetectionMetrics::detecting(bool busy) { detecting_->Set(busy ? 1.0 : 0.0); }
 
 void DetectionMetrics::framesDropped(std::uint64_t frames) {
   frames_dropped_->Increment(static_cast<double>(frames));

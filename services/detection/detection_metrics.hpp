@@ -1,9 +1,11 @@
 #pragma once
 // A detection node's Prometheus families, added to the service's Metrics registry: camera frames
-// by outcome, detections, detection time, and the frames the tracker link sent and dropped. Bytes
-// sent and reconnects go to the shared families of Metrics.
+// by outcome, failures by stage and reason, detections, detection time and whether one is running,
+// and the frames the tracker link sent and dropped. Bytes sent and reconnects go to the shared
+// families of Metrics.
 #include <cstddef>
 #include <cstdint>
+#include <map>
 #include <string>
 
 #include "services/common/metrics.hpp"
@@ -18,7 +20,9 @@ class DetectionMetrics final : public DetectionObserver {
   DetectionMetrics(Metrics& metrics, const std::string& node);
 
   void frameRead() override;
-  void frameUnreadable() override;
+  void frameUnreadable(FrameFailure failure) override;
+  void detectFailed(const std::string& reason) override;
+  void detecting(bool busy) override;
   void framesDropped(std::uint64_t frames) override;
   void frameDetected(std::size_t detections, double seconds) override;
 
@@ -34,6 +38,10 @@ class DetectionMetrics final : public DetectionObserver {
   prometheus::Counter* frames_dropped_;
   prometheus::Counter* frames_detected_;
   prometheus::Counter* frames_unreadable_;
+  prometheus::Family<prometheus::Counter>* failures_;
+  std::map<std::string, prometheus::Counter*> frame_failures_;     // by reason
+  std::map<std::string, prometheus::Counter*> detector_failures_;  // by reason
+  prometheus::Gauge* detecting_;
   prometheus::Counter* detections_;
   prometheus::Histogram* detection_seconds_;
   prometheus::Counter* frames_sent_;

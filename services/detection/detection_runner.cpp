@@ -4,7 +4,6 @@
 #include <chrono>
 #include <cmath>
 #include <deque>
-#include <set>
 #include <thread>
 #include <utility>
 
@@ -36,13 +35,20 @@ DetectionRunner::DetectionRunner(std::string camera, FrameSource& source, camera
       source_(&source),
       detector_(&detector),
       hooks_(std::move(hooks)),
-      queue_(camera::FrameQueueConfig{queue_frames}) {}
+      queue_(camera::FrameQueueConfig{queue_frames}),
+      burst_log_("", hooks_.log, hooks_.now) {}
 
 DetectionRunner::DetectionRunner(TruthCamera& truth, const ReplayConfig& replay, DetectionRunnerHooks hooks)
-    : truth_(&truth), replay_(replay), hooks_(std::move(hooks)), queue_(camera::FrameQueueConfig{1}) {}
+    : truth_(&truth),
+      replay_(replay),
+      hooks_(std::move(hooks)),
+      queue_(camera::FrameQueueConfig{1}),
+      burst_log_("", hooks_.log, hooks_.now) {}
 
-void DetectionRunner::log(const std::string& line) const {
-  if (hooks_.log) hooks_.log(line);
+DetectionRunner::~DetectionRunner() {
+  stop();
+  if (reader_.joinable()) reader_.join();
+  if (detector_thread_.joinable()) detector_thread_.join();
 }
 
 bool DetectionRunner::stopping() const {
@@ -54,27 +60,75 @@ void DetectionRunner::stop() {
   queue_.close();
 }
 
-void DetectionRunner::run() {
+void DetectionRunner::loopEnded() {
+  {
+    std::lock_guard lock(loops_mutex_);
+    --loops_running_;
+  }
+  loops_cv_.notify_all();
+}
+
+bool DetectionRunner::run() {
   if (truth_ != nullptr) {
     replayTruth();
-    return;
+    burst_log_.flush(true);
+    return true;
   }
-  std::thread reader([this] { readFrames(); });
-  detectFrames();
-  // The detector ends only when the reader closed the queue, or on a stop the reader sees too.
-  reader.join();
+  {
+    std::lock_guard lock(loops_mutex_);
+    loops_running_ = 2;
+  }
+  reader_ = std::thread([this] {
+    readFrames();
+    loopEnded();
+  });
+  detector_thread_ = std::thread([this] {
+    detectFrames();
+    loopEnded();
+  });
+  // The detector ends when the reader closed the queue, or on a stop the reader sees too. A stop
+  // waits for neither beyond its grace: a decode or a detection can take long (HOG at a large
+  // upscale takes seconds), and a process asked to stop must stop.
+  std::optional<std::int64_t> stop_seen_ns;
+  std::unique_lock lock(loops_mutex_);
+  while (loops_running_ > 0) {
+    if (stopping()) {
+      const std::int64_t now = hooks_.now();
+      if (!stop_seen_ns) stop_seen_ns = now;
+      if (now - *stop_seen_ns >= hooks_.stop_grace_ns) {
+        lock.unlock();
+        burst_log_.flush(true);
+        return false;
+      }
+    }
+    loops_cv_.wait_for(lock, kPopSlice);
+  }
+  lock.unlock();
+  reader_.join();
+  detector_thread_.join();
+  burst_log_.flush(true);
+  return true;
+}
+
+void DetectionRunner::frameUnreadable(const SourceFrame& frame) {
+  frames_unreadable_.fetch_add(1);
+  if (hooks_.observer != nullptr) hooks_.observer->frameUnreadable(frame.failure);
+  burst_log_.note(std::string("skipping frames: ") + frameFailureName(frame.failure), frame.problem);
+}
+
+void DetectionRunner::detectFailed(const std::string& reason, const std::string& message) {
+  detect_failures_.fetch_add(1);
+  if (hooks_.observer != nullptr) hooks_.observer->detectFailed(reason);
+  burst_log_.note("the detector refused frames: " + reason, message);
 }
 
 void DetectionRunner::readFrames() {
-  std::set<std::string> reported;  // each unreadable file is logged once, counted every time
   const std::int64_t start_ns = hooks_.now();
   while (!stopping()) {
     SourceFrame frame = source_->next();
     if (frame.outcome == FrameOutcome::kDone) break;
     if (frame.outcome == FrameOutcome::kUnreadable) {
-      frames_unreadable_.fetch_add(1);
-      if (hooks_.observer != nullptr) hooks_.observer->frameUnreadable();
-      if (reported.insert(frame.origin).second) log("skipping an unreadable frame: " + frame.problem);
+      frameUnreadable(frame);
       continue;
     }
     std::int64_t capture_ns = 0;
@@ -100,28 +154,27 @@ void DetectionRunner::readFrames() {
 }
 
 void DetectionRunner::detectFrames() {
-  std::set<std::string> reported;
   while (!stopping()) {
     std::optional<camera::CameraFrame> frame = queue_.pop(kPopSlice);
+    // Summaries of failure bursts that went quiet get written even when no frame comes.
+    burst_log_.flush();
     if (!frame) {
       if (queue_.closed() && queue_.size() == 0) break;
       continue;
     }
+    if (hooks_.observer != nullptr) hooks_.observer->detecting(true);
     const std::int64_t started = hooks_.now();
-    Expected<std::vector<camera::Detection>> detections =
-        detector_->detect(frame->image_bgr, camera_, frame->capture_time_ns);
+    camera::DetectResult result = detector_->detectFrame(frame->image_bgr, camera_, frame->capture_time_ns);
     const std::int64_t took_ns = hooks_.now() - started;
+    if (hooks_.observer != nullptr) hooks_.observer->detecting(false);
     const double seconds = static_cast<double>(took_ns) * 1e-9;
     detect_ns_.fetch_add(took_ns);
-    if (!detections) {
-      detect_failures_.fetch_add(1);
-      if (reported.insert(detections.error().message).second) {
-        log("the detector refused a frame: " + detections.error().message);
-      }
+    if (result.refusal) {
+      detectFailed(camera::detectFailureName(result.refusal->reason), result.refusal->error.message);
       continue;
     }
     if (stopping()) break;
-    deliver({camera_, frame->capture_time_ns, std::move(*detections)}, seconds);
+    deliver({camera_, frame->capture_time_ns, std::move(result.detections)}, seconds);
   }
 }
 
@@ -143,7 +196,6 @@ void DetectionRunner::replayTruth() {
   std::optional<std::uint64_t> limit = replay_.frames;
   if (!limit && !replay_.loop) limit = truth_->framesPerPass();
 
-  std::set<std::string> reported;
   std::deque<Pending> pending;  // in arrival order: the latency is the same for every frame
   std::uint64_t n = frameAt(hooks_.now(), rate_hz) + 1;
   std::uint64_t produced = 0;
@@ -172,8 +224,7 @@ void DetectionRunner::replayTruth() {
     }
     n = next;
     if (!frame) {
-      detect_failures_.fetch_add(1);
-      if (reported.insert(frame.error().message).second) log("truth replay failed: " + frame.error().message);
+      detectFailed("truth_replay_failed", frame.error().message);
       continue;
     }
     frames_read_.fetch_add(1);

@@ -6,14 +6,21 @@
 // tracker knows the camera looked. With truth (source sim): frame n is due at n / rate_hz of unix
 // time, shows the scene at sim::sceneTime(scene, n, rate_hz) like the simulated LiDARs' scan n, and
 // its detections reach the sink latency_ms after. Time comes in through a clock and a wait
-// function, so tests drive it by hand. No gRPC, no printing.
+// function, so tests drive it by hand. Every frame the source could not give and every frame the
+// detector refused is counted by reason and logged through a BurstLog (one line per reason per
+// burst, never one per frame). A stop is seen between frames; a read or a detection still running
+// after the stop's grace is left behind, so a stop never waits for one. No gRPC, no printing.
 #include <atomic>
+#include <condition_variable>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
 
+#include "common/burst_log.hpp"
 #include "common/camera/detector.hpp"
 #include "common/camera/frame_queue.hpp"
 #include "common/clock.hpp"
@@ -29,7 +36,12 @@ class DetectionObserver {
  public:
   virtual ~DetectionObserver() = default;
   virtual void frameRead() {}
-  virtual void frameUnreadable() {}
+  // A frame the source could not give, and why.
+  virtual void frameUnreadable(FrameFailure /*failure*/) {}
+  // A frame the detector refused (a camera::detectFailureName, or "truth_replay_failed").
+  virtual void detectFailed(const std::string& /*reason*/) {}
+  // True while the detector works on a frame, false when it is done with it.
+  virtual void detecting(bool /*busy*/) {}
   // Frames the queue dropped to make room for newer ones.
   virtual void framesDropped(std::uint64_t /*frames*/) {}
   // One frame detected (truth frames included), with how long the detector took.
@@ -47,12 +59,14 @@ struct DetectionRunnerHooks {
   std::function<void(tracking::DetectionFrame)> deliver;  // every frame's detections, in capture order
   std::function<void(const std::string&)> log;           // one line, no prefix; empty: silent
   DetectionObserver* observer = nullptr;                  // may be null
+  // After a stop, how long (by `now`) run() waits for a read or detection in progress to end.
+  std::int64_t stop_grace_ns = 500'000'000;
 };
 
 struct DetectionRunnerStats {
   std::uint64_t frames_read = 0;        // images the reader queued
   std::uint64_t frames_dropped = 0;     // queued images dropped for newer ones
-  std::uint64_t frames_unreadable = 0;  // images skipped because they could not be read
+  std::uint64_t frames_unreadable = 0;  // images skipped because they could not be read (or were too large)
   std::uint64_t frames_detected = 0;    // frames whose detections went to the sink
   std::uint64_t detections = 0;         // detections in them
   std::uint64_t detect_failures = 0;    // frames the detector refused (nothing delivered)
@@ -68,10 +82,16 @@ class DetectionRunner {
   // Truth replay of `truth` (must outlive the runner): `replay.frames` frames, or one pass of the
   // scene without `replay.loop`, endless otherwise.
   DetectionRunner(TruthCamera& truth, const ReplayConfig& replay, DetectionRunnerHooks hooks);
+  // Stops, and waits for the loops' threads (those run() left behind included).
+  ~DetectionRunner();
+  DetectionRunner(const DetectionRunner&) = delete;
+  DetectionRunner& operator=(const DetectionRunner&) = delete;
 
-  // Runs until the source is done or stop(): with images the reader on its own thread and the
-  // detector on this one, with truth the replay on this one.
-  void run();
+  // Runs until the source is done or a stop: with images the reader and the detector on threads
+  // of their own, with truth the replay on this one. True when every loop ended; false when, a
+  // stop's grace after it was seen, a read or detection was still running: its thread is left to
+  // the destructor (a process that is stopping may exit without waiting for it).
+  bool run();
 
   // The reader loop alone: queues every frame when due, until the source is done or a stop; then
   // closes the queue.
@@ -92,8 +112,10 @@ class DetectionRunner {
 
  private:
   bool stopping() const;
-  void log(const std::string& line) const;
   void deliver(tracking::DetectionFrame frame, double seconds);
+  void frameUnreadable(const SourceFrame& frame);
+  void detectFailed(const std::string& reason, const std::string& message);
+  void loopEnded();
 
   std::string camera_;
   FrameSource* source_ = nullptr;
@@ -103,6 +125,13 @@ class DetectionRunner {
   DetectionRunnerHooks hooks_;
   camera::FrameQueue queue_;
   std::atomic<bool> stop_{false};
+  BurstLog burst_log_;
+
+  std::mutex loops_mutex_;
+  std::condition_variable loops_cv_;
+  int loops_running_ = 0;  // guarded by loops_mutex_
+  std::thread reader_;
+  std::thread detector_thread_;
 
   std::atomic<std::uint64_t> frames_read_{0};
   std::atomic<std::uint64_t> frames_dropped_{0};

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <fstream>
 #include <sstream>
@@ -12,6 +13,8 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
+
+#include "services/detection/image_header.hpp"
 
 namespace fogmap {
 namespace {
@@ -27,6 +30,7 @@ Status checkReplay(const ReplayConfig& replay, const std::string& what) {
   if (!(replay.rate_hz > 0.0) || !std::isfinite(replay.rate_hz)) {
     return invalidArgument(what + ": rate_hz must be positive and finite");
   }
+  if (replay.max_pixels == 0) return invalidArgument(what + ": max_pixels must be at least 1");
   return {};
 }
 
@@ -46,26 +50,50 @@ std::int64_t daysFromCivil(std::int64_t year, unsigned month, unsigned day) {
   return era * 146097 + static_cast<std::int64_t>(day_of_era) - 719468;
 }
 
-// An image as 8-bit BGR, or why it cannot be had. OpenCV throws on some malformed files.
-Expected<cv::Mat> readImage(const std::filesystem::path& path) {
-  cv::Mat image;
-  try {
-    image = cv::imread(path.string(), cv::IMREAD_COLOR);
-  } catch (const cv::Exception& e) {
-    return ioError(path.string() + ": not a readable image (" + e.what() + ")");
-  }
-  if (image.empty()) return ioError(path.string() + ": not a readable image");
-  return image;
-}
-
 SourceFrame done() { return {}; }
 
-SourceFrame unreadable(std::string origin, std::string problem) {
+SourceFrame unreadable(std::string origin, FrameFailure failure, std::string problem) {
   SourceFrame f;
   f.outcome = FrameOutcome::kUnreadable;
   f.origin = std::move(origin);
+  f.failure = failure;
   f.problem = std::move(problem);
   return f;
+}
+
+// The most bytes an image file of `max_pixels` can take: 8 bytes a pixel (a 16-bit RGBA PNG stored
+// without compression, the largest of the formats read) and 1 MiB of metadata. A larger file is
+// refused before it is read into memory.
+std::uint64_t maxFileBytes(std::uint64_t max_pixels) {
+  constexpr std::uint64_t kMetadataBytes = 1ULL << 20;
+  constexpr std::uint64_t kMaxBytesPerPixel = 8;
+  if (max_pixels > (UINT64_MAX - kMetadataBytes) / kMaxBytesPerPixel) return UINT64_MAX;
+  return max_pixels * kMaxBytesPerPixel + kMetadataBytes;
+}
+
+std::string sizeText(std::uint64_t width, std::uint64_t height) {
+  return std::to_string(width) + " x " + std::to_string(height) + " (" + std::to_string(width * height) + " pixels)";
+}
+
+// A video's or device's frames by the size the capture reports (0 x 0 when it reports none): a
+// too-large refusal naming the source and the sizes, or nothing.
+std::optional<SourceFrame> refuseLargeCapture(cv::VideoCapture& capture, const std::string& origin,
+                                              std::uint64_t max_pixels) {
+  const double width = capture.get(cv::CAP_PROP_FRAME_WIDTH);
+  const double height = capture.get(cv::CAP_PROP_FRAME_HEIGHT);
+  if (!(width > 0.0 && height > 0.0 && std::isfinite(width * height))) return std::nullopt;
+  if (width * height <= static_cast<double>(max_pixels)) return std::nullopt;
+  return unreadable(origin, FrameFailure::kTooLarge,
+                    origin + ": frames of " + sizeText(static_cast<std::uint64_t>(width), static_cast<std::uint64_t>(height)) +
+                        ", above the camera's max_image_pixels of " + std::to_string(max_pixels) + "; not read");
+}
+
+// A frame as read, refused when its pixels are above the limit after all (a stream that changed size).
+std::optional<SourceFrame> refuseLargeFrame(const cv::Mat& image, const std::string& origin, std::uint64_t max_pixels) {
+  if (static_cast<std::uint64_t>(image.total()) <= max_pixels) return std::nullopt;
+  return unreadable(origin, FrameFailure::kTooLarge,
+                    origin + ": a frame of " + sizeText(static_cast<std::uint64_t>(image.cols), static_cast<std::uint64_t>(image.rows)) +
+                        ", above the camera's max_image_pixels of " + std::to_string(max_pixels));
 }
 
 class ImageDirectorySource final : public FrameSource {
@@ -90,15 +118,10 @@ class ImageDirectorySource final : public FrameSource {
       readable_in_pass_ = 0;
     }
     ++read_;
-    const std::filesystem::path& path = images_[index];
-    Expected<cv::Mat> image = readImage(path);
-    if (!image) return unreadable(path.string(), image.error().message);
+    SourceFrame f = readImageFile(images_[index], replay_.max_pixels);
+    if (f.outcome != FrameOutcome::kFrame) return f;
     ++readable_in_pass_;
-    SourceFrame f;
-    f.outcome = FrameOutcome::kFrame;
-    f.image_bgr = std::move(*image);
     f.due_ns = static_cast<std::int64_t>(pass) * pass_ns_ + offsets_ns_[index];
-    f.origin = path.string();
     return f;
   }
 
@@ -129,6 +152,14 @@ class VideoFileSource final : public FrameSource {
 
   SourceFrame next() override {
     if (finished_ || (replay_.frames && read_ >= *replay_.frames)) return done();
+    if (read_ == 0) {
+      // Every frame of the file has this size: refused once, unread, and the source is done.
+      if (std::optional<SourceFrame> refused = refuseLargeCapture(capture_, file_.string(), replay_.max_pixels)) {
+        finished_ = true;
+        ++read_;
+        return std::move(*refused);
+      }
+    }
     cv::Mat image;
     if (!capture_.read(image)) {
       // The end of the file: start again when looping, unless the pass gave nothing.
@@ -142,7 +173,8 @@ class VideoFileSource final : public FrameSource {
     ++read_;
     const std::int64_t due = pass_start_ns_ + static_cast<std::int64_t>(in_pass_++) * period_ns_;
     const std::string origin = file_.string() + " frame " + std::to_string(in_pass_ - 1);
-    if (image.type() != CV_8UC3) return unreadable(origin, origin + ": not an 8-bit colour frame");
+    if (image.type() != CV_8UC3) return unreadable(origin, FrameFailure::kNotColour, origin + ": not an 8-bit colour frame");
+    if (std::optional<SourceFrame> refused = refuseLargeFrame(image, origin, replay_.max_pixels)) return std::move(*refused);
     SourceFrame f;
     f.outcome = FrameOutcome::kFrame;
     f.image_bgr = std::move(image);
@@ -178,16 +210,24 @@ class VideoDeviceSource final : public FrameSource {
     if (failures_ >= kMaxConsecutiveGrabFailures || (replay_.frames && read_ >= *replay_.frames)) return done();
     ++read_;
     const std::string origin = device_.string() + " frame " + std::to_string(read_ - 1);
+    if (read_ == 1) {
+      // The device's mode does not change by itself: refused once, unread, and the source is done.
+      if (std::optional<SourceFrame> refused = refuseLargeCapture(capture_, device_.string(), replay_.max_pixels)) {
+        failures_ = kMaxConsecutiveGrabFailures;
+        return std::move(*refused);
+      }
+    }
     cv::Mat image;
     const bool grabbed = capture_.read(image);
     const std::int64_t captured = now_();
     if (!grabbed || image.empty()) {
       ++failures_;
-      return unreadable(origin, device_.string() + ": grabbing a frame failed (" + std::to_string(failures_) +
-                                    " in a row)");
+      return unreadable(origin, FrameFailure::kGrabFailed,
+                        device_.string() + ": grabbing a frame failed (" + std::to_string(failures_) + " in a row)");
     }
     failures_ = 0;
-    if (image.type() != CV_8UC3) return unreadable(origin, origin + ": not an 8-bit colour frame");
+    if (image.type() != CV_8UC3) return unreadable(origin, FrameFailure::kNotColour, origin + ": not an 8-bit colour frame");
+    if (std::optional<SourceFrame> refused = refuseLargeFrame(image, origin, replay_.max_pixels)) return std::move(*refused);
     SourceFrame f;
     f.outcome = FrameOutcome::kFrame;
     f.image_bgr = std::move(image);
@@ -221,6 +261,75 @@ Expected<std::vector<std::string>> readTimestampLines(const std::filesystem::pat
 }
 
 }  // namespace
+
+const char* frameFailureName(FrameFailure failure) {
+  switch (failure) {
+    case FrameFailure::kUnreadable: return "unreadable";
+    case FrameFailure::kUnknownFormat: return "unknown_format";
+    case FrameFailure::kBadHeader: return "bad_header";
+    case FrameFailure::kTooLarge: return "too_large";
+    case FrameFailure::kDecodeFailed: return "decode_failed";
+    case FrameFailure::kNotColour: return "not_colour";
+    case FrameFailure::kGrabFailed: return "grab_failed";
+  }
+  return "unknown";
+}
+
+SourceFrame readImageFile(const std::filesystem::path& path, std::uint64_t max_pixels) {
+  const std::string name = path.string();
+  std::error_code ec;
+  const std::uint64_t size = std::filesystem::file_size(path, ec);
+  if (ec) return unreadable(name, FrameFailure::kUnreadable, name + ": cannot be read (" + ec.message() + ")");
+  if (const std::uint64_t most = maxFileBytes(max_pixels); size > most) {
+    return unreadable(name, FrameFailure::kTooLarge,
+                      name + ": a file of " + std::to_string(size) + " bytes, more than an image of the camera's " +
+                          "max_image_pixels " + std::to_string(max_pixels) + " can take (" + std::to_string(most) +
+                          " bytes); not read");
+  }
+  // The header from the file's first bytes (more only for a JPEG whose frame header follows more
+  // metadata than that); the rest only for an image within the limit. The bytes whose header was
+  // checked are the bytes decoded.
+  std::ifstream in(path, std::ios::binary);
+  std::vector<std::uint8_t> bytes;
+  const auto readUpTo = [&](std::uint64_t total) {
+    const std::size_t had = bytes.size();
+    bytes.resize(static_cast<std::size_t>(total));
+    return static_cast<bool>(in.read(reinterpret_cast<char*>(bytes.data() + had), static_cast<std::streamsize>(total - had)));
+  };
+  constexpr std::uint64_t kHeaderBytes = 64 * 1024;
+  if (!in || !readUpTo(std::min(size, kHeaderBytes))) {
+    return unreadable(name, FrameFailure::kUnreadable, name + ": cannot be read");
+  }
+  if (!imageFormatOf(bytes)) {
+    return unreadable(name, FrameFailure::kUnknownFormat, name + ": not a PNG, JPEG, BMP or PNM image (unknown format)");
+  }
+  Expected<ImageHeader> header = readImageHeader(bytes);
+  if (!header && bytes.size() < size) {
+    if (!readUpTo(size)) return unreadable(name, FrameFailure::kUnreadable, name + ": cannot be read");
+    header = readImageHeader(bytes);
+  }
+  if (!header) return unreadable(name, FrameFailure::kBadHeader, name + ": " + header.error().message);
+  const std::string what = sizeText(header->width, header->height) + " " + imageFormatName(header->format);
+  if (header->pixels() > max_pixels) {
+    return unreadable(name, FrameFailure::kTooLarge,
+                      name + ": " + what + ", above the camera's max_image_pixels of " + std::to_string(max_pixels) +
+                          "; not decoded");
+  }
+  if (bytes.size() < size && !readUpTo(size)) return unreadable(name, FrameFailure::kUnreadable, name + ": cannot be read");
+  cv::Mat image;
+  try {
+    image = cv::imdecode(bytes, cv::IMREAD_COLOR);
+  } catch (const cv::Exception& e) {
+    return unreadable(name, FrameFailure::kDecodeFailed, name + ": a " + what + " that cannot be decoded (" + e.what() + ")");
+  }
+  if (image.empty()) return unreadable(name, FrameFailure::kDecodeFailed, name + ": a " + what + " that cannot be decoded");
+  if (std::optional<SourceFrame> refused = refuseLargeFrame(image, name, max_pixels)) return std::move(*refused);
+  SourceFrame f;
+  f.outcome = FrameOutcome::kFrame;
+  f.image_bgr = std::move(image);
+  f.origin = name;
+  return f;
+}
 
 Expected<std::int64_t> parseKittiTimestamp(const std::string& text) {
   int year = 0, month = 0, day = 0, hour = 0, minute = 0, second = 0, used = 0;
@@ -346,7 +455,7 @@ Expected<std::unique_ptr<FrameSource>> openFrameSource(const CameraNodeConfig& c
   if (camera.simulated()) {
     return invalidArgument("source sim has no images: it goes with detector kind truth");
   }
-  const ReplayConfig replay{camera.rate_hz, camera.loop, camera.frames};
+  const ReplayConfig replay{camera.rate_hz, camera.loop, camera.frames, camera.max_image_pixels};
   if (isVideoDevice(camera.source)) return openVideoDevice(camera.source, replay, std::move(now));
   std::error_code ec;
   if (std::filesystem::is_directory(camera.source, ec)) return openImageDirectory(camera.source, replay);

@@ -3,7 +3,9 @@
 // replayed in name order, a video file, or a V4L2 device. A replayed source says when each frame is
 // due relative to the start of the replay (from rate_hz, or from a KITTI raw timestamps.txt beside
 // the images); a device's frames are stamped with the injected clock when they are grabbed. An image
-// that cannot be read is reported with its path and skipped, never fatal. No gRPC, no printing.
+// that cannot be read is reported with its path and skipped, never fatal. Every frame is bounded by
+// the camera's max_image_pixels before it is decoded: an image file by its header, a video or a
+// device by the size the capture reports. No gRPC, no printing.
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
@@ -14,6 +16,7 @@
 
 #include <opencv2/core/mat.hpp>
 
+#include "common/camera/image_limits.hpp"
 #include "common/clock.hpp"
 #include "common/status.hpp"
 #include "common/topology.hpp"
@@ -22,9 +25,27 @@ namespace fogmap {
 
 enum class FrameOutcome {
   kFrame,       // an image to detect on
-  kUnreadable,  // this frame could not be read (`problem` says why); the next one may be fine
+  kUnreadable,  // this frame could not be read (`failure` and `problem` say why); the next one may be fine
   kDone,        // the source has no more frames
 };
+
+// Why a frame could not be had: the reason label of the service's failure counter.
+enum class FrameFailure {
+  kUnreadable,     // the file cannot be opened or read
+  kUnknownFormat,  // the file is not a PNG, JPEG, BMP or PNM image
+  kBadHeader,      // its header is cut short or malformed: no size to check
+  kTooLarge,       // more pixels than max_image_pixels (or a file larger than such an image can be)
+  kDecodeFailed,   // the header was fine, the decoder was not
+  kNotColour,      // a video or device frame that is not 8-bit BGR
+  kGrabFailed,     // the device gave no frame
+};
+const char* frameFailureName(FrameFailure failure);  // "unreadable", "unknown_format", ...
+
+// Every failure, for counters that list their reasons up front.
+inline constexpr FrameFailure kFrameFailures[] = {FrameFailure::kUnreadable,   FrameFailure::kUnknownFormat,
+                                                  FrameFailure::kBadHeader,    FrameFailure::kTooLarge,
+                                                  FrameFailure::kDecodeFailed, FrameFailure::kNotColour,
+                                                  FrameFailure::kGrabFailed};
 
 struct SourceFrame {
   FrameOutcome outcome = FrameOutcome::kDone;
@@ -34,7 +55,8 @@ struct SourceFrame {
   // Live sources: the capture time (unix ns) from the injected clock.
   std::optional<std::int64_t> capture_time_ns;
   std::string origin;   // the file (or device and frame) the frame came from
-  std::string problem;  // kUnreadable: the path and what went wrong
+  FrameFailure failure = FrameFailure::kUnreadable;  // kUnreadable: why
+  std::string problem;  // kUnreadable: the path and what went wrong (sizes included when too large)
 };
 
 class FrameSource {
@@ -51,7 +73,13 @@ struct ReplayConfig {
   double rate_hz = 10.0;                // frames a second when no timestamps say otherwise
   bool loop = true;                     // start again after the last frame
   std::optional<std::uint64_t> frames;  // stop after this many frames (unreadable ones included)
+  std::uint64_t max_pixels = camera::kDefaultMaxImagePixels;  // larger frames are refused undecoded
 };
+
+// One image file as 8-bit BGR, or why not: the header read first and checked against
+// `max_pixels` (and the file's size against what such an image can take) before any decoding.
+// kFrame or kUnreadable; `origin` is the path, `problem` names it. No timing.
+SourceFrame readImageFile(const std::filesystem::path& path, std::uint64_t max_pixels);
 
 // The unix time in ns of a KITTI raw timestamp "YYYY-MM-DD HH:MM:SS.nnnnnnnnn" (UTC; fewer fraction
 // digits are allowed); an error quoting the text otherwise.
@@ -64,11 +92,13 @@ Expected<std::int64_t> parseKittiTimestamp(const std::string& text);
 Expected<std::unique_ptr<FrameSource>> openImageDirectory(const std::filesystem::path& directory,
                                                           const ReplayConfig& replay);
 
-// A video file read with OpenCV, due at its own frame rate (rate_hz when the file has none).
+// A video file read with OpenCV, due at its own frame rate (rate_hz when the file has none). When the
+// capture reports frames above replay.max_pixels, the first frame is refused (too large) unread and
+// the source is done.
 Expected<std::unique_ptr<FrameSource>> openVideoFile(const std::filesystem::path& file, const ReplayConfig& replay);
 
 // A V4L2 device (/dev/videoN), live: frames stamped with `now` as they are grabbed. A device that
-// fails many grabs in a row is done.
+// fails many grabs in a row is done, as is one whose frame size is above replay.max_pixels.
 Expected<std::unique_ptr<FrameSource>> openVideoDevice(const std::filesystem::path& device, const ReplayConfig& replay,
                                                        NowNs now);
 

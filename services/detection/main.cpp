@@ -15,6 +15,7 @@
 //       rate_hz: 10
 //       loop: true
 //       queue_frames: 2
+//       max_image_pixels: 16777216                # default 4096 x 4096; larger frames are refused undecoded
 //       detector: {kind: hog, hog: {upscale: 1.5}}
 //       calibration: {fx: 721.5, fy: 721.5, cx: 609.6, cy: 172.9, width: 1242, height: 375,
 //                     pose: {translation_m: [0, 0, 1.65], rpy_deg: [-90, 0, -90]}}
@@ -29,6 +30,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <exception>
 #include <filesystem>
@@ -59,10 +61,13 @@ using namespace std::chrono_literals;
 
 constexpr int kExitRuntimeError = 1;
 constexpr int kExitBadConfig = 2;
-// Shutdown on SIGTERM or SIGINT: the loops see the request within kStopPollNs (or after the frame
-// being detected), the detections already made get kStopFlush to be written, and the stream is
-// half-closed. At the end of a replay the last frames get kDoneFlush.
+// Shutdown on SIGTERM or SIGINT, within 2 s: the loops see the request between frames (within
+// kStopPollNs while waiting for one), a read or detection in progress gets kStopGraceNs to end and
+// is otherwise left behind (the process exits without it), the detections already made get
+// kStopFlush to be written, and the stream is half-closed (unless a detection was left behind).
+// At the end of a replay the last frames get kDoneFlush.
 constexpr std::int64_t kStopPollNs = 50'000'000;
+constexpr std::int64_t kStopGraceNs = 500'000'000;
 constexpr auto kStopFlush = 1s;
 constexpr auto kDoneFlush = 5s;
 
@@ -157,6 +162,7 @@ int run(const Flags& flags) {
   hooks.deliver = [&link](fogmap::tracking::DetectionFrame frame) { link.send(frame); };
   hooks.log = [&prefix](const std::string& line) { std::cerr << prefix << line << "\n"; };
   hooks.observer = &detection_metrics;
+  hooks.stop_grace_ns = kStopGraceNs;
   std::optional<fogmap::DetectionRunner> runner;
   if (truth) {
     runner.emplace(*truth, fogmap::ReplayConfig{camera.rate_hz, camera.loop, camera.frames}, std::move(hooks));
@@ -164,10 +170,11 @@ int run(const Flags& flags) {
     runner.emplace(node->name, *source, *detector, camera.queue_frames, std::move(hooks));
   }
 
-  std::cerr << prefix << (truth ? truth->describe() : source->describe()) << ", sending to " << parent->name << " ("
-            << link_config.target << (*tls ? ", mutual TLS" : "") << ")\n";
+  std::cerr << prefix << (truth ? truth->describe() : source->describe())
+            << (truth ? "" : ", frames above " + std::to_string(camera.max_image_pixels) + " pixels refused")
+            << ", sending to " << parent->name << " (" << link_config.target << (*tls ? ", mutual TLS" : "") << ")\n";
 
-  runner->run();
+  const bool ended = runner->run();
   const fogmap::DetectionRunnerStats stats = runner->stats();
   const std::string frames = std::to_string(stats.frames_detected) + " frame(s) detected of " +
                              std::to_string(stats.frames_read) + " read (" + std::to_string(stats.frames_dropped) +
@@ -176,7 +183,11 @@ int run(const Flags& flags) {
   if (stopRequested()) {
     const bool flushed = link.flush(kStopFlush);
     std::cerr << prefix << "stopping after " << frames
-              << (flushed ? "" : "; " + std::to_string(link.queued()) + " frame(s) not sent") << "\n";
+              << (flushed ? "" : "; " + std::to_string(link.queued()) + " frame(s) not sent")
+              << (ended ? "" : "; a read or detection still running was left unfinished") << "\n";
+    // The loops' threads would be joined by the runner's destructor: a detection at work would hold
+    // the exit for as long as it takes. Nothing it could still produce would be sent.
+    if (!ended) std::_Exit(0);
     return 0;
   }
   if (stats.frames_read == 0) {

@@ -177,6 +177,27 @@ TEST(HogDetector, RefusesAnImageThatIsNotBgr) {
   ASSERT_FALSE(gray.ok());
   EXPECT_NE(gray.error().message.find("image_bgr"), std::string::npos) << gray.error().message;
   EXPECT_FALSE(detectWith(config, cv::Mat()).ok());
+  auto detector = makeDetector(config);
+  ASSERT_TRUE(detector.ok());
+  const DetectResult result = (*detector)->detectFrame(cv::Mat(), "cam0", 42);
+  ASSERT_TRUE(result.refusal.has_value());
+  EXPECT_EQ(result.refusal->reason, DetectFailure::kBadImage);
+}
+
+TEST(HogDetector, RefusesAnImageWhoseUpscaledSizeIsAboveWhatItSearches) {
+  DetectorConfig config;
+  config.hog.upscale = 8.0;
+  auto detector = makeDetector(config);
+  ASSERT_TRUE(detector.ok());
+  // 1100 x 1000 upscaled by 8 is 70.4 MP, above kMaxHogSearchPixels: refused before it is made.
+  const DetectResult large = (*detector)->detectFrame(cv::Mat(1000, 1100, CV_8UC3, cv::Scalar(0)), "cam0", 42);
+  ASSERT_TRUE(large.refusal.has_value());
+  EXPECT_EQ(large.refusal->reason, DetectFailure::kTooLarge);
+  EXPECT_NE(large.refusal->error.message.find("hog.upscale"), std::string::npos) << large.refusal->error.message;
+  EXPECT_NE(large.refusal->error.message.find("1100 x 1000"), std::string::npos) << large.refusal->error.message;
+  // A KITTI frame at the same upscale (29.8 MP) is searched.
+  const DetectResult kitti = (*detector)->detectFrame(cv::Mat(375, 1242, CV_8UC3, cv::Scalar(0)), "cam0", 42);
+  EXPECT_FALSE(kitti.refusal.has_value()) << kitti.refusal->error.message;
 }
 
 // ---- Cascades ---------------------------------------------------------------------------------
@@ -338,6 +359,14 @@ TEST(DnnDetector, AnOutputOfAnotherLayoutIsAnErrorNamingItsShape) {
   const auto detections = detectWith(config, wideImage());
   ASSERT_FALSE(detections.ok());
   EXPECT_NE(detections.error().message.find("[1, 1, 1, 7]"), std::string::npos) << detections.error().message;
+  // The refusal says why, for the service's failure counter.
+  auto detector = makeDetector(config);
+  ASSERT_TRUE(detector.ok()) << detector.error().message;
+  const DetectResult result = (*detector)->detectFrame(wideImage(), "cam0", 42);
+  ASSERT_TRUE(result.refusal.has_value());
+  EXPECT_EQ(result.refusal->reason, DetectFailure::kModelOutputMismatch);
+  EXPECT_STREQ(detectFailureName(result.refusal->reason), "model_output_mismatch");
+  EXPECT_TRUE(result.detections.empty());
 }
 
 TEST(DnnDetector, AClassIdWithoutANameIsAnError) {
@@ -352,6 +381,11 @@ TEST(DnnDetector, AClassIdWithoutANameIsAnError) {
   const auto detections = detectWith(config, wideImage());
   ASSERT_FALSE(detections.ok());
   EXPECT_NE(detections.error().message.find("class id 3"), std::string::npos) << detections.error().message;
+  auto detector = makeDetector(config);
+  ASSERT_TRUE(detector.ok()) << detector.error().message;
+  const DetectResult result = (*detector)->detectFrame(wideImage(), "cam0", 42);
+  ASSERT_TRUE(result.refusal.has_value());
+  EXPECT_EQ(result.refusal->reason, DetectFailure::kModelOutputMismatch);
 }
 
 TEST(DnnDetector, AModelOpenCvCannotReadIsAnErrorNamingTheFile) {
@@ -440,6 +474,38 @@ TEST(DetectorConfig, ThresholdsOutsideTheUnitIntervalAreRefusedNamingTheField) {
   hog.hog.nms_iou = 2.0;
   ASSERT_FALSE(validate(hog).ok());
   EXPECT_EQ(validate(hog).error().message.rfind("hog.nms_iou:", 0), 0u) << validate(hog).error().message;
+}
+
+TEST(DetectorConfig, ANetworkInputAboveTheBoundsIsRefusedNamingTheField) {
+  TempDir dir;
+  writeFile(dir.path() / "model.onnx", "x");
+  writeFile(dir.path() / "names.txt", "person\n");
+  DetectorConfig config;
+  config.kind = DetectorKind::kDnn;
+  config.dnn = tinyDnn(dir.path() / "model.onnx", dir.path() / "names.txt", DnnOutput::kSsd);
+  const auto refusedFor = [&](int width, int height) -> std::string {
+    DetectorConfig c = config;
+    c.dnn.input_width = width;
+    c.dnn.input_height = height;
+    const Status s = validate(c);
+    return s.ok() ? std::string() : s.error().message;
+  };
+  EXPECT_EQ(refusedFor(1280, 1280), "");
+  EXPECT_EQ(refusedFor(kMaxDnnInputSidePx, 512), "");
+  EXPECT_EQ(refusedFor(2048, 2048), "");
+  EXPECT_EQ(refusedFor(100000, 100000).rfind("dnn.input_width:", 0), 0u) << refusedFor(100000, 100000);
+  EXPECT_NE(refusedFor(100000, 100000).find("100000"), std::string::npos);
+  EXPECT_EQ(refusedFor(640, 100000).rfind("dnn.input_height:", 0), 0u) << refusedFor(640, 100000);
+  EXPECT_EQ(refusedFor(0, 300).rfind("dnn.input_width:", 0), 0u) << refusedFor(0, 300);
+  // Each side within its bound, together above the product's.
+  const std::string both = refusedFor(8192, 8192);
+  EXPECT_EQ(both.rfind("dnn.input_width x dnn.input_height:", 0), 0u) << both;
+  EXPECT_NE(both.find("67108864"), std::string::npos) << both;
+  // makeDetector validates first: the model is never read for such an input.
+  config.dnn.input_width = config.dnn.input_height = 100000;
+  const auto detector = makeDetector(config);
+  ASSERT_FALSE(detector.ok());
+  EXPECT_NE(detector.error().message.find("dnn.input_width"), std::string::npos) << detector.error().message;
 }
 
 TEST(DetectorConfig, HogParametersOutOfRangeAreRefusedNamingTheField) {

@@ -2,17 +2,28 @@
 // `detection` is started from a topology (as fogctl up starts it) on the bundled KITTI camera
 // frames, with a tiny ONNX network whose answer the test knows (tests/data/make_tiny_detector.py).
 // Its parent tracker is a stand-in on 127.0.0.1 that records every detection frame it receives.
+#include <poll.h>
+#include <signal.h>
+#include <sys/syscall.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <chrono>
 #include <fstream>
+#include <iostream>
+#include <iterator>
+#include <optional>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include <opencv2/imgcodecs.hpp>
 
 #include "common/topology.hpp"
+#include "tests/support/eventually.hpp"
 #include "tests/support/free_ports.hpp"
 #include "tests/support/process_cluster.hpp"
 #include "tests/support/recording_tracker.hpp"
@@ -159,6 +170,99 @@ TEST(DetectionProcess, RefusesANetworkFileThatIsNotAModelAndNamesIt) {
   std::ifstream log(dir.path() / "state" / "logs" / "cam.log");
   const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("model.onnx"), std::string::npos) << text;
+}
+
+// The value of the unlabelled-by-test gauge `name` in a /metrics text; nullopt when absent.
+std::optional<double> gaugeValue(const std::string& metrics, const std::string& name) {
+  std::istringstream lines(metrics);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind(name + "{", 0) != 0 && line.rfind(name + " ", 0) != 0) continue;
+    return std::stod(line.substr(line.rfind(' ') + 1));
+  }
+  return std::nullopt;
+}
+
+std::string readAll(const fs::path& file) {
+  std::ifstream in(file);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+TEST(DetectionProcess, SigtermEndsItWhileADetectionIsRunningWithoutWaitingForTheDetection) {
+  test_support::ScratchDir dir("detection-sigterm");
+  RecordingTracker recorder;
+  TestTracker tracker(recorder);
+  ASSERT_TRUE(tracker.started());
+
+  TopologyConfig topology;
+  topology.name = "sigterm";
+  NodeConfig tracker_node = node(50, "tracker", Role::kTracker, "");
+  tracker_node.tracker = TrackerNodeConfig{};
+  NodeConfig cam = node(20, "cam", Role::kDetection, "tracker");
+  CameraNodeConfig camera;
+  camera.source = kImages;
+  camera.rate_hz = 20.0;
+  camera.loop = true;
+  // A detection that takes many seconds on a KITTI frame: HOG on the frame upscaled 4 times (7.5 MP)
+  // over 64 nearly full-size pyramid levels.
+  camera.detector.kind = camera::DetectorKind::kHog;
+  camera.detector.hog.upscale = 4.0;
+  camera.detector.hog.scale = 1.001;
+  camera.calibration.fx = camera.calibration.fy = 721.5;
+  camera.calibration.cx = 609.6;
+  camera.calibration.cy = 172.9;
+  camera.calibration.width = 1242;
+  camera.calibration.height = 375;
+  cam.camera = camera;
+  topology.nodes = {node(100, "root", Role::kAggregator, ""), tracker_node, cam};
+  test_support::useFreePorts(topology);
+  for (NodeConfig& n : topology.nodes) {
+    if (n.role == Role::kTracker) n.port = static_cast<std::uint16_t>(tracker.port());
+  }
+  const fs::path topology_file = dir.path() / "topology.yaml";
+  const auto reloaded = test_support::writeTopology(topology_file, topology);
+  ASSERT_TRUE(reloaded.ok()) << reloaded.error().message;
+
+  cli::StartOptions options;
+  options.only = {"cam"};
+  auto cluster = cli::startCluster(topology_file, *reloaded, dir.path() / "state", 30s, options);
+  ASSERT_TRUE(cluster.ok()) << cluster.error().message;
+  const test_support::StopOnExit stop(*cluster);
+  ASSERT_EQ(cluster->nodes.size(), 1U);
+  const cli::RunningNode& process = cluster->nodes.front();
+
+  // Busy: the service says a detection is running (the gauge is set just before the detector is
+  // called, and the detection takes far longer than the polls).
+  const NodeConfig* cam_node = reloaded->find("cam");
+  ASSERT_TRUE(test_support::eventually(
+      [&] {
+        const auto metrics = cli::httpGet(cam_node->host, cam_node->metrics_port, "/metrics", 2s);
+        return metrics.ok() && gaugeValue(*metrics, "fogmap_detection_in_progress") == 1.0;
+      },
+      30s))
+      << "no detection started; see " << process.log;
+
+  const int pidfd = static_cast<int>(::syscall(SYS_pidfd_open, process.pid, 0));
+  ASSERT_GE(pidfd, 0);
+  const auto signalled = std::chrono::steady_clock::now();
+  ASSERT_EQ(::kill(process.pid, SIGTERM), 0);
+  // Bounded so that a service that waits for its detection fails here instead of hanging; the
+  // service's own deadline (2 s) is what the log line below shows it kept.
+  pollfd p{pidfd, POLLIN, 0};
+  const int ready = ::poll(&p, 1, 120'000);
+  const auto exited_after = std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - signalled);
+  ::close(pidfd);
+  ASSERT_EQ(ready, 1) << "still running 120 s after SIGTERM; see " << process.log;
+  int status = 0;
+  ASSERT_EQ(::waitpid(process.pid, &status, 0), process.pid);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "wait status " << status;
+  RecordProperty("sigterm_to_exit_ms", static_cast<int>(exited_after.count()));
+  std::cout << "SIGTERM to exit while detecting: " << exited_after.count() << " ms\n";
+
+  // It stopped without the detection: the frame was never delivered, and the service says so.
+  const std::string log = readAll(process.log);
+  EXPECT_NE(log.find("stopping after 0 frame(s) detected"), std::string::npos) << log;
+  EXPECT_NE(log.find("left unfinished"), std::string::npos) << log;
+  EXPECT_TRUE(recorder.frames().empty());
 }
 
 TEST(DetectionProcess, StartingANodeTheTopologyDoesNotHaveIsAnError) {

@@ -2,15 +2,19 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
+#include <memory>
 #include <mutex>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -21,6 +25,9 @@
 #include "common/sim/generators.hpp"
 #include "common/sim/raycaster.hpp"
 #include "common/sim/sensor_frames.hpp"
+#include "services/common/metrics.hpp"
+#include "services/detection/detection_metrics.hpp"
+#include "tests/support/metric_values.hpp"
 
 namespace fogmap {
 namespace {
@@ -109,8 +116,8 @@ class ListSource final : public FrameSource {
 class NumberingDetector final : public camera::Detector {
  public:
   explicit NumberingDetector(std::function<void(int)> on_detect = {}) : on_detect_(std::move(on_detect)) {}
-  Expected<std::vector<camera::Detection>> detect(const cv::Mat& image_bgr, const std::string& camera,
-                                                  std::int64_t capture_time_ns) override {
+  camera::DetectResult detectFrame(const cv::Mat& image_bgr, const std::string& camera,
+                                   std::int64_t capture_time_ns) override {
     const int number = image_bgr.at<cv::Vec3b>(0, 0)[0];
     if (on_detect_) on_detect_(number);
     camera::Detection d;
@@ -119,7 +126,9 @@ class NumberingDetector final : public camera::Detector {
     d.score = 1.0;
     d.camera = camera;
     d.capture_time_ns = capture_time_ns;
-    return std::vector<camera::Detection>{d};
+    camera::DetectResult result;
+    result.detections = {d};
+    return result;
   }
 
  private:
@@ -129,13 +138,33 @@ class NumberingDetector final : public camera::Detector {
 class CountingObserver final : public DetectionObserver {
  public:
   void frameRead() override { ++read; }
-  void frameUnreadable() override { ++unreadable; }
+  void frameUnreadable(FrameFailure failure) override {
+    ++unreadable;
+    std::lock_guard lock(mu);
+    ++frame_failures[frameFailureName(failure)];
+  }
+  void detectFailed(const std::string& reason) override {
+    std::lock_guard lock(mu);
+    ++detector_failures[reason];
+  }
+  std::map<std::string, int> frameFailures() {
+    std::lock_guard lock(mu);
+    return frame_failures;
+  }
+  std::map<std::string, int> detectorFailures() {
+    std::lock_guard lock(mu);
+    return detector_failures;
+  }
   void framesDropped(std::uint64_t frames) override { dropped += frames; }
   void frameDetected(std::size_t n, double /*seconds*/) override {
     ++detected;
     detections += n;
   }
   std::atomic<std::uint64_t> read{0}, unreadable{0}, dropped{0}, detected{0}, detections{0};
+
+ private:
+  std::mutex mu;
+  std::map<std::string, int> frame_failures, detector_failures;
 };
 
 // What reached the sink, thread-safe.
@@ -314,6 +343,153 @@ TEST(DetectionRunner, StopEndsBothLoopsWithoutDeliveringMore) {
   running = &runner;
   runner.run();
   EXPECT_TRUE(runner.stopped());
+  EXPECT_LE(runner.stats().frames_read, 3u);
+  EXPECT_LE(out.frames.size(), 3u);
+}
+
+// Frames that all fail: the first `unreadable` of them too large for the source, the rest refused
+// by the detector (RefusingDetector), due every 100 ms.
+class FailingSource final : public FrameSource {
+ public:
+  FailingSource(std::size_t unreadable, std::size_t refused) : unreadable_(unreadable), refused_(refused) {}
+  SourceFrame next() override {
+    if (next_ == unreadable_ + refused_) return {};
+    SourceFrame f;
+    f.due_ns = static_cast<std::int64_t>(next_) * 100'000'000;
+    f.origin = "/images/" + std::to_string(next_) + ".png";
+    if (next_++ < unreadable_) {
+      f.outcome = FrameOutcome::kUnreadable;
+      f.failure = FrameFailure::kTooLarge;
+      f.problem = f.origin + ": 20000 x 20000 (400000000 pixels) PNG, above the camera's max_image_pixels";
+      return f;
+    }
+    f.outcome = FrameOutcome::kFrame;
+    f.image_bgr = cv::Mat(8, 8, CV_8UC3, cv::Scalar(0, 0, 0));
+    return f;
+  }
+  std::string describe() const override { return "failing"; }
+
+ private:
+  std::size_t unreadable_, refused_;
+  std::size_t next_ = 0;
+};
+
+// Refuses every frame as a network whose outputs do not fit the config would.
+class RefusingDetector final : public camera::Detector {
+ public:
+  camera::DetectResult detectFrame(const cv::Mat&, const std::string&, std::int64_t) override {
+    camera::DetectResult result;
+    result.refusal = camera::DetectRefusal{camera::DetectFailure::kModelOutputMismatch,
+                                           invalidArgument("dnn: output 'out' has shape [1, 1, 1, 7]; output "
+                                                           "yolo-export expects [N, 5 + classes]")};
+    return result;
+  }
+};
+
+TEST(DetectionRunner, FailuresAreCountedByReasonAndLoggedOncePerBurstNotPerFrame) {
+  ManualClock clock;
+  Delivered out;
+  FailingSource source(50, 50);
+  RefusingDetector detector;
+  CountingObserver observer;
+  Metrics metrics("", "detection", "cam");
+  DetectionMetrics detection_metrics(metrics, "cam");
+  // Both the test's observer and the service's metrics see every event.
+  class Both final : public DetectionObserver {
+   public:
+    Both(DetectionObserver& a, DetectionObserver& b) : a_(a), b_(b) {}
+    void frameUnreadable(FrameFailure f) override {
+      a_.frameUnreadable(f);
+      b_.frameUnreadable(f);
+    }
+    void detectFailed(const std::string& reason) override {
+      a_.detectFailed(reason);
+      b_.detectFailed(reason);
+    }
+
+   private:
+    DetectionObserver& a_;
+    DetectionObserver& b_;
+  } both(observer, detection_metrics);
+  DetectionRunner runner("cam", source, detector, 100, hooksFor(clock, out, &both));
+  EXPECT_TRUE(runner.run());
+
+  EXPECT_EQ(observer.frameFailures(), (std::map<std::string, int>{{"too_large", 50}}));
+  EXPECT_EQ(observer.detectorFailures(), (std::map<std::string, int>{{"model_output_mismatch", 50}}));
+  EXPECT_EQ(runner.stats().frames_unreadable, 50u);
+  EXPECT_EQ(runner.stats().detect_failures, 50u);
+  EXPECT_TRUE(out.frames.empty());
+  using test_support::counterValue;
+  EXPECT_EQ(counterValue(metrics, "fogmap_detection_failures_total", "reason", "too_large"), 50.0);
+  EXPECT_EQ(counterValue(metrics, "fogmap_detection_failures_total", "reason", "model_output_mismatch"), 50.0);
+  EXPECT_EQ(counterValue(metrics, "fogmap_detection_failures_total", "reason", "decode_failed"), 0.0);
+
+  // 100 failures over 10 s of the clock: a line opening each reason's burst (naming the file and
+  // the sizes, or the output's shape) and a summary with the count, not 100 lines.
+  EXPECT_LE(out.log.size(), 6u);
+  const auto logged = [&](const std::string& text) {
+    return std::any_of(out.log.begin(), out.log.end(), [&](const std::string& l) { return l.find(text) != std::string::npos; });
+  };
+  EXPECT_TRUE(logged("/images/0.png: 20000 x 20000")) << ::testing::PrintToString(out.log);
+  EXPECT_TRUE(logged("model_output_mismatch")) << ::testing::PrintToString(out.log);
+  EXPECT_TRUE(logged("[1, 1, 1, 7]")) << ::testing::PrintToString(out.log);
+  EXPECT_TRUE(logged("49 more")) << ::testing::PrintToString(out.log);
+}
+
+TEST(DetectionRunner, AStopDoesNotWaitForADetectionInProgressBeyondItsGrace) {
+  ManualClock clock;
+  Delivered out;
+  std::atomic<bool> stop_requested{false};
+  Signal detecting;
+  Signal release;
+  ListSource source(1000);
+  NumberingDetector detector([&](int) {
+    detecting.set();
+    // A detection that takes as long as the test says (HOG at a large upscale takes seconds).
+    ASSERT_TRUE(release.wait(60s));
+  });
+  DetectionRunnerHooks hooks = hooksFor(clock, out);
+  hooks.stop_requested = [&] { return stop_requested.load(); };
+  // Once the stop is requested, every look at the clock finds it 100 ms later: the grace passes
+  // on the clock the test drives, however long the machine takes.
+  hooks.now = [&] {
+    if (stop_requested.load()) clock.set(clock.now() + 100'000'000);
+    return clock.now();
+  };
+  hooks.stop_grace_ns = 500'000'000;
+  auto runner = std::make_unique<DetectionRunner>("cam", source, detector, 2, std::move(hooks));
+  Signal returned;
+  std::atomic<bool> ended{true};
+  std::thread running([&] {
+    ended = runner->run();
+    returned.set();
+  });
+  ASSERT_TRUE(detecting.wait());
+  const std::int64_t stop_at = clock.now();
+  stop_requested = true;
+  ASSERT_TRUE(returned.wait(60s)) << "run() waited for the detection in progress";
+  EXPECT_FALSE(ended.load()) << "run() must say a loop was left running";
+  EXPECT_GE(clock.now() - stop_at, 500'000'000) << "run() returned before the grace had passed";
+  EXPECT_TRUE(out.frames.empty());
+  // The detection ends later; the runner's destructor waits for it, and nothing more is delivered.
+  release.set();
+  running.join();
+  runner.reset();
+  EXPECT_TRUE(out.frames.empty());
+}
+
+TEST(DetectionRunner, AStopRequestedBetweenFramesEndsBothLoopsAtOnce) {
+  ManualClock clock;
+  Delivered out;
+  std::atomic<bool> stop_requested{false};
+  ListSource source(1000, [&](std::size_t frame) {
+    if (frame == 3) stop_requested = true;
+  });
+  NumberingDetector detector;
+  DetectionRunnerHooks hooks = hooksFor(clock, out);
+  hooks.stop_requested = [&] { return stop_requested.load(); };
+  DetectionRunner runner("cam", source, detector, 2, std::move(hooks));
+  EXPECT_TRUE(runner.run()) << "nothing was running when the stop came: both loops end";
   EXPECT_LE(runner.stats().frames_read, 3u);
   EXPECT_LE(out.frames.size(), 3u);
 }
