@@ -14,6 +14,7 @@
 #include <utility>
 
 #include "common/admission.hpp"
+#include "common/clock.hpp"
 
 namespace fogmap {
 namespace {
@@ -108,6 +109,8 @@ Metrics::Metrics(const std::string& bind_address, const std::string& service, co
   reconnects_ = &counter(r, "fogmap_reconnects_total", "Upload streams re-opened after a failure.", c);
   link_stalls_ = &counter(r, "fogmap_link_stalls_total",
                           "Upload streams given up because the parent owed an answer for too long.", c);
+  link_last_stall_ = &gauge(r, "fogmap_link_last_stall_time_seconds",
+                            "Unix time at which the upload stream was last given up (0: never).", c);
   duplicate_uploads_ = &counter(r, "fogmap_duplicate_uploads_total",
                                 "Re-sent copies of uploads already applied: recognised, answered, not applied again.", c);
   dropped_uploads_ = &counter(r, "fogmap_dropped_uploads_total",
@@ -226,7 +229,10 @@ void Metrics::childrenStale(double n) { children_stale_->Set(n); }
 void Metrics::malformed(const std::string& what) { malformed_->Add({{"what", what}}).Increment(); }
 void Metrics::lateMaps(std::uint64_t n) { late_maps_->Increment(static_cast<double>(n)); }
 void Metrics::reconnects() { reconnects_->Increment(); }
-void Metrics::linkStalls() { link_stalls_->Increment(); }
+void Metrics::linkStalls() {
+  link_stalls_->Increment();
+  link_last_stall_->Set(static_cast<double>(systemNowNs()) * 1e-9);
+}
 void Metrics::duplicateUploads(std::uint64_t n) { duplicate_uploads_->Increment(static_cast<double>(n)); }
 void Metrics::droppedUploads() { dropped_uploads_->Increment(); }
 void Metrics::framesProcessed() { frames_->Increment(); }

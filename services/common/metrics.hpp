@@ -72,7 +72,9 @@ class Metrics {
   // Scan files with zero padding after their declared points (accepted).
   void paddedScans();
   void reconnects();
-  // Upload streams given up because the parent stopped answering (ParentLink's answer timeout).
+  // Upload streams given up because the parent stopped answering (ParentLink's answer timeout);
+  // also sets fogmap_link_last_stall_time_seconds to now (unix time), so an observer can tell when
+  // the link gave up, however late it scrapes.
   void linkStalls();
   // Re-sent copies of uploads already applied, recognised and not applied again.
   void duplicateUploads(std::uint64_t n = 1);
@@ -111,6 +113,7 @@ class Metrics {
   prometheus::Counter* late_maps_;
   prometheus::Counter* reconnects_;
   prometheus::Counter* link_stalls_;
+  prometheus::Gauge* link_last_stall_;
   prometheus::Counter* duplicate_uploads_;
   prometheus::Counter* dropped_uploads_;
   prometheus::Counter* frames_;

@@ -616,7 +616,11 @@ Expected<FaultReport> runFaults(const std::filesystem::path& dir, const Topology
     if (!stopped_at.empty() && !report.child_notice_ms) {
       for (const auto& [child, before] : stalls_before) {
         if (metricOf(*topology.find(child), "fogmap_link_stalls_total") > before) {
-          report.child_notice_ms = ms(systemNowNs() - stopped_at.begin()->second);
+          // When the child gave up, by its own clock: the scrape may come much later on a loaded
+          // machine, and that delay is the harness's, not the cluster's.
+          const double at_s = metricOf(*topology.find(child), "fogmap_link_last_stall_time_seconds");
+          const std::int64_t at_ns = at_s > 0 ? static_cast<std::int64_t>(at_s * 1e9) : systemNowNs();
+          report.child_notice_ms = ms(at_ns - stopped_at.begin()->second);
           break;
         }
       }
