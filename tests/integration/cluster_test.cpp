@@ -7,14 +7,17 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cstdint>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <thread>
 
 #include "common/geofence.hpp"
 #include "common/map.hpp"
 #include "tools/fogctl/cluster_run.hpp"
+#include "tests/support/cluster_control.hpp"
 #include "tests/support/free_ports.hpp"
 #include "tools/fogctl/launcher.hpp"
 
@@ -203,16 +206,21 @@ std::pair<int, std::string> run(const std::string& command) {
 // fogctl geofence against a running root: the intrusions it prints are exactly those of the
 // global map of the epoch it names, as the root published it, recomputed in-process.
 TEST(Cluster, FogctlGeofenceReportsTheIntrusionsOfThePublishedGlobalMap) {
-  const TopologyConfig t = topology("star", 3, Mode::kMadc, 40);
+  TopologyConfig t = topology("star", 3, Mode::kMadc, 40);
+  test_support::replayUntilStopped(t);  // the subscriber collects until the queries are done
   const std::string target = t.root()->host + ":" + std::to_string(t.root()->port);
   const std::string fogctl = (cli::binaryDir() / "fogctl").string() + " geofence ";
   const Geofence fence = boxGeofence("front", {0, -4, -3}, {20, 4, 3});
   std::pair<int, std::string> set, query, unknown;
   RunOptions options;
-  options.frames = 60;  // the queries run while the subscriber still collects
-  options.timeout = 60s;
-  const auto result = cli::runCluster(scratchDir("geofence"), t, options, [&](const cli::Cluster&) {
-    std::this_thread::sleep_for(1500ms);
+  options.frames = std::numeric_limits<std::uint64_t>::max();
+  options.timeout = 120s;
+  const auto result = cli::runCluster(scratchDir("geofence"), t, options, [&](const cli::Cluster& cluster) {
+    const test_support::EdgesStopper stop_edges(cluster, t);  // once the queries are done
+    // The queries name the root's latest map: one with every edge's objects by now.
+    test_support::RootSubscription published(t, options.timeout);
+    ASSERT_TRUE(published.readUntil([&](const GlobalMapMessage& g) { return test_support::everySensor(t, g); }).has_value())
+        << "no global map with every edge";
     set = run(fogctl + "set --target " + target + " --name front --box 0,-4,-3,20,4,3");
     query = run(fogctl + "query --target " + target + " --name front");
     unknown = run(fogctl + "query --target " + target + " --name nowhere");

@@ -5,10 +5,15 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <limits>
+#include <map>
+#include <optional>
 #include <sstream>
-#include <thread>
+#include <string>
+#include <vector>
 
 #include <grpcpp/grpcpp.h>
 
@@ -17,6 +22,7 @@
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "services/common/grpc_options.hpp"
 #include "services/common/proto_convert.hpp"
+#include "tests/support/cluster_control.hpp"
 #include "tests/support/free_ports.hpp"
 #include "tools/fogctl/cluster_run.hpp"
 #include "tools/fogctl/launcher.hpp"
@@ -27,6 +33,11 @@ namespace {
 using namespace std::chrono_literals;
 
 constexpr std::uint32_t kHonestEdges = 3;
+// The attacker's stream lasts this long at most, and the root's admission window is as wide: an
+// epoch taken from the clock (or from a map the root just published) while the stream is open is
+// still inside the window when the root reads the upload, however slow the machine, and an epoch
+// meant to be outside lies a whole window beyond it.
+constexpr std::chrono::seconds kAttackTime{60};
 
 std::filesystem::path dataDir() { return std::filesystem::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a"; }
 
@@ -69,7 +80,7 @@ class Attacker {
  public:
   explicit Attacker(const std::string& target) : channel_(makeChannel(target, 256U << 20)) {
     stub_ = v1::MapIngest::NewStub(channel_);
-    context_.set_deadline(std::chrono::system_clock::now() + 60s);
+    context_.set_deadline(std::chrono::system_clock::now() + kAttackTime);
     stream_ = stub_->Push(&context_);
   }
   // Sends one upload under `sequence` and returns the root's answer (nullopt: the stream ended).
@@ -92,33 +103,45 @@ class Attacker {
   std::unique_ptr<grpc::ClientReaderWriter<v1::Upload, v1::Ack>> stream_;
 };
 
+bool allHonestEdges(const GlobalMapMessage& global) {
+  return global.header.contributing_nodes.size() == kHonestEdges;
+}
+
 TEST(HostileClient, RootKeepsPublishingHonestDataAndCountsEveryAttack) {
   TopologyConfig t = makeStarTopology(kHonestEdges, dataDir(), 40000);
   test_support::useFreePorts(t);
   t.name = "hostile";
   t.deadline_ms = 500.0;  // a loaded CI machine must not turn slow epochs into partial ones
-  for (auto& n : t.nodes) {
-    if (n.sensor) n.sensor->frames = 150;  // longer than the attacks take on a loaded machine
-  }
+  t.admission.window_periods = std::chrono::duration<double, std::milli>(kAttackTime).count() / t.period_ms;
+  test_support::replayUntilStopped(t);  // the attacks take as long as they take; the edges go on
   const NodeConfig& root = *t.root();
   const std::string target = root.host + ":" + std::to_string(root.port);
   const auto schedule = EpochSchedule::create(t.period_ms, t.deadline_ms);
   ASSERT_TRUE(schedule.ok());
   const auto now_epoch = [&] { return schedule->epochAt(systemNowNs()); };
+  const auto window_epochs = static_cast<std::uint64_t>(std::llround(t.admission.window_periods));
 
   std::optional<v1::GeofenceReport> geofences;
-  std::uint64_t epoch_at_query = 0;
+  std::uint64_t published_before_query = 0;
+  std::uint64_t epoch_after_query = 0;
   std::string metrics_page;
+  std::map<std::string, std::string> edge_pages;  // each honest edge's /metrics after the attacks
+  std::uint64_t attack_start_epoch = 0;
   std::uint64_t attack_end_epoch = 0;
   std::string answers;  // what the root said to each attack, for the failure messages
   cli::RunOptions options;
-  options.frames = 150;  // every epoch the edges make, to see the root publish after the attacks
-  options.timeout = 90s;
+  options.frames = std::numeric_limits<std::uint64_t>::max();  // every epoch until the edges are stopped
+  options.timeout = 3 * kAttackTime;
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("fogmap-it-" + std::to_string(::getpid()) + "-hostile");
   std::filesystem::create_directories(dir);
-  const auto result = cli::runCluster(dir, t, options, [&](const cli::Cluster&) {
-    // Let the honest edges get going, then attack on one stream that claims to be edge 1.
-    std::this_thread::sleep_for(500ms);
+  const auto result = cli::runCluster(dir, t, options, [&](const cli::Cluster& cluster) {
+    const test_support::EdgesStopper stop_edges(cluster, t);  // when the attacks are over
+    // Once the root has published a map with every honest edge, attack on one stream that claims
+    // to be edge 1.
+    test_support::RootSubscription published(t, options.timeout);
+    const auto started = published.readUntil(allHonestEdges);
+    ASSERT_TRUE(started.has_value()) << "no global map with every honest edge before the attacks";
+    attack_start_epoch = started->header.epoch;
     Attacker attacker(target);
     std::uint64_t sequence = 1;
     // Refused with the reason and gRPC code of the rule: INVALID_ARGUMENT, RESOURCE_EXHAUSTED for
@@ -132,9 +155,10 @@ TEST(HostileClient, RootKeepsPublishingHonestDataAndCountsEveryAttack) {
       EXPECT_FALSE(ack->reason().empty()) << what;
       if (what != "flood") answers += what + ": " + ack->reason() + "\n";
     };
-    const std::uint64_t now = now_epoch();
-    // 1. A map 500 ms ahead, which used to open that epoch early and publish it forged.
-    expect_refused(mapUpload(1, now + 5, {ball(1, now + 5, 500, {0, 0, 0})}), "epoch 500 ms ahead");
+    // 1. A map ahead of the root's clock, which used to open that epoch early and publish it
+    //    forged: three windows ahead, it stays beyond the window longer than the stream lasts.
+    const std::uint64_t ahead = now_epoch() + 3 * window_epochs;
+    expect_refused(mapUpload(1, ahead, {ball(1, ahead, 500, {0, 0, 0})}), "epoch beyond the window ahead");
     // 2. The last epoch there is, which used to freeze the geofences on it.
     const std::uint64_t last = std::numeric_limits<std::uint64_t>::max();
     expect_refused(mapUpload(1, last, {ball(1, last, 500, {0, 0, 0})}), "epoch 2^64 - 1");
@@ -177,10 +201,13 @@ TEST(HostileClient, RootKeepsPublishingHonestDataAndCountsEveryAttack) {
           2, std::numeric_limits<float>::quiet_NaN());
       expect_refused(std::move(nan), "NaN centre");
     }
-    // 6. Duplicates with other content. The epoch six back passed its deadline (500 ms) a period
-    //    or more ago and is still inside the admission window: it was emitted, so whatever is
-    //    applied to it is a late revision that never replaces the live picture.
-    const std::uint64_t past = now_epoch() - 6;
+    // 6. Duplicates with other content, on the first epoch from now on that the root publishes:
+    //    it was emitted, so whatever is applied to it is a late revision that never replaces the
+    //    live picture.
+    const std::uint64_t from = now_epoch();
+    const auto emitted = published.readUntil([&](const GlobalMapMessage& g) { return g.header.epoch >= from; });
+    ASSERT_TRUE(emitted.has_value()) << "the root stopped publishing during the attacks";
+    const std::uint64_t past = emitted->header.epoch;
     const std::uint64_t reused = sequence++;
     const auto first = attacker.send(reused, mapUpload(1, past, {}));
     ASSERT_TRUE(first.has_value());
@@ -205,21 +232,31 @@ TEST(HostileClient, RootKeepsPublishingHonestDataAndCountsEveryAttack) {
       EXPECT_EQ(stranger.finish().error_code(), grpc::StatusCode::INVALID_ARGUMENT);
     }
     attack_end_epoch = now_epoch();
+    // The root goes on publishing the honest edges' maps after the attacks.
+    const auto after = published.readUntil(
+        [&](const GlobalMapMessage& g) { return g.header.epoch > attack_end_epoch && allHonestEdges(g); });
+    ASSERT_TRUE(after.has_value()) << "nothing with every honest edge was published after the attacks";
+    for (const auto& n : t.nodes) {
+      if (n.role != Role::kEdge) continue;
+      const auto page = cli::httpGet(n.host, n.metrics_port, "/metrics", 2000ms);
+      ASSERT_TRUE(page.ok()) << n.name << ": " << page.error().message;
+      edge_pages[n.name] = *page;
+    }
 
-    // Geofences answer on a current epoch.
+    // Geofences answer on a current epoch: the root's latest map, at least the one just seen.
     auto channel = makeChannel(target, 64U << 20);
     auto global = v1::GlobalMapService::NewStub(channel);
     grpc::ClientContext set_context;
     set_context.set_deadline(std::chrono::system_clock::now() + 10s);
     v1::SetGeofenceReply reply;
     ASSERT_TRUE(global->SetGeofence(&set_context, toProto(boxGeofence("front", {0, -4, -3}, {20, 4, 3})), &reply).ok());
-    std::this_thread::sleep_for(1s);
+    published_before_query = after->header.epoch;
     grpc::ClientContext query_context;
     query_context.set_deadline(std::chrono::system_clock::now() + 10s);
     v1::GeofenceQuery query;
     v1::GeofenceReport report;
-    epoch_at_query = now_epoch();
     ASSERT_TRUE(global->QueryGeofences(&query_context, query, &report).ok());
+    epoch_after_query = now_epoch();
     geofences = report;
 
     const auto page = cli::httpGet(root.host, root.metrics_port, "/metrics", 2000ms);
@@ -240,31 +277,54 @@ TEST(HostileClient, RootKeepsPublishingHonestDataAndCountsEveryAttack) {
   EXPECT_GE(refusedCount(metrics_page, "sequence_conflict"), 1.0);
   EXPECT_GE(refusedCount(metrics_page, "ellipsoid_conflict"), 1.0);
 
-  // Geofences answered on an epoch of the last second, not on a forged one.
+  // Geofences answered on the current epoch, not on a forged one: no older than the last map
+  // published before the query, none that had not begun when the answer came.
   ASSERT_TRUE(geofences.has_value());
-  EXPECT_LE(geofences->epoch(), epoch_at_query);
-  EXPECT_GE(geofences->epoch() + 10, epoch_at_query) << "the geofences answered on an old epoch";
+  EXPECT_LE(geofences->epoch(), epoch_after_query) << "the geofences answered on an epoch of the future";
+  EXPECT_GE(geofences->epoch(), published_before_query) << "the geofences answered on an old epoch";
 
   // The root published every period, on time, with the honest edges' data.
   ASSERT_FALSE(result->epochs.empty());
   const std::uint64_t first = result->epochs.begin()->first;
   const std::uint64_t last = result->epochs.rbegin()->first;
   EXPECT_GT(last, attack_end_epoch) << "nothing was published after the attacks";
-  // Known and open (see the fault harness's check): under the full suite the root has been seen
-  // to leave 1 or 2 epochs unpublished; more than 2 fails.
-  EXPECT_GE(result->epochs.size() + 2, last - first + 1) << "epochs were skipped between " << first << " and " << last;
+  // Every epoch, none skipped: an epoch the root could not publish on time (its emitter starved,
+  // e.g. while it parsed the 54 MB upload on a busy machine) comes late, flagged, never left out.
+  EXPECT_EQ(result->epochs.size(), last - first + 1) << "epochs were skipped between " << first << " and " << last;
+  // While the attacks ran, the honest edges' maps were applied: the root answered every one of them
+  // APPLIED or LATE, none was refused or dropped. (Whether a map came in time for its epoch's first
+  // publication is the machine's speed: a starved edge skips epochs by design, docs/design.md.)
+  ASSERT_EQ(edge_pages.size(), kHonestEdges);
+  for (const auto& [name, page] : edge_pages) {
+    EXPECT_EQ(cli::sumMetric(page, "fogmap_uploads_refused_by_parent_total"), 0.0) << name << "'s maps were refused";
+    EXPECT_EQ(cli::sumMetric(page, "fogmap_dropped_uploads_total"), 0.0) << name << "'s maps were dropped";
+    EXPECT_GT(cli::sumMetric(page, "fogmap_frames_total"), 0.0) << name;
+  }
+  std::size_t during_attacks = 0;
   std::size_t complete = 0;
+  std::size_t late = 0;
   for (const auto& [epoch, global] : result->epochs) {
-    EXPECT_FALSE(global.late) << "epoch " << epoch;
+    // Late means published more than a period after the epoch's deadline, nothing else.
+    const std::int64_t due = schedule->deadlineNs(epoch, 1) + schedule->periodNs();
+    if (global.late) {
+      ++late;
+      EXPECT_GT(global.published_time_ns, due) << "epoch " << epoch << " flagged late, but published in time";
+    }
     for (const auto& object : global.map.objects) {
       for (const auto& e : object.ellipsoids) {
         EXPECT_LT(e.id.index, 500U) << "an attacker's ellipsoid in epoch " << epoch;
         EXPECT_EQ(e.id.frame, epoch) << "an ellipsoid of another epoch in epoch " << epoch;
       }
     }
-    if (global.header.contributing_nodes.size() == kHonestEdges) ++complete;
+    if (epoch < attack_start_epoch || epoch > attack_end_epoch) continue;
+    ++during_attacks;
+    if (allHonestEdges(global)) ++complete;
   }
-  EXPECT_GE(complete, result->epochs.size() * 9 / 10) << "the honest edges' maps went missing";
+  EXPECT_GT(during_attacks, 0U);
+  std::printf("epochs %lu..%lu under attack: %zu published, %zu of them with every honest edge; %zu of %zu "
+              "epochs published late\n",
+              static_cast<unsigned long>(attack_start_epoch), static_cast<unsigned long>(attack_end_epoch),
+              during_attacks, complete, late, result->epochs.size());
 }
 
 }  // namespace

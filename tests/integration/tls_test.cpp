@@ -11,6 +11,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <map>
 #include <optional>
 #include <set>
 #include <sstream>
@@ -26,6 +28,7 @@
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "services/common/grpc_options.hpp"
 #include "services/common/proto_convert.hpp"
+#include "tests/support/cluster_control.hpp"
 #include "tests/support/free_ports.hpp"
 #include "tools/fogctl/cluster_run.hpp"
 #include "tools/fogctl/launcher.hpp"
@@ -41,6 +44,10 @@ constexpr std::uint32_t kAttackIndex = 500;
 // The attacks last this many epochs at least, in at most this many rounds.
 constexpr std::uint64_t kAttackEpochs = 20;
 constexpr int kMaxRounds = 200;
+// An upload stream lasts this long at most, and the root's admission window is as wide: an epoch
+// an attack takes from the clock is still inside the window when the root reads it, however slow
+// the machine, so each attack is refused by its own rule and never as clock skew.
+constexpr std::chrono::seconds kStreamTime{30};
 
 fs::path dataDir() { return fs::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a"; }
 
@@ -87,7 +94,7 @@ v1::Upload attackMap(std::uint32_t node, std::uint64_t epoch, std::uint32_t inde
 class Uploader {
  public:
   explicit Uploader(const std::shared_ptr<grpc::Channel>& channel) : stub_(v1::MapIngest::NewStub(channel)) {
-    context_.set_deadline(std::chrono::system_clock::now() + 30s);
+    context_.set_deadline(std::chrono::system_clock::now() + kStreamTime);
     stream_ = stub_->Push(&context_);
   }
   std::optional<v1::Ack> send(std::uint64_t sequence, v1::Upload upload) {
@@ -158,9 +165,8 @@ TEST(MutualTls, OnlyTheHonestChildrensDataIsAppliedAndEveryAttemptIsTurnedAway) 
   test_support::useFreePorts(t);
   t.name = "tls-tree";
   t.deadline_ms = 500.0;  // a loaded CI machine must not turn slow epochs into partial ones
-  for (auto& n : t.nodes) {
-    if (n.sensor) n.sensor->frames = 100;
-  }
+  t.admission.window_periods = std::chrono::duration<double, std::milli>(kStreamTime).count() / t.period_ms;
+  test_support::replayUntilStopped(t);  // until the attacks are over, however long they take
   ASSERT_EQ(t.root()->name, "sink");
   ASSERT_NE(t.find("agg-1"), nullptr);
   ASSERT_EQ(t.find("edge-3")->parent, "sink");
@@ -220,11 +226,13 @@ TEST(MutualTls, OnlyTheHonestChildrensDataIsAppliedAndEveryAttemptIsTurnedAway) 
   std::uint64_t forged_uploads = 0;
   std::uint64_t denied_geofences = 0;
   std::string metrics_page;
+  std::map<std::string, std::string> sender_pages;  // each edge's and agg-1's /metrics after the attacks
   cli::RunOptions options;
-  options.frames = 1000;  // everything the edges publish
+  options.frames = std::numeric_limits<std::uint64_t>::max();  // everything the edges publish
   options.timeout = 120s;
   options.identity = "operator";
-  const auto result = cli::runCluster(dir, t, options, [&](const cli::Cluster&) {
+  const auto result = cli::runCluster(dir, t, options, [&](const cli::Cluster& cluster) {
+    const test_support::EdgesStopper stop_edges(cluster, t);  // once the attacks are over
     // Subscribe is open to any certificate the CA issued: the intruder watches, and the attacks
     // start once a global map with every honest sensor came out.
     Subscription watch(channel(channelCredentials(intruder)));
@@ -314,6 +322,12 @@ TEST(MutualTls, OnlyTheHonestChildrensDataIsAppliedAndEveryAttemptIsTurnedAway) 
     EXPECT_TRUE(watch.readUntil([&](const GlobalMapMessage& g) {
       return g.header.epoch > attack_end && g.header.contributing_nodes == honest;
     })) << "nothing complete was published after the attacks";
+    for (const auto& n : t.nodes) {
+      if (n.name == root.name) continue;
+      const auto sender = cli::httpGet(n.host, n.metrics_port, "/metrics", 2000ms);
+      ASSERT_TRUE(sender.ok()) << n.name << ": " << sender.error().message;
+      sender_pages[n.name] = *sender;
+    }
     const auto page = cli::httpGet(root.host, root.metrics_port, "/metrics", 2000ms);
     ASSERT_TRUE(page.ok()) << page.error().message;
     metrics_page = *page;
@@ -352,9 +366,15 @@ TEST(MutualTls, OnlyTheHonestChildrensDataIsAppliedAndEveryAttemptIsTurnedAway) 
   EXPECT_LE(first, attack_start);
   EXPECT_GT(last, attack_end);
   // Start-up and wind-down may miss an epoch or a node (processes start and finish one by one).
-  // While the attacks ran every epoch was published with honest data. An edge that the machine
-  // stalls for more than a period skips that epoch by design (docs/design.md, Edge), so on a
-  // loaded machine an epoch may lack one sensor: all of them, at least 9 epochs in 10.
+  // While the attacks ran every epoch was published with honest data, and every honest upload was
+  // applied: no parent refused one, no link dropped one. (Whether every sensor made it in time for
+  // an epoch's first publication is the machine's speed: an edge that the machine stalls for more
+  // than a period skips that epoch by design, docs/design.md, Edge.)
+  ASSERT_EQ(sender_pages.size(), t.nodes.size() - 1);
+  for (const auto& [name, page] : sender_pages) {
+    EXPECT_EQ(metricValue(page, "fogmap_uploads_refused_by_parent_total"), 0.0) << name << "'s uploads were refused";
+    EXPECT_EQ(metricValue(page, "fogmap_dropped_uploads_total"), 0.0) << name << "'s uploads were dropped";
+  }
   std::size_t complete = 0;
   for (std::uint64_t epoch = attack_start; epoch <= attack_end; ++epoch) {
     const auto published_epoch = result->epochs.find(epoch);
@@ -364,7 +384,7 @@ TEST(MutualTls, OnlyTheHonestChildrensDataIsAppliedAndEveryAttemptIsTurnedAway) 
     if (published_epoch->second.header.contributing_nodes == honest) ++complete;
   }
   const std::size_t attack_epochs = attack_end - attack_start + 1;
-  EXPECT_GE(complete * 10, attack_epochs * 9) << complete << " of " << attack_epochs << " epochs had every honest sensor";
+  std::printf("%zu of %zu epochs under attack had every honest sensor\n", complete, attack_epochs);
   const std::set<std::uint32_t> honest_set(honest.begin(), honest.end());
   for (const auto& [epoch, global] : result->epochs) {
     for (const auto node : global.header.contributing_nodes) EXPECT_TRUE(honest_set.count(node)) << "epoch " << epoch;
