@@ -3,10 +3,15 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
+#include <numeric>
+#include <utility>
 
 namespace fogmap::tracking {
 
-std::vector<std::optional<std::size_t>> assignMinCost(const std::vector<std::vector<double>>& cost) {
+namespace {
+
+std::vector<std::optional<std::size_t>> assignDense(const std::vector<std::vector<double>>& cost) {
   const std::size_t rows = cost.size();
   std::vector<std::optional<std::size_t>> out(rows);
   if (rows == 0) return out;
@@ -76,6 +81,46 @@ std::vector<std::optional<std::size_t>> assignMinCost(const std::vector<std::vec
     const std::size_t r = p[j] - 1;
     const std::size_t c = j - 1;
     if (r < rows && c < cols && std::isfinite(cost[r][c])) out[r] = c;
+  }
+  return out;
+}
+
+}  // namespace
+
+std::vector<std::optional<std::size_t>> assignMinCost(const std::vector<std::vector<double>>& cost) {
+  const std::size_t rows = cost.size();
+  std::vector<std::optional<std::size_t>> out(rows);
+  if (rows == 0 || cost[0].empty()) return out;
+  const std::size_t cols = cost[0].size();
+  // No finite pair joins two connected components of the gate graph (rows and columns linked by
+  // their finite costs), so the best matching is the best matching of each component: solved one
+  // by one, the cubic method pays for the largest component, not for every track and measurement
+  // at once (the same optimum; among equal ones the choice may differ).
+  std::vector<std::size_t> parent(rows + cols);
+  std::iota(parent.begin(), parent.end(), 0);
+  const auto root = [&](std::size_t i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  for (std::size_t r = 0; r < rows; ++r) {
+    for (std::size_t c = 0; c < cols; ++c) {
+      if (std::isfinite(cost[r][c])) parent[root(r)] = root(rows + c);
+    }
+  }
+  std::map<std::size_t, std::pair<std::vector<std::size_t>, std::vector<std::size_t>>> components;
+  for (std::size_t r = 0; r < rows; ++r) components[root(r)].first.push_back(r);
+  for (std::size_t c = 0; c < cols; ++c) components[root(rows + c)].second.push_back(c);
+  for (const auto& [id, members] : components) {
+    const auto& [in_rows, in_cols] = members;
+    if (in_rows.empty() || in_cols.empty()) continue;  // nothing to match
+    std::vector<std::vector<double>> part(in_rows.size(), std::vector<double>(in_cols.size()));
+    for (std::size_t r = 0; r < in_rows.size(); ++r) {
+      for (std::size_t c = 0; c < in_cols.size(); ++c) part[r][c] = cost[in_rows[r]][in_cols[c]];
+    }
+    const auto matched = assignDense(part);
+    for (std::size_t r = 0; r < in_rows.size(); ++r) {
+      if (matched[r]) out[in_rows[r]] = in_cols[*matched[r]];
+    }
   }
   return out;
 }

@@ -1,7 +1,7 @@
 #pragma once
 // Global assignment of tracks to measurements (the Hungarian method, Kuhn-Munkres with potentials,
-// O(n^2 m)): the matching of least total cost, where a pair whose cost is infinite (outside the
-// gate) is never matched. Pure; the tracker's associate step.
+// O(n^2 m) per connected component of the finite pairs): the matching of least total cost, where a
+// pair whose cost is infinite (outside the gate) is never matched. Pure; the tracker's associate step.
 #include <cstddef>
 #include <optional>
 #include <vector>

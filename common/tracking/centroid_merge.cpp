@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
+#include <map>
+#include <utility>
 #include <numeric>
 
 namespace fogmap::tracking {
@@ -16,9 +19,30 @@ std::vector<CloudObservation> mergeCentroids(std::span<const DisplacementCentroi
     while (parent[i] != i) i = parent[i] = parent[parent[i]];
     return i;
   };
-  for (std::size_t i = 0; i < n; ++i) {
-    for (std::size_t j = i + 1; j < n; ++j) {
-      if ((centroids[i].position.head<2>() - centroids[j].position.head<2>()).norm() < radius_m) parent[root(i)] = root(j);
+  // Pairs closer than the radius lie in the same or neighbouring cells of a grid of that size, so
+  // the linkage looks there only: linear in the centroids (an epoch may bring tens of thousands),
+  // the same groups as comparing all pairs.
+  if (radius_m > 0.0) {
+    const auto cellOf = [&](const Eigen::Vector3d& p) {
+      return std::pair<std::int64_t, std::int64_t>{static_cast<std::int64_t>(std::floor(p.x() / radius_m)),
+                                                   static_cast<std::int64_t>(std::floor(p.y() / radius_m))};
+    };
+    std::map<std::pair<std::int64_t, std::int64_t>, std::vector<std::size_t>> cells;
+    for (std::size_t i = 0; i < n; ++i) cells[cellOf(centroids[i].position)].push_back(i);
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto [cx, cy] = cellOf(centroids[i].position);
+      for (std::int64_t dx = -1; dx <= 1; ++dx) {
+        for (std::int64_t dy = -1; dy <= 1; ++dy) {
+          const auto cell = cells.find({cx + dx, cy + dy});
+          if (cell == cells.end()) continue;
+          for (const std::size_t j : cell->second) {
+            if (j <= i) continue;
+            if ((centroids[i].position.head<2>() - centroids[j].position.head<2>()).norm() < radius_m) {
+              parent[root(i)] = root(j);
+            }
+          }
+        }
+      }
     }
   }
   // Groups in the order of their first member.
@@ -42,13 +66,15 @@ std::vector<CloudObservation> mergeCentroids(std::span<const DisplacementCentroi
     mean /= static_cast<double>(members.size());
     Eigen::Matrix3d pooled = Eigen::Matrix3d::Zero();
     double weight = 0.0;
+    std::size_t points = 0;
     for (const std::size_t i : members) {
+      points += place[i].point_count;
       const Eigen::Vector3d d = place[i].position - mean;
       const auto w = static_cast<double>(place[i].point_count);
       pooled += w * (place[i].covariance + d * d.transpose());
       weight += w;
     }
-    out.push_back({mean, weight > 0.0 ? Eigen::Matrix3d(pooled / weight) : place[members.front()].covariance});
+    out.push_back({mean, weight > 0.0 ? Eigen::Matrix3d(pooled / weight) : place[members.front()].covariance, points});
   }
   return out;
 }

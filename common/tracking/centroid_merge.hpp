@@ -13,7 +13,8 @@ namespace fogmap::tracking {
 // Single linkage on the ground plane: centroids joined by chains of x-y gaps below `radius_m` are
 // one observation, at the mean of their positions (each view counts once, however many points it
 // has) with the pooled covariance of their points (each centroid's covariance plus its offset from
-// the mean, weighted by its point count; a group without points keeps its first covariance).
+// the mean, weighted by its point count; a group without points keeps its first covariance) and
+// the sum of their point counts.
 // Observations come in the order of their groups' first centroids; `radius_m` <= 0 keeps every
 // centroid as its own observation.
 //

@@ -16,6 +16,9 @@ namespace fogmap::tracking {
 struct CloudObservation {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity() * 0.01;  // m^2
+  // The points behind it (0: not known). When a step must shed measurements, the ones near no
+  // track go by this, most points first (common/tracking/tracker.hpp).
+  std::size_t point_count = 0;
 };
 
 // One moving (or newly seen) object's points, summarised (displacement centroids, DESIGN.md 2.4).

@@ -3,7 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
+#include <numeric>
 #include <set>
+#include <utility>
 
 #include "common/tracking/assignment.hpp"
 
@@ -130,10 +133,11 @@ StepStats Tracker::addCloud(const CloudFrame& frame) {
   }
   const auto detections = takeSynchronized(frame.time_ns);
   stats.detection_frames_used = detections.size();
+  const CloudFrame taken = withinBudget(frame, stats);
   if (config_.association == Association::kPaper) {
-    stepPaper(frame, detections, stats);
+    stepPaper(taken, detections, stats);
   } else {
-    stepKalman(frame, detections, stats);
+    stepKalman(taken, detections, stats);
   }
   prune(frame.time_ns, stats);
   last_cloud_ns_ = frame.time_ns;
@@ -143,7 +147,80 @@ StepStats Tracker::addCloud(const CloudFrame& frame) {
   counters_.updates_cloud_only += stats.updates_cloud_only;
   counters_.tracks_created += stats.tracks_created;
   counters_.tracks_deleted += stats.tracks_deleted;
+  counters_.measurements_shed += stats.measurements_shed;
   return stats;
+}
+
+CloudFrame Tracker::withinBudget(const CloudFrame& frame, StepStats& stats) const {
+  const std::size_t n = frame.observations.size();
+  stats.measurements = n;
+  if (budget_ == 0 || n <= budget_) return frame;
+  std::vector<bool> keep(n, false);
+  std::size_t kept = 0;
+  // The tracks in the order they claim observations: camera-confirmed, then confirmed or lost, then
+  // tentative; the oldest (lowest id) first within each.
+  const auto rank = [&](std::size_t t) {
+    if (tracks_[t].state == TrackState::kTentative) return 2;
+    return tracks_[t].camera_confirmed ? 0 : 1;
+  };
+  std::vector<std::size_t> holders(tracks_.size());
+  std::iota(holders.begin(), holders.end(), 0);
+  std::stable_sort(holders.begin(), holders.end(), [&](std::size_t a, std::size_t b) {
+    if (rank(a) != rank(b)) return rank(a) < rank(b);
+    return tracks_[a].id < tracks_[b].id;
+  });
+  // Each keeps its nearest observation within reach, found on a grid of cells one reach wide.
+  const double reach = config_.shed_reach_m;
+  const auto cellOf = [&](const Eigen::Vector2d& p) {
+    return std::pair<std::int64_t, std::int64_t>{static_cast<std::int64_t>(std::floor(p.x() / reach)),
+                                                 static_cast<std::int64_t>(std::floor(p.y() / reach))};
+  };
+  std::map<std::pair<std::int64_t, std::int64_t>, std::vector<std::size_t>> cells;
+  for (std::size_t g = 0; g < n; ++g) cells[cellOf(ground(frame.observations[g]))].push_back(g);
+  const double dt = last_cloud_ns_ ? std::max(0.0, seconds(frame.time_ns - *last_cloud_ns_)) : 0.0;
+  for (const std::size_t t : holders) {
+    if (kept == budget_) break;
+    const Eigen::Vector2d predicted = tracks_[t].position + tracks_[t].velocity * dt;
+    const auto [cx, cy] = cellOf(predicted);
+    std::optional<std::size_t> nearest;
+    double nearest_distance = reach;
+    for (std::int64_t dx = -1; dx <= 1; ++dx) {
+      for (std::int64_t dy = -1; dy <= 1; ++dy) {
+        const auto cell = cells.find({cx + dx, cy + dy});
+        if (cell == cells.end()) continue;
+        for (const std::size_t g : cell->second) {
+          const double d = (ground(frame.observations[g]) - predicted).norm();
+          if (!keep[g] && d <= nearest_distance) {
+            nearest_distance = d;
+            nearest = g;
+          }
+        }
+      }
+    }
+    if (nearest) {
+      keep[*nearest] = true;
+      ++kept;
+    }
+  }
+  // Then the observations with the most points (in frame order among equals).
+  std::vector<std::size_t> rest;
+  for (std::size_t g = 0; g < n; ++g) {
+    if (!keep[g]) rest.push_back(g);
+  }
+  std::stable_sort(rest.begin(), rest.end(), [&](std::size_t a, std::size_t b) {
+    return frame.observations[a].point_count > frame.observations[b].point_count;
+  });
+  for (std::size_t i = 0; i < rest.size() && kept < budget_; ++i, ++kept) keep[rest[i]] = true;
+  CloudFrame taken;
+  taken.time_ns = frame.time_ns;
+  taken.sensor_position = frame.sensor_position;
+  taken.observations.reserve(kept);
+  for (std::size_t g = 0; g < n; ++g) {
+    if (keep[g]) taken.observations.push_back(frame.observations[g]);
+  }
+  stats.measurements = kept;
+  stats.measurements_shed = n - kept;
+  return taken;
 }
 
 bool Tracker::ready(const CloudFrame& frame, std::int64_t now_ns) const {
@@ -311,9 +388,16 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
   for (std::size_t m = 0; m < measurements.size(); ++m) {
     if (!measurements[m].votes.empty()) measured_label[m] = bestLabel(measurements[m].votes);
   }
+  // A pair is gated only if |d|^2 <= gate tr(S) (d' S^-1 d >= |d|^2 / tr(S) for the 2 x 2 S = P + R),
+  // a cheap test that leaves the exact one to the few pairs that may pass it.
+  std::vector<double> measurement_spread(measurements.size());
+  for (std::size_t m = 0; m < measurements.size(); ++m) measurement_spread[m] = measurements[m].covariance.trace();
   for (std::size_t t = 0; t < tracks_.size(); ++t) {
+    const Eigen::Vector2d predicted = filters_[t].position();
+    const double track_spread = filters_[t].covariance().topLeftCorner<2, 2>().trace();
     for (std::size_t m = 0; m < measurements.size(); ++m) {
       const auto& meas = measurements[m];
+      if ((meas.position - predicted).squaredNorm() > config_.gate_chi2 * (track_spread + measurement_spread[m])) continue;
       if (!measured_label[m].empty() && tracks_[t].label != kUnknownLabel && measured_label[m] != tracks_[t].label) continue;
       const double d2 = filters_[t].mahalanobis2(meas.position, meas.covariance);
       if (d2 <= config_.gate_chi2) cost[t][m] = d2;

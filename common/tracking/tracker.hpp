@@ -36,6 +36,8 @@ struct StepStats {
   std::size_t tracks_created = 0;
   std::size_t tracks_deleted = 0;
   std::size_t detection_frames_used = 0;  // detection frames matched to this LiDAR frame
+  std::size_t measurements = 0;           // observations the step took
+  std::size_t measurements_shed = 0;      // observations left out: beyond the step's budget
 };
 
 struct TrackerCounters {
@@ -49,6 +51,7 @@ struct TrackerCounters {
   std::uint64_t detection_frames_overflow = 0;  // beyond max_buffered_frames: the oldest dropped
   std::uint64_t detection_frames_unknown_camera = 0;
   std::uint64_t cloud_frames_out_of_order = 0;  // older than the last fused LiDAR frame: dropped
+  std::uint64_t measurements_shed = 0;          // observations left out of steps: beyond the budget
 };
 
 class Tracker {
@@ -78,6 +81,15 @@ class Tracker {
   std::vector<StepStats> advance(std::int64_t now_ns);
   std::size_t waitingClouds() const { return waiting_.size(); }
 
+  // Load shedding: a step takes at most `budget` observations of its LiDAR frame (0: all). Over
+  // budget, it keeps first, for each track (camera-confirmed ones, then confirmed or lost ones, then
+  // tentative ones; the oldest first in each), the observation nearest its predicted position
+  // within shed_reach_m, then the others with the most points; the rest are shed and counted. So
+  // objects already tracked keep their tracks whatever else a frame brings, and a step's cost is
+  // bounded by the budget.
+  void setMeasurementBudget(std::size_t budget) { budget_ = budget; }
+  std::size_t measurementBudget() const { return budget_; }
+
   // The live tracks (tentative ones too; callers usually publish confirmed and lost ones).
   const std::vector<Track>& tracks() const { return tracks_; }
   const TrackerCounters& counters() const { return counters_; }
@@ -91,6 +103,8 @@ class Tracker {
   Tracker(TrackerConfig config, std::vector<camera::PinholeCamera> cameras);
 
   std::vector<DetectionFrame> takeSynchronized(std::int64_t cloud_time_ns);
+  // The observations of `frame` a step takes under the budget (all of them within it).
+  CloudFrame withinBudget(const CloudFrame& frame, StepStats& stats) const;
   bool ready(const CloudFrame& frame, std::int64_t now_ns) const;
   void stepPaper(const CloudFrame& frame, const std::vector<DetectionFrame>& detections, StepStats& stats);
   void stepKalman(const CloudFrame& frame, const std::vector<DetectionFrame>& detections, StepStats& stats);
@@ -107,6 +121,7 @@ class Tracker {
   std::vector<ConstantVelocityFilter> filters_;                // kalman: one per track, same order
   std::vector<std::map<std::string, double>> label_votes_;     // kalman: summed scores per label
   std::uint64_t next_id_ = 1;
+  std::size_t budget_ = 0;
   TrackerCounters counters_;
 };
 

@@ -36,6 +36,7 @@ Status validate(const TrackerConfig& c) {
   if (!(std::isfinite(c.max_detection_wait_s) && c.max_detection_wait_s >= 0.0 && c.max_detection_wait_s <= 10.0)) {
     return invalidArgument("tracker: max_detection_wait_s must be in [0, 10] seconds");
   }
+  if (!positive(c.shed_reach_m)) return invalidArgument("tracker: shed_reach_m must be positive");
   return {};
 }
 

@@ -31,6 +31,10 @@ struct TrackerConfig {
   // Asynchronous fusion (Tracker::offerCloud): a LiDAR frame waits until every camera has sent a
   // frame captured at or after it (its nearest detection frame is then known), or this long.
   double max_detection_wait_s = 0.25;
+  // Load shedding (Tracker::setMeasurementBudget): when a LiDAR frame brings more observations than
+  // the step's budget, every track first keeps the observation nearest its predicted position within
+  // this ground distance (m), then the others go by their points.
+  double shed_reach_m = 2.0;
 };
 
 Status validate(const TrackerConfig& config);

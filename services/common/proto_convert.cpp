@@ -442,7 +442,7 @@ v1::DetectionFrame toProto(const tracking::DetectionFrame& frame) {
 Expected<tracking::DetectionFrame> fromProto(const v1::DetectionFrame& frame) {
   if (!isName(frame.camera())) return invalidArgument("detection frame: camera '" + frame.camera().substr(0, 64) + "' is not a node name");
   if (frame.detections_size() > kMaxDetectionsPerFrame) {
-    return invalidArgument("detection frame: " + std::to_string(frame.detections_size()) + " detections, more than " +
+    return resourceExhausted("detection frame: " + std::to_string(frame.detections_size()) + " detections, more than " +
                            std::to_string(kMaxDetectionsPerFrame));
   }
   tracking::DetectionFrame out;
@@ -492,7 +492,7 @@ v1::CentroidFrame toProto(const tracking::CentroidFrame& frame) {
 Expected<tracking::CentroidFrame> fromProto(const v1::CentroidFrame& frame) {
   if (!isName(frame.edge())) return invalidArgument("centroid frame: edge '" + frame.edge().substr(0, 64) + "' is not a node name");
   if (frame.centroids_size() > kMaxCentroidsPerFrame) {
-    return invalidArgument("centroid frame: " + std::to_string(frame.centroids_size()) + " centroids, more than " +
+    return resourceExhausted("centroid frame: " + std::to_string(frame.centroids_size()) + " centroids, more than " +
                            std::to_string(kMaxCentroidsPerFrame));
   }
   const auto within = [](const Eigen::Vector3d& v) { return v.allFinite() && v.cwiseAbs().maxCoeff() <= kMaxCentroidCoordinateM; };

@@ -55,13 +55,17 @@ Expected<Containment> fromProto(v1::Containment containment);  // rejects UNSPEC
 // A camera's detections: the camera a name, at most kMaxDetectionsPerFrame detections, every box
 // finite with left <= right and top <= bottom, within 1e6 pixels, a finite score, a label of 1 to 64
 // printable characters. Each detection is stamped with the frame's camera and capture time.
-inline constexpr int kMaxDetectionsPerFrame = 10000;
+// More detections than the bound is a kResourceExhausted error (the tracker counts it as too_large).
+// The bounds are what one fusion step can take in a period of 100 ms (docs/design.md, "Tracker"):
+// 1,000 detections overlaid on 2,000 observations cost about 45 ms, 2,000 observations about 50 ms.
+inline constexpr int kMaxDetectionsPerFrame = 1000;
 Expected<tracking::DetectionFrame> fromProto(const v1::DetectionFrame& frame);
 // An edge's displacement centroids: the edge a name, at most kMaxCentroidsPerFrame centroids, each
 // a position of 3 finite values within kMaxCentroidCoordinateM, a covariance of 6 finite values
 // (upper triangle) that is positive semi-definite with variances at most kMaxCentroidVarianceM2,
-// and at least 2 points; the sensor position finite and within the same bound.
-inline constexpr int kMaxCentroidsPerFrame = 10000;
+// and at least 2 points; the sensor position finite and within the same bound. More centroids than
+// the bound is a kResourceExhausted error.
+inline constexpr int kMaxCentroidsPerFrame = 2000;
 inline constexpr double kMaxCentroidCoordinateM = 1e6;
 inline constexpr double kMaxCentroidVarianceM2 = 1e8;
 Expected<tracking::CentroidFrame> fromProto(const v1::CentroidFrame& frame);

@@ -1,6 +1,8 @@
 #include "services/tracker/centroid_collector.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <string>
 #include <utility>
 
 #include "common/tracking/centroid_merge.hpp"
@@ -15,8 +17,8 @@ const char* centroidVerdictName(CentroidVerdict verdict) {
       return "unknown_edge";
     case CentroidVerdict::kLate:
       return "late";
-    case CentroidVerdict::kEarly:
-      return "early";
+    case CentroidVerdict::kClockSkew:
+      return "clock_skew";
     case CentroidVerdict::kDuplicate:
       return "duplicate";
   }
@@ -57,6 +59,37 @@ tracking::CloudFrame CentroidCollector::merged(const std::vector<tracking::Centr
   return out;
 }
 
+std::int64_t CentroidCollector::windowNs() const {
+  return static_cast<std::int64_t>(std::llround(config_.window_periods * static_cast<double>(schedule_.periodNs())));
+}
+
+std::optional<std::string> CentroidCollector::clockSkew(std::uint64_t epoch, std::int64_t time_ns,
+                                                        std::int64_t now_ns) const {
+  const std::int64_t window = windowNs();
+  // In double: a forged time may lie anywhere in the int64 range.
+  const auto ms = [](double ns) { return std::to_string(std::llround(ns * 1e-6)) + " ms"; };
+  const auto apart = [](std::int64_t a, std::int64_t b) { return static_cast<double>(a) - static_cast<double>(b); };
+  const std::string beyond = ", beyond the admission window of " + ms(static_cast<double>(window));
+  const std::int64_t start = schedule_.startNs(epoch);
+  if (start > now_ns && start - now_ns > window) {
+    return "the epoch starts " + ms(apart(start, now_ns)) + " ahead of the tracker's clock" + beyond +
+           " (check the edge's clock)";
+  }
+  const std::int64_t deadline = schedule_.deadlineNs(epoch, 1);
+  if (deadline < now_ns && now_ns - deadline > window) {
+    return "the epoch's deadline passed " + ms(apart(now_ns, deadline)) + " ago" + beyond;
+  }
+  if (time_ns > now_ns && time_ns - now_ns > window) {
+    return "the sensor time lies " + ms(apart(time_ns, now_ns)) + " ahead of the tracker's clock" + beyond +
+           " (check the edge's clock)";
+  }
+  if (time_ns < now_ns - schedule_.deadlineNs() - window) {
+    return "the sensor time lies " + ms(apart(now_ns, time_ns)) + " behind the tracker's clock, more than deadline_ms" +
+           beyond;
+  }
+  return std::nullopt;
+}
+
 bool CentroidCollector::complete(std::uint64_t epoch) const {
   return std::all_of(edges_.begin(), edges_.end(), [&](const std::string& edge) {
     const auto it = newest_.find(edge);
@@ -90,16 +123,18 @@ CentroidCollector::Added CentroidCollector::add(tracking::CentroidFrame frame, s
   added.ready = expire(now_ns);
   if (edges_.count(frame.edge) == 0) {
     added.verdict = CentroidVerdict::kUnknownEdge;
+    added.detail = "not an edge that sends centroids to this tracker";
     return added;
   }
   const std::uint64_t epoch = frame.epoch;
-  const double ahead = static_cast<double>(epoch) - static_cast<double>(schedule_.epochAt(now_ns));
-  if (ahead > config_.window_periods) {
-    added.verdict = CentroidVerdict::kEarly;
+  if (auto skew = clockSkew(epoch, frame.time_ns, now_ns)) {
+    added.verdict = CentroidVerdict::kClockSkew;
+    added.detail = std::move(*skew);
     return added;
   }
   if (emitted_any_ && epoch <= last_emitted_) {
     added.verdict = CentroidVerdict::kLate;
+    added.detail = "epoch " + std::to_string(last_emitted_) + " was fused already";
     return added;
   }
   const auto newest = newest_.find(frame.edge);
@@ -107,6 +142,7 @@ CentroidCollector::Added CentroidCollector::add(tracking::CentroidFrame frame, s
     // The same epoch twice, or an older one after a newer (the stream keeps order): either way
     // the edge has spoken for this epoch.
     added.verdict = CentroidVerdict::kDuplicate;
+    added.detail = "the edge sent epoch " + std::to_string(newest->second) + " already";
     return added;
   }
   newest_[frame.edge] = epoch;

@@ -17,6 +17,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -30,8 +31,12 @@ namespace fogmap {
 struct CentroidCollectorConfig {
   std::vector<std::string> edges;  // the edges that send centroids to this tracker
   double merge_radius_m = 1.0;     // topology centroid_merge_m; 0: every centroid its own observation
-  // Frames of epochs more than this many periods ahead of the clock are refused (a clock set wrong,
-  // or a forged epoch would hold back every honest frame); topology admission.window_periods.
+  // The admission window, as an aggregator keeps it (topology admission.window_periods times the
+  // period): a frame whose epoch starts more than this ahead of the clock, or whose epoch's deadline
+  // passed more than this long ago, is refused as clock skew; so is one whose sensor time lies more
+  // than this ahead of the clock or more than this before the time its epoch's frames are due
+  // (sensor time + deadline_ms). A frame from the future would otherwise hold the epochs open, or
+  // move the tracker's time past every honest frame.
   double window_periods = 3.0;
   std::size_t max_open_epochs = 16;  // beyond, the oldest open epoch is emitted at once
   // Topology visible_side_max_radius_m: each frame's centroids this narrow are placed on the
@@ -48,10 +53,10 @@ enum class CentroidVerdict {
   kAccepted,
   kUnknownEdge,  // not one of this tracker's edges
   kLate,         // its epoch was emitted already (or a later one): the tracker has moved past it
-  kEarly,        // its epoch lies beyond the window ahead of the clock
+  kClockSkew,    // its epoch or sensor time lies outside the admission window around the clock
   kDuplicate,    // the edge sent this epoch already
 };
-// The metric label: "accepted", "unknown_edge", "late", "early", "duplicate".
+// The metric label: "accepted", "unknown_edge", "late", "clock_skew", "duplicate".
 const char* centroidVerdictName(CentroidVerdict verdict);
 
 struct CentroidCounters {
@@ -66,6 +71,7 @@ class CentroidCollector {
 
   struct Added {
     CentroidVerdict verdict = CentroidVerdict::kAccepted;
+    std::string detail;                       // why it was refused, for a person (empty if accepted)
     std::vector<tracking::CloudFrame> ready;  // epochs complete now, oldest first
   };
   // Takes an edge's frame at `now_ns`; epochs whose deadline passed are emitted first.
@@ -77,6 +83,11 @@ class CentroidCollector {
   // positions, and their centroids merged within merge_radius_m (grouped as seen, placed on the
   // axis of narrow objects).
   tracking::CloudFrame merged(const std::vector<tracking::CentroidFrame>& frames) const;
+
+  // Why a frame of `epoch` with sensor time `time_ns` lies outside the admission window at `now_ns`
+  // (nothing when inside).
+  std::optional<std::string> clockSkew(std::uint64_t epoch, std::int64_t time_ns, std::int64_t now_ns) const;
+  std::int64_t windowNs() const;
 
   const CentroidCounters& counters() const { return counters_; }
   std::size_t openEpochs() const { return open_.size(); }

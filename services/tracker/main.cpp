@@ -18,6 +18,7 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include "common/burst_log.hpp"
 #include "common/certs.hpp"
 #include "common/epochs.hpp"
 #include "common/topology.hpp"
@@ -26,6 +27,7 @@
 #include "services/common/service_process.hpp"
 #include "services/tracker/centroid_collector.hpp"
 #include "services/tracker/global_map_feed.hpp"
+#include "services/tracker/tracker_hooks.hpp"
 #include "services/tracker/tracker_metrics.hpp"
 #include "services/tracker/tracker_node.hpp"
 #include "services/tracker/tracker_service.hpp"
@@ -39,6 +41,8 @@ constexpr int kRuntimeFailure = 1;
 constexpr auto kSubscriberDrain = 500ms;
 constexpr auto kCallGrace = 500ms;
 constexpr auto kTick = 10ms;
+constexpr std::size_t kSubscriberQueue = 16;  // track lists a subscriber may lag behind
+constexpr auto kSubscriberPoll = 100ms;
 
 struct Args {
   std::string topology;
@@ -119,25 +123,12 @@ int run(const Args& args, const sigset_t& stop_signals) {
         tracker_metrics.fused(report);
         service->publish(snapshot);
       },
-      std::move(collector));
-  TrackerServiceHooks hooks;
-  hooks.on_detections = [&metrics](const std::string& camera, std::size_t bytes) { metrics.bytesReceived(camera, "detections", bytes); };
-  hooks.on_refused = [&tracker_metrics, name = self->name](const std::string& why) {
-    tracker_metrics.refused();
-    std::cerr << "tracker " << name << ": refused a detection frame: " << why << "\n";
-  };
-  hooks.on_subscriber_drops = [&metrics](std::uint64_t n) { metrics.subscriberDrops(n); };
-  hooks.on_centroids = [&tracker_metrics](const std::string& edge, std::size_t bytes) {
-    tracker_metrics.centroidsReceived(edge, bytes);
-  };
-  hooks.on_centroids_refused = [&tracker_metrics, name = self->name](const std::string& reason, const std::string& why) {
-    tracker_metrics.centroidsRejected(reason);
-    // Late frames are routine after a stall; the counter tells how many.
-    if (reason != centroidVerdictName(CentroidVerdict::kLate)) {
-      std::cerr << "tracker " << name << ": refused a centroid frame (" << reason << "): " << why << "\n";
-    }
-  };
-  service = std::make_unique<TrackerService>(node, camera_names, tls->has_value(), std::move(hooks));
+      std::move(collector), trackerNodeLimitsFor(*topology));
+  BurstLog refusal_log(
+      "tracker " + self->name + ": ", [](const std::string& line) { std::cerr << line << "\n"; }, systemNowNs);
+  service = std::make_unique<TrackerService>(node, camera_names, tls->has_value(),
+                                             trackerServiceHooks(metrics, tracker_metrics, refusal_log), kSubscriberQueue,
+                                             kSubscriberPoll, topology->admission.max_subscribers);
 
   grpc::ServerBuilder builder;
   configureServer(builder, topology->max_message_bytes);
@@ -155,26 +146,17 @@ int run(const Args& args, const sigset_t& stop_signals) {
   std::optional<GlobalMapFeed> feed;
   if (!centroid_input) {
     const NodeConfig* root = topology->root();
-    const std::string root_name = root->name;
-    GlobalMapFeedHooks feed_hooks;
-    feed_hooks.on_map = [&metrics, &node, root_name](const GlobalMapMessage& global, std::size_t bytes) {
-      metrics.bytesReceived(root_name, "global_map", bytes);
-      node.addGlobalMap(global);
-    };
-    feed_hooks.on_malformed = [&metrics, name = self->name](const std::string& why) {
-      metrics.malformed("global_map");
-      std::cerr << "tracker " << name << ": malformed global map: " << why << "\n";
-    };
-    feed_hooks.on_reconnect = [&metrics] { metrics.reconnects(); };
     feed.emplace(makeChannel(root->host + ":" + std::to_string(root->port), channelCredentials(*tls), topology->max_message_bytes),
-                 std::move(feed_hooks));
+                 globalMapFeedHooks(metrics, tracker_metrics, node, refusal_log, root->name));
   }
   // LiDAR frames waiting for late detections are fused when their wait ends, and epochs of
-  // centroids at their deadline, even if nothing else arrives (a camera or an edge that stopped).
+  // centroids at their deadline, even if nothing else arrives (a camera or an edge that stopped);
+  // the cameras' staleness moves and quiet bursts of refusals are summarised.
   std::atomic<bool> stopping{false};
   std::thread ticker([&] {
     while (!stopping.load()) {
-      node.tick();
+      tracker_metrics.cameraStaleness(node.tick());
+      refusal_log.flush();
       std::this_thread::sleep_for(kTick);
     }
   });
@@ -189,6 +171,7 @@ int run(const Args& args, const sigset_t& stop_signals) {
   service->shutdown(kSubscriberDrain);
   server->Shutdown(std::chrono::system_clock::now() + kCallGrace);
   server->Wait();
+  refusal_log.flush(true);
   const auto took = std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - signalled);
   std::cerr << "tracker " << self->name << ": stopped " << took.count() << " ms after the signal\n";
   return EXIT_SUCCESS;

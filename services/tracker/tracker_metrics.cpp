@@ -1,5 +1,7 @@
 #include "services/tracker/tracker_metrics.hpp"
 
+#include <algorithm>
+
 #include <prometheus/registry.h>
 
 #include "common/topology.hpp"
@@ -38,13 +40,15 @@ TrackerMetrics::TrackerMetrics(Metrics& metrics, const std::string& node, const 
                   .Name("fogmap_detection_frames_dropped_total")
                   .Help("Detection frames never fused, by reason: stale (older than eps_sync before every LiDAR frame "
                         "still to come), overflow (beyond the per-camera buffer), refused (malformed, unknown camera, "
-                        "another camera's identity).")
+                        "another camera's identity), too_large (more detections than a frame may hold), clock_skew "
+                        "(captured outside the admission window around the tracker's clock).")
                   .Labels(c)
                   .Register(r);
-  for (const char* reason : {"stale", "overflow", "refused"}) dropped_->Add({{"reason", reason}});
+  for (const char* reason : {"stale", "overflow", "refused", "too_large", "clock_skew"}) dropped_->Add({{"reason", reason}});
   staleness_ = &prometheus::BuildGauge()
                     .Name("fogmap_camera_staleness_seconds")
-                    .Help("Seconds since the camera's newest capture, at the latest fusion step (a camera that stopped grows).")
+                    .Help("Seconds since the camera's newest capture, refreshed every tick (a camera that stopped grows); "
+                          "never negative.")
                     .Labels(c)
                     .Register(r);
   for (const auto& camera : cameras) staleness_->Add({{"camera", camera}});
@@ -63,12 +67,13 @@ TrackerMetrics::TrackerMetrics(Metrics& metrics, const std::string& node, const 
   centroid_rejected_ = &prometheus::BuildCounter()
                             .Name("fogmap_centroid_frames_rejected_total")
                             .Help("Centroid frames never fused, by reason: malformed (bad sizes, non-finite values, a "
-                                  "covariance not positive semi-definite), forged (another edge's identity), "
-                                  "unknown_edge, late (their epoch was fused), early (beyond the clock window), "
+                                  "covariance not positive semi-definite), too_large (more centroids than a frame may "
+                                  "hold), forged (another edge's identity), unknown_edge, late (their epoch was fused), "
+                                  "clock_skew (epoch or sensor time outside the admission window around the clock), "
                                   "duplicate (the edge sent that epoch already).")
                             .Labels(c)
                             .Register(r);
-  for (const char* reason : {"malformed", "forged", "unknown_edge", "late", "early", "duplicate"}) {
+  for (const char* reason : {"malformed", "too_large", "forged", "unknown_edge", "late", "clock_skew", "duplicate"}) {
     centroid_rejected_->Add({{"reason", reason}});
   }
   centroid_epochs_partial_ = &prometheus::BuildCounter()
@@ -77,6 +82,27 @@ TrackerMetrics::TrackerMetrics(Metrics& metrics, const std::string& node, const 
                                   .Labels(c)
                                   .Register(r)
                                   .Add({});
+  shed_ = &prometheus::BuildCounter()
+               .Name("fogmap_measurements_shed_total")
+               .Help("LiDAR observations left out of fusion steps, by reason: over_budget (beyond the observations a "
+                     "step can take within its share of the period; those nearest the tracks and with the most "
+                     "points are kept).")
+               .Labels(c)
+               .Register(r);
+  shed_->Add({{"reason", "over_budget"}});
+  global_maps_refused_ = &prometheus::BuildCounter()
+                              .Name("fogmap_global_maps_refused_total")
+                              .Help("Global maps never fused, by reason: clock_skew (sensor time beyond the admission "
+                                    "window ahead of the tracker's clock).")
+                              .Labels(c)
+                              .Register(r);
+  global_maps_refused_->Add({{"reason", "clock_skew"}});
+  budget_ = &prometheus::BuildGauge()
+                 .Name("fogmap_fusion_budget_measurements")
+                 .Help("Observations a fusion step takes at most, from its measured cost (0: not measured yet, all).")
+                 .Labels(c)
+                 .Register(r)
+                 .Add({});
 }
 
 void TrackerMetrics::fused(const FusionReport& report) {
@@ -90,6 +116,8 @@ void TrackerMetrics::fused(const FusionReport& report) {
   addDelta(updates_->Add({{"kind", "cloud_only"}}), counters.updates_cloud_only, last_.updates_cloud_only);
   addDelta(dropped_->Add({{"reason", "stale"}}), counters.detection_frames_stale, last_.detection_frames_stale);
   addDelta(dropped_->Add({{"reason", "overflow"}}), counters.detection_frames_overflow, last_.detection_frames_overflow);
+  addDelta(shed_->Add({{"reason", "over_budget"}}), counters.measurements_shed, last_.measurements_shed);
+  budget_->Set(static_cast<double>(report.measurement_budget));
   last_ = counters;
   if (report.centroids) {
     addDelta(*centroid_epochs_partial_, report.centroids->epochs_partial, last_partial_);
@@ -98,10 +126,21 @@ void TrackerMetrics::fused(const FusionReport& report) {
   std::map<std::string, double> by_state{{"tentative", 0.0}, {"confirmed", 0.0}, {"lost", 0.0}};
   for (const auto& t : report.tracks) by_state[tracking::trackStateName(t.state)] += 1.0;
   for (const auto& [state, n] : by_state) tracks_->Add({{"state", state}}).Set(n);
-  for (const auto& [camera, seconds] : report.camera_staleness_s) staleness_->Add({{"camera", camera}}).Set(seconds);
+  cameraStaleness(report.camera_staleness_s);
 }
 
-void TrackerMetrics::refused() { dropped_->Add({{"reason", "refused"}}).Increment(); }
+void TrackerMetrics::cameraStaleness(const std::map<std::string, double>& seconds) {
+  for (const auto& [camera, s] : seconds) staleness_->Add({{"camera", camera}}).Set(std::max(0.0, s));
+}
+
+void TrackerMetrics::detectionsRefused(const std::string& reason) {
+  const bool own = reason == "too_large" || reason == "clock_skew";
+  dropped_->Add({{"reason", own ? reason : "refused"}}).Increment();
+}
+
+void TrackerMetrics::subscriberRefused() { metrics_.subscribersRefused(); }
+
+void TrackerMetrics::globalMapRefused(const std::string& reason) { global_maps_refused_->Add({{"reason", reason}}).Increment(); }
 
 void TrackerMetrics::centroidsReceived(const std::string& edge, std::size_t bytes) {
   centroid_frames_->Add({{"edge", edge}}).Increment();

@@ -2,8 +2,9 @@
 // The tracker's observations as Prometheus metrics, beside the shared ones (bytes, end-to-end
 // latency, reconnects): tracks by state, tracks created and deleted, updates by kind (a camera's
 // detection fused with LiDAR, or LiDAR alone), detection frames dropped by reason, per-camera
-// staleness and the fusion step's time; with centroid input, centroid frames received per edge,
-// rejected by reason, and epochs fused without every edge.
+// staleness, the fusion step's time, its measurement budget and the measurements it shed; with
+// centroid input, centroid frames received per edge, rejected by reason, and epochs fused without
+// every edge; subscribers refused beyond the bound.
 #include <cstddef>
 #include <cstdint>
 #include <map>
@@ -29,8 +30,15 @@ class TrackerMetrics {
 
   // After frames were fused: what the report says.
   void fused(const FusionReport& report);
-  // A detection frame the adapter refused (malformed, unknown camera, forged).
-  void refused();
+  // A detection frame refused; `reason` as TrackerServiceHooks::on_refused gives it (malformed,
+  // unknown_camera and forged are counted as "refused").
+  void detectionsRefused(const std::string& reason);
+  // Every camera's staleness now (TrackerNode::tick), in seconds.
+  void cameraStaleness(const std::map<std::string, double>& seconds);
+  // A Subscribe call refused: the tracker serves admission.max_subscribers already.
+  void subscriberRefused();
+  // A global map the node refused (input global_map); `reason` as TrackerNode::Refusal gives it.
+  void globalMapRefused(const std::string& reason);
   // A centroid frame accepted from `edge`, of `bytes` serialised bytes.
   void centroidsReceived(const std::string& edge, std::size_t bytes);
   // A centroid frame rejected; `reason` as TrackerServiceHooks::on_centroids_refused gives it.
@@ -48,6 +56,9 @@ class TrackerMetrics {
   prometheus::Family<prometheus::Counter>* centroid_frames_;
   prometheus::Family<prometheus::Counter>* centroid_rejected_;
   prometheus::Counter* centroid_epochs_partial_;
+  prometheus::Family<prometheus::Counter>* shed_;
+  prometheus::Gauge* budget_;
+  prometheus::Family<prometheus::Counter>* global_maps_refused_;
   tracking::TrackerCounters last_;  // counters already exported
   std::uint64_t last_partial_ = 0;
 };

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <map>
 #include <utility>
 
@@ -46,19 +47,41 @@ tracking::CloudFrame observationsOf(const GlobalMapMessage& global, double alpha
       const Eigen::Vector3d d = e->center - mean;
       covariance += n * (e->shape / alpha2 + d * d.transpose());
     }
-    frame.observations.push_back({mean, covariance / total});
+    frame.observations.push_back({mean, covariance / total, static_cast<std::size_t>(total)});
   }
   return frame;
 }
 
+namespace {
+
+std::int64_t steadyNowNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+std::int64_t nanoseconds(double s) { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
+
+std::string msText(double ns) { return std::to_string(std::llround(ns * 1e-6)) + " ms"; }
+
+}  // namespace
+
+TrackerNodeLimits trackerNodeLimitsFor(const TopologyConfig& topology) {
+  TrackerNodeLimits config;
+  config.period_ns = static_cast<std::int64_t>(std::llround(topology.period_ms * 1e6));
+  config.window_ns = static_cast<std::int64_t>(std::llround(topology.admission.window_periods * topology.period_ms * 1e6));
+  return config;
+}
+
 TrackerNode::TrackerNode(tracking::Tracker tracker, double alpha, NowNs now, Publish publish,
-                         std::optional<CentroidCollector> centroids)
+                         std::optional<CentroidCollector> centroids, TrackerNodeLimits limits)
     : tracker_(std::move(tracker)),
       alpha_(alpha),
       now_(std::move(now)),
       publish_(std::move(publish)),
       centroids_(std::move(centroids)),
-      started_ns_(now_()) {}
+      limits_(std::move(limits)),
+      started_ns_(now_()) {
+  if (!limits_.stopwatch) limits_.stopwatch = steadyNowNs;
+}
 
 std::vector<tracking::StepStats> TrackerNode::offer(const std::vector<tracking::CloudFrame>& frames, std::int64_t now_ns) {
   std::vector<tracking::StepStats> steps;
@@ -69,50 +92,108 @@ std::vector<tracking::StepStats> TrackerNode::offer(const std::vector<tracking::
   return steps;
 }
 
-void TrackerNode::addDetections(tracking::DetectionFrame frame) {
+std::optional<TrackerNode::Refusal> TrackerNode::addDetections(tracking::DetectionFrame frame) {
   std::unique_lock lock(mutex_);
-  const auto started = std::chrono::steady_clock::now();
+  const std::int64_t started = limits_.stopwatch();
+  const std::int64_t now = now_();
+  const std::int64_t capture = frame.capture_time_ns;
+  const std::int64_t window = limits_.window_ns;
+  const std::string beyond = ", beyond the admission window of " + msText(static_cast<double>(window));
+  if (capture > now && capture - now > window) {
+    return Refusal{"clock_skew", "camera '" + frame.camera + "': captured " + msText(static_cast<double>(capture - now)) +
+                                     " ahead of the tracker's clock" + beyond + " (check the camera's clock)"};
+  }
+  // The oldest instant a LiDAR frame may still wait for detections, less eps_sync: nothing older can match.
+  const auto& tracking = tracker_.config();
+  const std::int64_t oldest = now - nanoseconds(tracking.max_detection_wait_s + tracking.eps_sync_s);
+  if (capture < oldest - window) {
+    return Refusal{"clock_skew", "camera '" + frame.camera + "': captured " +
+                                     msText(static_cast<double>(now) - static_cast<double>(capture)) +
+                                     " before the tracker's clock, more than max_detection_wait_s + eps_sync_s" + beyond};
+  }
   tracker_.addDetections(std::move(frame));
-  publishFused(lock, tracker_.advance(now_()), started);
+  publishFused(lock, tracker_.advance(now), started);
+  return std::nullopt;
 }
 
-void TrackerNode::addGlobalMap(const GlobalMapMessage& global) {
-  if (global.late) return;  // a revision of an epoch already offered, or a stale epoch
+std::optional<TrackerNode::Refusal> TrackerNode::addGlobalMap(const GlobalMapMessage& global) {
+  if (global.late) return std::nullopt;  // a revision of an epoch already offered, or a stale epoch
   // No sensor time: no node contributed data to the epoch (all failed or missing). There is
   // nothing to observe, and fusing it at time 0 would put the tracker's clock 56 years back.
-  if (global.header.sensor_time_ns <= 0) return;
+  if (global.header.sensor_time_ns <= 0) return std::nullopt;
   const tracking::CloudFrame frame = observationsOf(global, alpha_);
   std::unique_lock lock(mutex_);
-  const auto started = std::chrono::steady_clock::now();
-  publishFused(lock, tracker_.offerCloud(frame, now_()), started);
+  const std::int64_t started = limits_.stopwatch();
+  const std::int64_t now = now_();
+  const std::int64_t sensed = global.header.sensor_time_ns;
+  if (sensed > now && sensed - now > limits_.window_ns) {
+    return Refusal{"clock_skew", "global map of epoch " + std::to_string(global.header.epoch) + ": sensor time " +
+                                     msText(static_cast<double>(sensed - now)) +
+                                     " ahead of the tracker's clock, beyond the admission window of " +
+                                     msText(static_cast<double>(limits_.window_ns))};
+  }
+  publishFused(lock, tracker_.offerCloud(frame, now), started);
+  return std::nullopt;
 }
 
-CentroidVerdict TrackerNode::addCentroids(tracking::CentroidFrame frame) {
-  if (!centroids_) return CentroidVerdict::kUnknownEdge;
+TrackerNode::CentroidAdmission TrackerNode::addCentroids(tracking::CentroidFrame frame) {
+  if (!centroids_) return {CentroidVerdict::kUnknownEdge, "this tracker takes no centroids"};
   std::unique_lock lock(mutex_);
-  const auto started = std::chrono::steady_clock::now();
+  const std::int64_t started = limits_.stopwatch();
   const std::int64_t now = now_();
   auto added = centroids_->add(std::move(frame), now);
   publishFused(lock, offer(added.ready, now), started);
-  return added.verdict;
+  return {added.verdict, std::move(added.detail)};
 }
 
-void TrackerNode::tick() {
+std::map<std::string, double> TrackerNode::tick() {
   std::unique_lock lock(mutex_);
-  const auto started = std::chrono::steady_clock::now();
+  const std::int64_t started = limits_.stopwatch();
   const std::int64_t now = now_();
   std::vector<tracking::StepStats> steps;
   if (centroids_) steps = offer(centroids_->expire(now), now);
   auto advanced = tracker_.advance(now);
   steps.insert(steps.end(), advanced.begin(), advanced.end());
+  auto stale = staleness(now);
   publishFused(lock, std::move(steps), started);
+  return stale;
+}
+
+std::map<std::string, double> TrackerNode::staleness(std::int64_t now_ns) const {
+  std::map<std::string, double> out;
+  for (const auto& camera : tracker_.cameras()) {
+    const auto captured = tracker_.lastCapture().find(camera.name);
+    const std::int64_t since = captured == tracker_.lastCapture().end() ? started_ns_ : captured->second;
+    // A capture up to the admission window ahead of this clock is admitted (clocks differ a little):
+    // it is fresh, not "negative seconds old".
+    out[camera.name] = std::max(0.0, static_cast<double>(now_ns - since) * 1e-9);
+  }
+  return out;
+}
+
+void TrackerNode::updateBudget(const std::vector<tracking::StepStats>& steps, double seconds) {
+  if (limits_.period_ns <= 0 || limits_.fusion_share <= 0.0) return;
+  std::size_t measurements = 0;
+  for (const auto& step : steps) measurements += step.measurements;
+  if (measurements == 0) return;
+  const double sample = seconds / static_cast<double>(measurements);
+  // Up at once (a flood must not make the tracker fall behind), down slowly (one quick step is no
+  // reason to take in a flood again).
+  cost_per_measurement_s_ = std::max(sample, 0.8 * cost_per_measurement_s_ + 0.2 * sample);
+  if (cost_per_measurement_s_ <= 0.0) return;
+  const double allowed_s = limits_.fusion_share * static_cast<double>(limits_.period_ns) * 1e-9;
+  const double fits = std::floor(allowed_s / cost_per_measurement_s_);
+  const auto budget = fits >= 1e9 ? std::size_t{1'000'000'000} : static_cast<std::size_t>(fits);
+  tracker_.setMeasurementBudget(std::max(limits_.min_budget, budget));
 }
 
 void TrackerNode::publishFused(std::unique_lock<std::mutex>& lock, std::vector<tracking::StepStats> steps,
-                               std::chrono::steady_clock::time_point started) {
+                               std::int64_t started_ns) {
   if (steps.empty()) return;
   FusionReport report;
-  report.fusion_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  report.fusion_seconds = static_cast<double>(limits_.stopwatch() - started_ns) * 1e-9;
+  updateBudget(steps, report.fusion_seconds);
+  report.measurement_budget = tracker_.measurementBudget();
   TrackSnapshot snapshot;
   snapshot.lidar_time_ns = steps.back().time_ns;
   snapshot.association = tracker_.config().association;
@@ -121,12 +202,7 @@ void TrackerNode::publishFused(std::unique_lock<std::mutex>& lock, std::vector<t
   if (centroids_) report.centroids = centroids_->counters();
   report.tracks = snapshot.tracks;
   const std::int64_t now = now_();
-  // Seconds since each camera's newest capture; a camera not heard from yet counts from the start.
-  for (const auto& camera : tracker_.cameras()) {
-    const auto captured = tracker_.lastCapture().find(camera.name);
-    const std::int64_t since = captured == tracker_.lastCapture().end() ? started_ns_ : captured->second;
-    report.camera_staleness_s[camera.name] = static_cast<double>(now - since) * 1e-9;
-  }
+  report.camera_staleness_s = staleness(now);
   report.steps = std::move(steps);
   lock.unlock();
   snapshot.published_time_ns = now;
@@ -148,6 +224,11 @@ std::optional<CentroidCounters> TrackerNode::centroidCounters() const {
 std::vector<tracking::Track> TrackerNode::tracks() const {
   std::lock_guard lock(mutex_);
   return tracker_.tracks();
+}
+
+std::size_t TrackerNode::measurementBudget() const {
+  std::lock_guard lock(mutex_);
+  return tracker_.measurementBudget();
 }
 
 }  // namespace fogmap

@@ -16,6 +16,7 @@
 #include "common/clock.hpp"
 #include "common/messages.hpp"
 #include "common/status.hpp"
+#include "common/topology.hpp"
 #include "common/tracking/tracker.hpp"
 #include "services/tracker/centroid_collector.hpp"
 
@@ -45,13 +46,38 @@ struct TrackSnapshot {
 // and the tracker's state after them.
 struct FusionReport {
   double fusion_seconds = 0.0;
+  std::size_t measurement_budget = 0;  // observations a step takes from now on (0: all)
   double end_to_end_seconds = 0.0;  // from the last fused LiDAR frame's sensor time to publication
   std::vector<tracking::StepStats> steps;
   tracking::TrackerCounters counters;
   std::vector<tracking::Track> tracks;
-  std::map<std::string, double> camera_staleness_s;  // per camera: seconds since its newest capture (or since the start)
-  std::optional<CentroidCounters> centroids;          // with centroid input
+  // Per camera: seconds since its newest capture (or since the start), never negative.
+  std::map<std::string, double> camera_staleness_s;
+  std::optional<CentroidCounters> centroids;  // with centroid input
 };
+
+// What the node holds to at its door and in its steps.
+struct TrackerNodeLimits {
+  // The admission window (topology admission.window_periods x period_ms, as an aggregator keeps it):
+  // a detection frame captured more than this ahead of the clock is refused as clock skew, and so is
+  // one captured more than this before the oldest instant a LiDAR frame may still wait for it
+  // (now - max_detection_wait_s - eps_sync_s). A frame from the future would otherwise count as
+  // the camera's newest (its staleness negative, every LiDAR frame fused without waiting) and stay
+  // in the camera's buffer while the honest frames are dropped as overflow.
+  std::int64_t window_ns = 300'000'000;
+  // Fusion budget: a step should take at most `fusion_share` of the period (topology period_ms).
+  // The node measures what a step costs per observation it takes (the cost rises at once with a
+  // dearer step and falls slowly) and gives the tracker the budget of observations that fits,
+  // never below `min_budget` (one descheduled step must not starve an honest scene). 0: no budget.
+  std::int64_t period_ns = 100'000'000;
+  double fusion_share = 0.5;
+  std::size_t min_budget = 64;
+  // Measures the fusion steps (a steady clock in ns; empty: std::chrono::steady_clock). Tests
+  // inject it to give steps the cost they want.
+  NowNs stopwatch;
+};
+// The tracker node's window and period in `topology`.
+TrackerNodeLimits trackerNodeLimitsFor(const TopologyConfig& topology);
 
 // The tracker core of the service: LiDAR frames wait for the detections that belong to them
 // (Tracker::offerCloud), and whenever frames are fused the tracks are published with a report.
@@ -60,29 +86,46 @@ class TrackerNode {
   using Publish = std::function<void(const TrackSnapshot&, const FusionReport&)>;
   // `centroids`: the collector of a tracker whose input is centroids (none: global maps).
   TrackerNode(tracking::Tracker tracker, double alpha, NowNs now, Publish publish,
-              std::optional<CentroidCollector> centroids = std::nullopt);
+              std::optional<CentroidCollector> centroids = std::nullopt, TrackerNodeLimits limits = {});
 
+  // Why a frame was refused: the metric's reason and a line for a person.
+  struct Refusal {
+    std::string reason;
+    std::string detail;
+  };
   // A camera's detection frame, already validated by the adapter; may complete waiting frames.
-  void addDetections(tracking::DetectionFrame frame);
+  // Refused (reason "clock_skew") when captured outside the admission window around the clock.
+  std::optional<Refusal> addDetections(tracking::DetectionFrame frame);
   // Offers a global map's observations (late revisions are skipped: their epoch was offered).
-  void addGlobalMap(const GlobalMapMessage& global);
+  // Refused ("clock_skew") when its sensor time lies more than the admission window ahead of the
+  // clock: it would become the tracker's time and every later frame would be out of order.
+  std::optional<Refusal> addGlobalMap(const GlobalMapMessage& global);
   // An edge's centroid frame, already validated by the adapter: collected with the other edges'
   // frames of its epoch; each epoch complete is offered as one LiDAR frame. kUnknownEdge when this
-  // node takes no centroids.
-  CentroidVerdict addCentroids(tracking::CentroidFrame frame);
+  // node takes no centroids; `detail` says why a frame was refused.
+  struct CentroidAdmission {
+    CentroidVerdict verdict = CentroidVerdict::kAccepted;
+    std::string detail;
+  };
+  CentroidAdmission addCentroids(tracking::CentroidFrame frame);
   // Offers the epochs of centroids whose deadline passed, and fuses the LiDAR frames whose wait for
-  // detections is over (call it every few milliseconds).
-  void tick();
+  // detections is over (call it every few milliseconds). Returns every camera's staleness now, so
+  // that its gauge moves whether or not anything is fused (a camera that stopped grows).
+  std::map<std::string, double> tick();
 
   tracking::TrackerCounters counters() const;
   std::optional<CentroidCounters> centroidCounters() const;  // with centroid input
   std::vector<tracking::Track> tracks() const;
+  std::size_t measurementBudget() const;
 
  private:
   // Publishes what `steps` (fused under the lock taken by the caller) left; the lock is released
   // before publishing.
-  void publishFused(std::unique_lock<std::mutex>& lock, std::vector<tracking::StepStats> steps,
-                    std::chrono::steady_clock::time_point started);
+  void publishFused(std::unique_lock<std::mutex>& lock, std::vector<tracking::StepStats> steps, std::int64_t started_ns);
+  // Seconds since each camera's newest capture at `now_ns` (since the start for one not heard from), never negative.
+  std::map<std::string, double> staleness(std::int64_t now_ns) const;
+  // The budget of the steps to come, from what `steps` cost in `seconds`.
+  void updateBudget(const std::vector<tracking::StepStats>& steps, double seconds);
 
   // Offers `frames` (epochs of centroids, in order) under the lock; returns the steps fused.
   std::vector<tracking::StepStats> offer(const std::vector<tracking::CloudFrame>& frames, std::int64_t now_ns);
@@ -93,7 +136,9 @@ class TrackerNode {
   NowNs now_;
   Publish publish_;
   std::optional<CentroidCollector> centroids_;
+  TrackerNodeLimits limits_;
   std::int64_t started_ns_;  // when the node started: the staleness of a camera not heard from yet
+  double cost_per_measurement_s_ = 0.0;  // of a step, as measured (0: not yet)
 };
 
 }  // namespace fogmap

@@ -21,13 +21,15 @@ v1::TrackList toTrackList(const TrackSnapshot& snapshot, bool include_tentative)
 }
 
 TrackerService::TrackerService(TrackerNode& node, std::vector<std::string> cameras, bool identify_by_certificate,
-                               TrackerServiceHooks hooks, std::size_t queue_capacity, std::chrono::milliseconds poll_wait)
+                               TrackerServiceHooks hooks, std::size_t queue_capacity, std::chrono::milliseconds poll_wait,
+                               std::size_t max_subscribers)
     : node_(node),
       cameras_(std::move(cameras)),
       identify_by_certificate_(identify_by_certificate),
       hooks_(std::move(hooks)),
       queue_capacity_(std::max<std::size_t>(1, queue_capacity)),
-      poll_wait_(poll_wait) {}
+      poll_wait_(poll_wait),
+      max_subscribers_(max_subscribers) {}
 
 void TrackerService::publish(const TrackSnapshot& snapshot) {
   const auto shared = std::make_shared<const TrackSnapshot>(snapshot);
@@ -72,22 +74,30 @@ grpc::Status TrackerService::PushDetections(grpc::ServerContext* context, grpc::
     summary->set_received(summary->received() + 1);
     const std::size_t bytes = message.ByteSizeLong();
     auto frame = fromProto(message);
+    std::string reason;
     std::string refusal;
     if (!frame) {
+      reason = frame.error().code == ErrorCode::kResourceExhausted ? "too_large" : "malformed";
       refusal = frame.error().message;
     } else if (std::find(cameras_.begin(), cameras_.end(), frame->camera) == cameras_.end()) {
+      reason = "unknown_camera";
       refusal = "camera '" + frame->camera + "' is not a camera of this tracker";
     } else if (peer && *peer != frame->camera) {
+      reason = "forged";
       refusal = "'" + *peer + "' may not speak for camera '" + frame->camera + "'";
+    } else {
+      const std::string camera = frame->camera;
+      auto refused = node_.addDetections(std::move(*frame));
+      if (!refused) {
+        if (hooks_.on_detections) hooks_.on_detections(camera, bytes);
+        continue;
+      }
+      reason = std::move(refused->reason);
+      refusal = std::move(refused->detail);
     }
-    if (!refusal.empty()) {
-      summary->set_refused(summary->refused() + 1);
-      summary->set_last_refusal(refusal);
-      if (hooks_.on_refused) hooks_.on_refused(refusal);
-      continue;
-    }
-    if (hooks_.on_detections) hooks_.on_detections(frame->camera, bytes);
-    node_.addDetections(std::move(*frame));
+    summary->set_refused(summary->refused() + 1);
+    summary->set_last_refusal(refusal);
+    if (hooks_.on_refused) hooks_.on_refused(reason, refusal);
   }
   return grpc::Status::OK;
 }
@@ -107,7 +117,7 @@ grpc::Status TrackerService::PushCentroids(grpc::ServerContext* context, grpc::S
     std::string reason;
     std::string refusal;
     if (!frame) {
-      reason = "malformed";
+      reason = frame.error().code == ErrorCode::kResourceExhausted ? "too_large" : "malformed";
       refusal = frame.error().message;
     } else if (peer && *peer != frame->edge) {
       reason = "forged";
@@ -115,14 +125,14 @@ grpc::Status TrackerService::PushCentroids(grpc::ServerContext* context, grpc::S
     } else {
       const std::string edge = frame->edge;
       const std::uint64_t epoch = frame->epoch;
-      const CentroidVerdict verdict = node_.addCentroids(std::move(*frame));
-      if (verdict == CentroidVerdict::kAccepted) {
+      const auto admission = node_.addCentroids(std::move(*frame));
+      if (admission.verdict == CentroidVerdict::kAccepted) {
         if (hooks_.on_centroids) hooks_.on_centroids(edge, bytes);
         continue;
       }
-      reason = centroidVerdictName(verdict);
-      refusal = "edge '" + edge + "', epoch " + std::to_string(epoch) + ": " +
-                (verdict == CentroidVerdict::kUnknownEdge ? "not an edge that sends centroids to this tracker" : reason);
+      reason = centroidVerdictName(admission.verdict);
+      refusal = "edge '" + edge + "', epoch " + std::to_string(epoch) + ": " + reason +
+                (admission.detail.empty() ? "" : ": " + admission.detail);
     }
     summary->set_refused(summary->refused() + 1);
     summary->set_last_refusal(refusal);
@@ -135,10 +145,17 @@ grpc::Status TrackerService::Subscribe(grpc::ServerContext* context, const v1::T
                                        grpc::ServerWriter<v1::TrackList>* writer) {
   auto subscriber = std::make_shared<Subscriber>();
   subscriber->include_tentative = request->include_tentative();
+  bool full = false;
   {
     std::lock_guard lock(mutex_);
     if (shutting_down_) return {grpc::StatusCode::UNAVAILABLE, "the tracker is shutting down"};
-    subscribers_.push_back(subscriber);
+    full = subscribers_.size() >= max_subscribers_;
+    if (!full) subscribers_.push_back(subscriber);
+  }
+  if (full) {
+    if (hooks_.on_subscriber_refused) hooks_.on_subscriber_refused();
+    return {grpc::StatusCode::RESOURCE_EXHAUSTED, "the tracker already serves " + std::to_string(max_subscribers_) +
+                                                      " subscribers (admission max_subscribers)"};
   }
   const auto leave = [&] {
     std::lock_guard lock(mutex_);

@@ -1,8 +1,8 @@
 #pragma once
 // gRPC adapter for TrackerService: detection services push their cameras' detections and edges
 // their displacement centroids (validated by proto_convert, refusals counted), subscribers read the
-// tracks. Every subscriber has its own
-// bounded queue: a slow one loses its oldest track lists (counted), never slows fusion.
+// tracks. Every subscriber has its own bounded queue: a slow one loses its oldest track lists
+// (counted), never slows fusion; and their number is bounded (one more is refused, counted).
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -22,11 +22,15 @@ namespace fogmap {
 // What the adapter saw, for the metrics.
 struct TrackerServiceHooks {
   std::function<void(const std::string& camera, std::size_t bytes)> on_detections;  // a frame accepted
-  std::function<void(const std::string& why)> on_refused;                            // a frame refused
+  // A detection frame refused: `reason` is "malformed", "too_large" (more detections than a frame
+  // may hold), "unknown_camera", "forged" or "clock_skew"; `why` a line for the log.
+  std::function<void(const std::string& reason, const std::string& why)> on_refused;
   std::function<void(std::uint64_t n)> on_subscriber_drops;
+  std::function<void()> on_subscriber_refused;  // a Subscribe call beyond max_subscribers
   std::function<void(const std::string& edge, std::size_t bytes)> on_centroids;  // a centroid frame accepted
-  // A centroid frame refused: `reason` is "malformed", "forged" or a CentroidVerdict's name
-  // (unknown_edge, late, early, duplicate), `why` a line for the log.
+  // A centroid frame refused: `reason` is "malformed", "too_large" (more centroids than a frame may
+  // hold), "forged" or a CentroidVerdict's name (unknown_edge, late, clock_skew, duplicate), `why` a
+  // line for the log.
   std::function<void(const std::string& reason, const std::string& why)> on_centroids_refused;
 };
 
@@ -34,9 +38,11 @@ class TrackerService final : public v1::TrackerService::Service {
  public:
   // With TLS (`identify_by_certificate`) a stream may speak only for the camera (or edge) its
   // certificate names. `cameras`: the detection nodes whose frames are accepted; which edges' centroid
-  // frames are is the node's (its CentroidCollector's) to say.
+  // frames are is the node's (its CentroidCollector's) to say. At most `max_subscribers` Subscribe
+  // calls are served at once (topology admission.max_subscribers); one more ends RESOURCE_EXHAUSTED.
   TrackerService(TrackerNode& node, std::vector<std::string> cameras, bool identify_by_certificate, TrackerServiceHooks hooks,
-                 std::size_t queue_capacity = 16, std::chrono::milliseconds poll_wait = std::chrono::milliseconds(100));
+                 std::size_t queue_capacity = 16, std::chrono::milliseconds poll_wait = std::chrono::milliseconds(100),
+                 std::size_t max_subscribers = 32);
 
   // Queues the tracks for every subscriber (TrackerNode's publish sink).
   void publish(const TrackSnapshot& snapshot);
@@ -63,6 +69,7 @@ class TrackerService final : public v1::TrackerService::Service {
   TrackerServiceHooks hooks_;
   std::size_t queue_capacity_;
   std::chrono::milliseconds poll_wait_;
+  std::size_t max_subscribers_;
   mutable std::mutex mutex_;
   std::condition_variable published_;
   std::condition_variable drained_;

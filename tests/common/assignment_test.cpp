@@ -59,8 +59,11 @@ TEST(Assignment, AgreesWithBruteForceOnRandomGatedProblems) {
   std::mt19937 rng(5);
   std::uniform_int_distribution<int> size(0, 5);
   std::uniform_real_distribution<double> value(-3.0, 10.0);
-  std::bernoulli_distribution gated(0.35);
+  // Half the problems gated densely enough to fall apart into several components.
+  std::bernoulli_distribution gated_some(0.35);
+  std::bernoulli_distribution gated_most(0.8);
   for (int trial = 0; trial < 400; ++trial) {
+    auto& gated = trial % 2 == 0 ? gated_some : gated_most;
     const std::size_t rows = static_cast<std::size_t>(size(rng));
     const std::size_t cols = static_cast<std::size_t>(size(rng));
     std::vector<std::vector<double>> cost(rows, std::vector<double>(cols));

@@ -50,7 +50,8 @@ TEST(MergeCentroids, HeightDoesNotSeparateAndZeroRadiusKeepsEveryCentroid) {
 TEST(MergeCentroids, GroupsAreTheConnectedComponentsOfGapsBelowTheRadius) {
   for (const unsigned seed : {1U, 2U, 3U, 4U, 5U}) {
     std::mt19937 rng(seed);
-    std::uniform_real_distribution<double> coordinate(0.0, 12.0);
+    // Odd seeds around the origin: cells of negative coordinates too.
+    std::uniform_real_distribution<double> coordinate(seed % 2 == 1 ? -6.0 : 0.0, seed % 2 == 1 ? 6.0 : 12.0);
     std::vector<DisplacementCentroid> centroids;
     for (int i = 0; i < 60; ++i) centroids.push_back(centroidAt({coordinate(rng), coordinate(rng), 1.0}, 0.01, 1 + i % 7));
     const double radius = 1.0;

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <functional>
 #include <map>
+#include <random>
 #include <set>
 
 #include <gtest/gtest.h>
@@ -454,6 +455,82 @@ TEST(AsynchronousFusion, WithoutWaitingLateDetectionsAreStaleWhichIsWhyTheWaitEx
   }
   EXPECT_EQ(tracker.counters().detections_fused, 0U);
   EXPECT_GE(tracker.counters().detection_frames_stale, 3U);
+}
+
+// --- Load shedding ------------------------------------------------------------------------------
+
+CloudObservation withPoints(CloudObservation o, std::size_t points) {
+  o.point_count = points;
+  return o;
+}
+
+const Track* trackNear(const Tracker& tracker, const Eigen::Vector2d& p, double within_m) {
+  const Track* best = nullptr;
+  for (const auto& t : tracker.tracks()) {
+    if ((t.position - p).norm() <= within_m && (!best || (t.position - p).norm() < (best->position - p).norm())) best = &t;
+  }
+  return best;
+}
+
+TEST(LoadShedding, OverBudgetEachTrackKeepsItsNearestObservationAndTheRestGoByPoints) {
+  TrackerConfig config;
+  config.confirm_hits = 1;  // every observation a confirmed track at once
+  auto tracker = makeTracker(config, {});
+  tracker.addCloud(cloudAt(1000 * kMs, {withPoints(at(0, 0), 10), withPoints(at(10, 0), 10)}));
+  ASSERT_EQ(tracker.tracks().size(), 2U);
+  tracker.setMeasurementBudget(3);
+  // Each track's nearest (few points), one with many points near the first track, and three far
+  // ones; the budget takes the two nearest and then the one with the most points of the rest.
+  const auto stats = tracker.addCloud(cloudAt(1100 * kMs, {withPoints(at(30, 0), 50), withPoints(at(0.1, 0), 5),
+                                                           withPoints(at(0.9, 0), 100), withPoints(at(40, 0), 80),
+                                                           withPoints(at(10.2, 0), 5), withPoints(at(50, 0), 10)}));
+  EXPECT_EQ(stats.measurements, 3U);
+  EXPECT_EQ(stats.measurements_shed, 3U);
+  EXPECT_EQ(tracker.counters().measurements_shed, 3U);
+  EXPECT_EQ(stats.updates_cloud_only, 2U) << "both tracks updated by their nearest";
+  EXPECT_EQ(stats.tracks_created, 1U) << "the one with the most points starts a track";
+  EXPECT_NE(trackNear(tracker, {0.9, 0}, 0.05), nullptr);
+  for (const double x : {30.0, 40.0, 50.0}) EXPECT_EQ(trackNear(tracker, {x, 0}, 1.0), nullptr) << "shed: " << x;
+  // Within the budget (and with none), nothing is shed.
+  tracker.setMeasurementBudget(6);
+  const auto all = tracker.addCloud(cloudAt(1200 * kMs, {at(0.1, 0), at(10.2, 0), at(30, 0), at(40, 0), at(50, 0), at(60, 0)}));
+  EXPECT_EQ(all.measurements, 6U);
+  EXPECT_EQ(all.measurements_shed, 0U);
+  EXPECT_EQ(tracker.counters().measurements_shed, 3U);
+}
+
+TEST(LoadShedding, PeopleKeepTheirTrackIdsThroughAFloodOfClutterWithMorePoints) {
+  // 6 people walking at 1 m/s; after 10 frames, every frame also brings 1,000 clutter observations
+  // at new random places, each claiming 20 times a person's points. The budget is 64 a step.
+  auto tracker = makeTracker({}, {});
+  const auto person = [](int i, int frame) {
+    return Eigen::Vector2d(3.0 * i, -5.0 + 0.1 * frame * (i % 2 == 0 ? 1.0 : -1.0) + 0.5 * i);
+  };
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> x(20.0, 120.0);
+  std::uniform_real_distribution<double> y(-50.0, 50.0);
+  std::map<int, std::uint64_t> ids;  // per person, its track's id once confirmed
+  std::uint64_t shed = 0;
+  for (int frame = 0; frame < 50; ++frame) {
+    std::vector<CloudObservation> observations;
+    for (int i = 0; i < 6; ++i) observations.push_back(withPoints(at(person(i, frame).x(), person(i, frame).y()), 50));
+    if (frame >= 10) {
+      tracker.setMeasurementBudget(64);
+      for (int j = 0; j < 1000; ++j) observations.push_back(withPoints(at(x(rng), y(rng)), 1000));
+    }
+    const auto stats = tracker.addCloud(cloudAt(1000 * kMs + frame * 100 * kMs, observations));
+    shed += stats.measurements_shed;
+    if (frame < 5) continue;  // confirmed after 3 hits
+    for (int i = 0; i < 6; ++i) {
+      const Track* t = trackNear(tracker, person(i, frame), 0.5);
+      ASSERT_NE(t, nullptr) << "person " << i << ", frame " << frame;
+      EXPECT_EQ(t->state, TrackState::kConfirmed) << "person " << i << ", frame " << frame;
+      if (frame == 5) ids[i] = t->id;
+      EXPECT_EQ(t->id, ids[i]) << "person " << i << " changed track at frame " << frame;
+    }
+  }
+  EXPECT_EQ(shed, 40U * (1006U - 64U));
+  EXPECT_EQ(tracker.counters().measurements_shed, shed);
 }
 
 }  // namespace

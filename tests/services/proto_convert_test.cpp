@@ -741,7 +741,11 @@ TEST(ProtoConvert, CentroidFramesWithBadSizesOrValuesAreRejectedNamingTheField) 
   rejected(m, "sensor_position must be finite");
   m = good;
   for (int i = 0; i < kMaxCentroidsPerFrame; ++i) *m.add_centroids() = good.centroids(0);
-  rejected(m, "centroids, more than 10000");
+  const auto too_many = fromProto(m);
+  ASSERT_FALSE(too_many.ok());
+  EXPECT_EQ(too_many.error().code, ErrorCode::kResourceExhausted) << "a bound, not a broken frame";
+  EXPECT_NE(too_many.error().message.find("centroids, more than " + std::to_string(kMaxCentroidsPerFrame)), std::string::npos)
+      << too_many.error().message;
 }
 
 }  // namespace

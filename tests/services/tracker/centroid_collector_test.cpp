@@ -126,14 +126,14 @@ TEST(CentroidCollector, DuplicatesStrangersAndFramesFromTheFutureAreRefused) {
   EXPECT_EQ(c.add(frameOf("stranger", kEpoch, {}), now).verdict, CentroidVerdict::kUnknownEdge);
   EXPECT_EQ(c.add(frameOf("a", kEpoch - 1, {}), now).verdict, CentroidVerdict::kDuplicate)
       << "an edge's stream keeps order: an older epoch after a newer one is not news";
-  EXPECT_EQ(c.add(frameOf("b", kEpoch + 4, {}), now).verdict, CentroidVerdict::kEarly) << "4 periods ahead, window 3";
+  EXPECT_EQ(c.add(frameOf("b", kEpoch + 4, {}), now).verdict, CentroidVerdict::kClockSkew) << "4 periods ahead, window 3";
   EXPECT_EQ(c.add(frameOf("b", kEpoch + 3, {}), now).verdict, CentroidVerdict::kAccepted);
   EXPECT_EQ(c.add(frameOf("a", kEpoch - 1, {}), now).verdict, CentroidVerdict::kLate) << "epoch " << kEpoch << " went";
   EXPECT_EQ(c.counters().frames_accepted, 2U);
-  // std::uint64_t epochs at the top of the range are early, not an overflow.
+  // std::uint64_t epochs at the top of the range are clock skew, not an overflow.
   tracking::CentroidFrame last = frameOf("b", kEpoch, {});
   last.epoch = std::numeric_limits<std::uint64_t>::max();
-  EXPECT_EQ(c.add(last, now).verdict, CentroidVerdict::kEarly);
+  EXPECT_EQ(c.add(last, now).verdict, CentroidVerdict::kClockSkew);
 }
 
 TEST(CentroidCollector, EpochsComeOutInOrderAndTheOpenOnesAreBounded) {

@@ -191,7 +191,7 @@ class TrackerServer {
       ++accepted_;
       changed_.notify_all();
     };
-    hooks.on_refused = [this](const std::string& why) {
+    hooks.on_refused = [this](const std::string&, const std::string& why) {
       std::lock_guard lock(mutex_);
       refusals_.push_back(why);
       changed_.notify_all();
@@ -262,13 +262,16 @@ TEST(TrackerService, DetectionsPushedOverGrpcAreFusedAndBadFramesAreRefusedAndCo
 
   // A subscriber first, so it sees the first tracks.
   grpc::ClientContext sub_context;
+  sub_context.set_wait_for_ready(true);  // a loaded machine may be slow to connect: wait, do not fail
   v1::TrackSubscribeRequest request;
   request.set_include_tentative(true);
   auto tracks = stub->Subscribe(&sub_context, request);
   for (int i = 0; i < 100 && server.service().subscriberCount() == 0; ++i) std::this_thread::sleep_for(10ms);
   ASSERT_EQ(server.service().subscriberCount(), 1U);
 
+  server.now_ns = 1000 * kMs;  // the frames are captured now
   grpc::ClientContext context;
+  context.set_wait_for_ready(true);
   v1::DetectionSummary summary;
   auto writer = stub->PushDetections(&context, &summary);
   // A person 8 m ahead: the pixel of (8, 0, 0.5) is (320, 271.25).
@@ -327,6 +330,7 @@ TEST(TrackerService, CentroidFramesPushedOverGrpcAreFusedPerEpochAndMalformedOne
   server.now_ns = epoch_start + 20 * kMs;
   auto stub = v1::TrackerService::NewStub(makeChannel(server.target(), 4U << 20));
   grpc::ClientContext context;
+  context.set_wait_for_ready(true);
   v1::CentroidSummary summary;
   auto writer = stub->PushCentroids(&context, &summary);
 
@@ -399,7 +403,7 @@ TEST(TrackerNode, AnEpochOfCentroidsAnEdgeMissedIsFusedAtItsDeadlineOnTick) {
   a.epoch = 17'000'000'000;
   a.time_ns = now.load() + 1 * kMs;
   a.centroids.push_back({Eigen::Vector3d(2.0, 0.0, 1.0), Eigen::Matrix3d::Identity() * 0.04, 12});
-  EXPECT_EQ(node.addCentroids(a), CentroidVerdict::kAccepted);
+  EXPECT_EQ(node.addCentroids(a).verdict, CentroidVerdict::kAccepted);
   now += 79 * kMs;
   node.tick();
   EXPECT_TRUE(published.empty());
@@ -410,7 +414,7 @@ TEST(TrackerNode, AnEpochOfCentroidsAnEdgeMissedIsFusedAtItsDeadlineOnTick) {
   auto plain = tracking::Tracker::create({}, {});
   ASSERT_TRUE(plain.ok());
   TrackerNode global(std::move(*plain), 1.5, [&] { return now.load(); }, {});
-  EXPECT_EQ(global.addCentroids(a), CentroidVerdict::kUnknownEdge);
+  EXPECT_EQ(global.addCentroids(a).verdict, CentroidVerdict::kUnknownEdge);
   EXPECT_FALSE(global.centroidCounters().has_value());
 }
 
