@@ -71,6 +71,13 @@ DetectionMetrics::DetectionMetrics(Metrics& metrics, const std::string& node) : 
                             "detection for a newer one), link (detections dropped while the tracker was slow or down).")
                       .Labels(c)
                       .Register(r);
+  detections_capped_ = &prometheus::BuildCounter()
+                            .Name("fogmap_detections_capped_total")
+                            .Help("Detections left out of frames that had more than the tracker takes "
+                                  "(the least confident).")
+                            .Labels(c)
+                            .Register(r)
+                            .Add({});
   dropped_queue_ = &dropped.Add({{"reason", "queue"}});
   dropped_link_ = &dropped.Add({{"reason", "link"}});
 }
@@ -102,6 +109,10 @@ void DetectionMetrics::frameDetected(std::size_t detections, double seconds) {
   frames_detected_->Increment();
   detections_->Increment(static_cast<double>(detections));
   detection_seconds_->Observe(seconds);
+}
+
+void DetectionMetrics::detectionsCapped(std::size_t left_out) {
+  detections_capped_->Increment(static_cast<double>(left_out));
 }
 
 void DetectionMetrics::frameSent(const std::string& peer, std::size_t bytes) {

@@ -25,6 +25,7 @@ class DetectionMetrics final : public DetectionObserver {
   void detecting(bool busy) override;
   void framesDropped(std::uint64_t frames) override;
   void frameDetected(std::size_t detections, double seconds) override;
+  void detectionsCapped(std::size_t left_out) override;
 
   // The tracker link wrote a frame of `bytes` serialised bytes to `peer` (the tracker's name).
   void frameSent(const std::string& peer, std::size_t bytes);
@@ -35,6 +36,7 @@ class DetectionMetrics final : public DetectionObserver {
  private:
   Metrics& metrics_;
   prometheus::Counter* frames_read_;
+  prometheus::Counter* detections_capped_;
   prometheus::Counter* frames_dropped_;
   prometheus::Counter* frames_detected_;
   prometheus::Counter* frames_unreadable_;

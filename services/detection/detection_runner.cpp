@@ -179,6 +179,17 @@ void DetectionRunner::detectFrames() {
 }
 
 void DetectionRunner::deliver(tracking::DetectionFrame frame, double seconds) {
+  auto& detections = frame.detections;
+  if (hooks_.max_detections > 0 && detections.size() > hooks_.max_detections) {
+    const std::size_t left_out = detections.size() - hooks_.max_detections;
+    std::stable_sort(detections.begin(), detections.end(),
+                     [](const camera::Detection& a, const camera::Detection& b) { return a.score > b.score; });
+    detections.resize(hooks_.max_detections);
+    if (hooks_.observer != nullptr) hooks_.observer->detectionsCapped(left_out);
+    burst_log_.note("frames with more detections than the tracker takes",
+                    std::to_string(left_out + hooks_.max_detections) + " detections; the " + std::to_string(left_out) +
+                        " least confident were left out");
+  }
   frames_detected_.fetch_add(1);
   detections_.fetch_add(frame.detections.size());
   if (hooks_.observer != nullptr) hooks_.observer->frameDetected(frame.detections.size(), seconds);

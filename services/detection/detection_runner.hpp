@@ -46,6 +46,8 @@ class DetectionObserver {
   virtual void framesDropped(std::uint64_t /*frames*/) {}
   // One frame detected (truth frames included), with how long the detector took.
   virtual void frameDetected(std::size_t /*detections*/, double /*seconds*/) {}
+  // A frame had more detections than the tracker takes; the `left_out` least confident were not sent.
+  virtual void detectionsCapped(std::size_t /*left_out*/) {}
 };
 
 // Blocks until the clock reaches `until_ns` (at once when it has); false when a stop was requested.
@@ -61,6 +63,9 @@ struct DetectionRunnerHooks {
   DetectionObserver* observer = nullptr;                  // may be null
   // After a stop, how long (by `now`) run() waits for a read or detection in progress to end.
   std::int64_t stop_grace_ns = 500'000'000;
+  // The most detections a frame carries (the tracker refuses more: kMaxDetectionsPerFrame); beyond,
+  // the most confident are kept and the rest counted (observer->detectionsCapped). 0: no bound.
+  std::size_t max_detections = 0;
 };
 
 struct DetectionRunnerStats {

@@ -48,6 +48,7 @@
 #include "common/topology.hpp"
 #include "services/common/grpc_options.hpp"
 #include "services/common/metrics.hpp"
+#include "services/common/proto_convert.hpp"
 #include "services/common/service_process.hpp"
 #include "services/common/tracker_link.hpp"
 #include "services/detection/detection_metrics.hpp"
@@ -163,6 +164,7 @@ int run(const Flags& flags) {
   hooks.log = [&prefix](const std::string& line) { std::cerr << prefix << line << "\n"; };
   hooks.observer = &detection_metrics;
   hooks.stop_grace_ns = kStopGraceNs;
+  hooks.max_detections = fogmap::kMaxDetectionsPerFrame;  // what the tracker takes in one frame
   std::optional<fogmap::DetectionRunner> runner;
   if (truth) {
     runner.emplace(*truth, fogmap::ReplayConfig{camera.rate_hz, camera.loop, camera.frames}, std::move(hooks));

@@ -436,6 +436,51 @@ TEST(DetectionRunner, FailuresAreCountedByReasonAndLoggedOncePerBurstNotPerFrame
   EXPECT_TRUE(logged("49 more")) << ::testing::PrintToString(out.log);
 }
 
+// Reports `count` detections per image, scores 0, 1, ..., count - 1 in a shuffled order.
+class CrowdDetector final : public camera::Detector {
+ public:
+  explicit CrowdDetector(int count) : count_(count) {}
+  camera::DetectResult detectFrame(const cv::Mat& /*image_bgr*/, const std::string& camera,
+                                   std::int64_t capture_time_ns) override {
+    camera::DetectResult result;
+    for (int i = 0; i < count_; ++i) {
+      camera::Detection d;
+      d.box = {1, 2, 30, 40};
+      d.label = "person";
+      d.score = static_cast<double>((i * 7919) % count_);  // a permutation of 0 .. count - 1 (7919 is prime)
+      d.camera = camera;
+      d.capture_time_ns = capture_time_ns;
+      result.detections.push_back(d);
+    }
+    return result;
+  }
+
+ private:
+  int count_;
+};
+
+TEST(DetectionRunner, AFrameWithMoreDetectionsThanTheTrackerTakesKeepsTheMostConfidentAndCountsTheRest) {
+  ManualClock clock;
+  Delivered out;
+  ListSource source(3);
+  CrowdDetector detector(1500);
+  Metrics metrics("", "detection", "cam");
+  DetectionMetrics detection_metrics(metrics, "cam");
+  DetectionRunnerHooks hooks = hooksFor(clock, out, &detection_metrics);
+  hooks.max_detections = 1000;
+  DetectionRunner runner("cam", source, detector, 100, std::move(hooks));
+  EXPECT_TRUE(runner.run());
+  ASSERT_EQ(out.frames.size(), 3u);
+  for (const auto& frame : out.frames) {
+    ASSERT_EQ(frame.detections.size(), 1000u);
+    double lowest = 1e9;
+    for (const auto& d : frame.detections) lowest = std::min(lowest, d.score);
+    EXPECT_EQ(lowest, 500.0) << "the 500 least confident (scores 0 to 499) are the ones left out";
+  }
+  EXPECT_EQ(test_support::counterValue(metrics, "fogmap_detections_capped_total", "node", "cam"), 3.0 * 500.0);
+  EXPECT_LE(out.log.size(), 2u) << "one line per burst, not one per frame";
+}
+
 TEST(DetectionRunner, AStopDoesNotWaitForADetectionInProgressBeyondItsGrace) {
   ManualClock clock;
   Delivered out;
