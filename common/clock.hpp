@@ -11,5 +11,8 @@ using NowNs = std::function<std::int64_t()>;
 
 // The system clock (unix epoch), in nanoseconds.
 std::int64_t systemNowNs();
+// A steady clock in nanoseconds (arbitrary origin, never stepped): for measuring durations and
+// timeouts within one process, where a stepped unix clock would fake or hide a stall.
+std::int64_t steadyNowNs();
 
 }  // namespace fogmap

@@ -23,6 +23,11 @@ std::int64_t systemNowNs() {
       .count();
 }
 
+std::int64_t steadyNowNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
 Expected<EpochSchedule> EpochSchedule::create(double period_ms, double deadline_ms) {
   for (const auto& [name, value] : {std::pair{"period_ms", period_ms}, std::pair{"deadline_ms", deadline_ms}}) {
     if (!std::isfinite(value) || value <= 0.0 || value > kMaxMs) {

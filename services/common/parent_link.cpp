@@ -19,7 +19,6 @@
 namespace fogmap {
 namespace {
 
-using Clock = std::chrono::steady_clock;
 using Stream = grpc::ClientReaderWriter<v1::Upload, v1::Ack>;
 
 const char* kindOf(const v1::Upload& upload) {
@@ -65,17 +64,18 @@ struct ParentLink::State : StreamThreadState {
   std::uint64_t refused = 0;
   std::uint64_t late = 0;
   std::uint64_t stalls = 0;
-  // Since when the current stream has owed an answer without giving any: set by the first write
-  // after the last answer, moved on by each answer while written uploads remain unanswered.
-  std::optional<Clock::time_point> awaiting_since;
+  // Since when (the link's clock, ns) the current stream has owed an answer without giving any:
+  // set by the first write on the stream or after the last answer, moved on by each answer while
+  // written uploads remain unanswered, cleared when a stream is opened.
+  std::optional<std::int64_t> awaiting_since;
   bool writing = false;  // a Write is in progress (it may block under flow control)
   bool drop_burst = false;  // a drop happened since the last answer or empty queue
   bool connected = false;
   bool stream_broken = false;
   std::shared_ptr<grpc::ClientContext> context;  // the current stream's, for TryCancel
 
-  State(ParentLinkConfig c, ParentLinkHooks h)
-      : StreamThreadState(channelFor(c)),
+  State(ParentLinkConfig c, ParentLinkHooks h, NowNs steady_now)
+      : StreamThreadState(channelFor(c), std::move(steady_now)),
         config(std::move(c)),
         hooks(std::move(h)),
         stub(v1::MapIngest::NewStub(channel)),
@@ -127,7 +127,7 @@ struct ParentLink::State : StreamThreadState {
       unacked_bytes -= it->bytes;
       unacked.erase(it);
       const bool still_owed = writing || (!unacked.empty() && unacked.front().sequence < write_from);
-      awaiting_since = still_owed ? std::optional(Clock::now()) : std::nullopt;
+      awaiting_since = still_owed ? std::optional(now()) : std::nullopt;
     }
     cv.notify_all();
     if (ack.status() == v1::ACK_STATUS_REFUSED && hooks.on_refused) hooks.on_refused(ack.sequence(), ack.reason());
@@ -169,7 +169,7 @@ struct ParentLink::State : StreamThreadState {
         sequence = it->sequence;
         bytes = it->bytes;
         writing = true;
-        if (!awaiting_since) awaiting_since = Clock::now();
+        if (!awaiting_since) awaiting_since = now();
       }
       // Blocks under flow control; TryCancel (destructor, failed read, stall) unblocks it.
       const bool written = stream.Write(*next);
@@ -184,16 +184,20 @@ struct ParentLink::State : StreamThreadState {
   }
 
   // Watches the current stream until it breaks, a stop is requested, or it stalls: an answer owed
-  // for answer_timeout. Returns how long the answer was owed when it stalled.
+  // for answer_timeout by the link's clock, which it reads at least every kPollSlice. Returns how
+  // long the answer was owed when it stalled.
   std::optional<std::chrono::milliseconds> watch() {
-    const auto timeout = config.answer_timeout;
+    const std::chrono::nanoseconds timeout = config.answer_timeout;
     std::unique_lock lock(mu);
     for (;;) {
       if (stopping || stream_broken) return std::nullopt;
-      if (timeout.count() > 0 && awaiting_since && Clock::now() - *awaiting_since >= timeout) {
-        stream_broken = true;
-        ++stalls;
-        return std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - *awaiting_since);
+      if (timeout.count() > 0 && awaiting_since) {
+        const std::chrono::nanoseconds owed{now() - *awaiting_since};
+        if (owed >= timeout) {
+          stream_broken = true;
+          ++stalls;
+          return std::chrono::duration_cast<std::chrono::milliseconds>(owed);
+        }
       }
       cv.wait_for(lock, kPollSlice);
     }
@@ -214,7 +218,7 @@ struct ParentLink::State : StreamThreadState {
       }
       // No deadline: the stream lives as long as the link; keepalive detects a dead parent.
       std::unique_ptr<Stream> stream = stub->Push(context.get());
-      const auto opened = Clock::now();
+      const std::int64_t opened = now();
       {
         std::lock_guard lock(mu);
         connected = true;
@@ -247,14 +251,14 @@ struct ParentLink::State : StreamThreadState {
 
       // A parent that accepts streams and fails them at once must not be hammered; one that
       // served a while gets a quick reconnect.
-      if (got_answer || Clock::now() - opened >= config.backoff_max) backoff.reset();
+      if (got_answer || std::chrono::nanoseconds(now() - opened) >= config.backoff_max) backoff.reset();
       if (sleepFor(backoff.next())) break;
     }
   }
 };
 
-ParentLink::ParentLink(ParentLinkConfig config, ParentLinkHooks hooks)
-    : state_(std::make_unique<State>(std::move(config), std::move(hooks))) {
+ParentLink::ParentLink(ParentLinkConfig config, ParentLinkHooks hooks, NowNs steady_now)
+    : state_(std::make_unique<State>(std::move(config), std::move(hooks), std::move(steady_now))) {
   thread_ = std::thread([state = state_.get()] { state->run(); });
 }
 

@@ -27,6 +27,7 @@
 
 #include <grpcpp/security/credentials.h>
 
+#include "common/clock.hpp"
 #include "fogmap/v1/fogmap.pb.h"
 
 namespace fogmap {
@@ -75,8 +76,10 @@ class ParentLink {
   // it was dropped by the byte bound or abandoned by the destructor.
   using Settled = std::function<void(const std::optional<fogmap::v1::Ack>& answer)>;
 
-  // Starts the stream thread at once; the parent need not be up yet.
-  ParentLink(ParentLinkConfig config, ParentLinkHooks hooks);
+  // Starts the stream thread at once; the parent need not be up yet. `steady_now` is the clock of
+  // the answer timeout and the backoff, a steady clock in ns (empty: std::chrono::steady_clock);
+  // the link reads it at least every 100 ms while it waits, so a test can drive it by hand.
+  ParentLink(ParentLinkConfig config, ParentLinkHooks hooks, NowNs steady_now = {});
   // Cancels the stream and joins its threads promptly; uploads still queued are abandoned (their
   // Settled called with std::nullopt on this thread; not counted as dropped).
   ~ParentLink();

@@ -19,7 +19,6 @@
 namespace fogmap {
 namespace {
 
-using Clock = std::chrono::steady_clock;
 
 // What differs between the two streams: the messages and the method.
 template <class Frame>
@@ -164,7 +163,7 @@ struct TrackerStreamLink<Frame>::State : StreamThreadState {
       typename Kind::Summary summary;
       // No deadline: the stream lives as long as the link; keepalive detects a dead tracker.
       std::unique_ptr<Writer> writer = Kind::open(*stub, context.get(), &summary);
-      const auto opened = Clock::now();
+      const std::int64_t opened_ns = now();
       {
         std::lock_guard lock(mu);
         connected = true;
@@ -186,7 +185,7 @@ struct TrackerStreamLink<Frame>::State : StreamThreadState {
 
       // A tracker that accepts streams and fails them at once must not be hammered; one that
       // took frames a while gets a quick reconnect.
-      if (wrote || Clock::now() - opened >= config.backoff_max) backoff.reset();
+      if (wrote || std::chrono::nanoseconds(now() - opened_ns) >= config.backoff_max) backoff.reset();
       if (sleepFor(backoff.next())) break;
     }
     {

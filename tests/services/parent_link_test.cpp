@@ -6,7 +6,9 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <cstdint>
 #include <functional>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -18,6 +20,7 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include "common/clock.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "tests/support/eventually.hpp"
 #include "tests/support/test_server.hpp"
@@ -50,6 +53,88 @@ class Signal {
   std::mutex mu_;
   std::condition_variable cv_;
   bool set_ = false;
+};
+
+// The link's clock (a steady clock in ns), held still until the test moves it on.
+class ManualClock {
+ public:
+  NowNs fn() {
+    return [this] {
+      const std::int64_t now = now_.load();
+      ++reads_;  // after the load: a read counted after advance() may still have seen the old time
+      return now;
+    };
+  }
+  void advance(std::chrono::nanoseconds d) { now_ += d.count(); }
+  std::int64_t peek() const { return now_.load(); }  // not counted as a read
+
+  // Waits (bounded) until the clock has been read twice more. While a single thread of the link
+  // reads it (the one watching a stream, or the one backing off), the second read saw the time as
+  // it is now, and the link decided on it under its lock before any query of the link returns.
+  bool awaitLooks() {
+    const std::uint64_t from = reads_.load();
+    return eventually([&] { return reads_.load() >= from + 2; });
+  }
+
+ private:
+  std::atomic<std::int64_t> now_{1'000'000'000'000};
+  std::atomic<std::uint64_t> reads_{0};
+};
+
+// Holds a parent's answers until the test lets them go: the answer to an upload waits until its
+// sequence is released (bounded, so that a failing test cannot keep its parent from stopping).
+class AnswerGate {
+ public:
+  void release(std::uint64_t up_to) {
+    {
+      std::lock_guard lock(mu_);
+      released_ = std::max(released_, up_to);
+    }
+    cv_.notify_all();
+  }
+  void open() { release(std::numeric_limits<std::uint64_t>::max()); }
+  void await(std::uint64_t sequence) {
+    std::unique_lock lock(mu_);
+    cv_.wait_for(lock, 30s, [&] { return sequence <= released_; });
+  }
+
+ private:
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::uint64_t released_ = 0;
+};
+
+// Opens the gate when the test's part ends, however it ends: declared after the parent, it lets
+// the parent's handlers return before the parent stops.
+class OpenOnExit {
+ public:
+  explicit OpenOnExit(AnswerGate& gate) : gate_(gate) {}
+  ~OpenOnExit() { gate_.open(); }
+  OpenOnExit(const OpenOnExit&) = delete;
+  OpenOnExit& operator=(const OpenOnExit&) = delete;
+
+ private:
+  AnswerGate& gate_;
+};
+
+// What on_stalled reported: how long the answer was owed, per stall in order.
+class StallLog {
+ public:
+  ParentLinkHooks hooks(ParentLinkHooks others) {
+    others.on_stalled = [this](std::chrono::milliseconds waited) {
+      std::lock_guard lock(mu_);
+      waited_.push_back(waited);
+    };
+    return others;
+  }
+  std::vector<std::chrono::milliseconds> waited() const {
+    std::lock_guard lock(mu_);
+    return waited_;
+  }
+
+ private:
+  mutable std::mutex mu_;
+  std::vector<std::chrono::milliseconds> waited_;
 };
 
 v1::Ack answerWith(std::uint64_t sequence, v1::AckStatus status, const std::string& reason = "") {
@@ -374,6 +459,9 @@ TEST(ParentLink, ResendsUnacknowledgedUploadsAfterParentRestart) {
   EXPECT_EQ(second_service.sequences().back(), kUploads + 1);
 }
 
+// --- Stalls and backoff, on the link's clock driven by the test: an answer is owed, and a backoff
+// lasts, exactly as long as the test moves the clock on, however slow the machine.
+
 TEST(ParentLink, AStreamWithoutAnswersIsGivenUpAsStalledAndTheUploadResent) {
   // The first stream reads and never answers (a parent stopped without a FIN looks like this);
   // later streams answer.
@@ -382,49 +470,142 @@ TEST(ParentLink, AStreamWithoutAnswersIsGivenUpAsStalledAndTheUploadResent) {
   });
   TestParent parent(service);
   ASSERT_TRUE(parent.started());
+  ManualClock clock;  // declared before the link, so that it outlives the link's threads
   ParentLinkConfig config = configFor(parent.target());
-  config.answer_timeout = 300ms;
-  std::mutex mu;
-  std::vector<std::chrono::milliseconds> stalls;
+  config.answer_timeout = 60s;  // on the test's clock: never reached by the real one during the test
+  config.backoff_initial = 0ms;
+  StallLog stalls;
   HookCounts counts;
-  ParentLinkHooks hooks = counts.hooks();
-  hooks.on_stalled = [&](std::chrono::milliseconds waited) {
-    std::lock_guard lock(mu);
-    stalls.push_back(waited);
-  };
   SettledLog settled;
-  ParentLink link(config, std::move(hooks));
-  const auto sent = Clock::now();
+  ParentLink link(config, stalls.hooks(counts.hooks()), clock.fn());
   link.send(mapUpload(1), settled.callbackFor(1));
+  ASSERT_TRUE(service.waitForCount(1));  // written: the answer is owed from here
+
+  clock.advance(60s - 1ns);
+  ASSERT_TRUE(clock.awaitLooks());
+  EXPECT_EQ(link.stalls(), 0U) << "stalled before the answer timeout";
+  EXPECT_TRUE(settled.of(1).empty());
+
+  clock.advance(1ns);
   ASSERT_TRUE(settled.waitFor(1));
-  const auto took = Clock::now() - sent;
   EXPECT_EQ(settled.of(1), std::vector<Outcome>{kApplied});
   EXPECT_EQ(link.stalls(), 1U);
   EXPECT_GE(counts.reconnects.load(), 1);
   EXPECT_EQ(service.sequencesOnStream(1), std::vector<std::uint64_t>{1});
   EXPECT_EQ(service.sequencesOnStream(2), std::vector<std::uint64_t>{1});
-  std::lock_guard lock(mu);
-  ASSERT_EQ(stalls.size(), 1U);
-  EXPECT_GE(stalls[0], 300ms);
-  EXPECT_GE(took, 300ms);
+  EXPECT_EQ(stalls.waited(), std::vector<std::chrono::milliseconds>{60s});
 }
 
 TEST(ParentLink, ASlowParentThatKeepsAnsweringIsNotStalled) {
-  // Each answer comes 100 ms after its upload; 20 uploads queued at once take 2 s in all, far
-  // beyond the 300 ms answer timeout, but an answer is never owed for 300 ms.
-  RecordingIngest service([](const v1::Upload& u, int /*stream_number*/) {
-    std::this_thread::sleep_for(100ms);
+  // Each answer comes 40 s (on the link's clock) after the previous one: 10 uploads queued at once
+  // take 400 s in all, far beyond the 60 s answer timeout, but an answer is never owed for 60 s.
+  AnswerGate gate;  // declared before the parent: its handler waits on it
+  RecordingIngest service([&gate](const v1::Upload& u, int /*stream_number*/) {
+    gate.await(u.sequence());
     return std::vector<v1::Ack>{answerWith(u.sequence(), v1::ACK_STATUS_APPLIED)};
   });
   TestParent parent(service);
   ASSERT_TRUE(parent.started());
+  const OpenOnExit open_gate(gate);  // before the parent stops, however the test ends
+  ManualClock clock;
   ParentLinkConfig config = configFor(parent.target());
-  config.answer_timeout = 300ms;
-  ParentLink link(config, {});
-  for (std::uint64_t i = 1; i <= 20; ++i) link.send(mapUpload(i));
-  ASSERT_TRUE(link.flush(20s));
+  config.answer_timeout = 60s;
+  ParentLink link(config, {}, clock.fn());
+  constexpr std::uint64_t kUploads = 10;
+  for (std::uint64_t i = 1; i <= kUploads; ++i) link.send(mapUpload(i));
+
+  for (std::uint64_t i = 1; i <= kUploads; ++i) {
+    // The parent holds upload i, and the link has taken in the answer to i - 1.
+    ASSERT_TRUE(service.waitForCount(i)) << i;
+    ASSERT_TRUE(eventually([&] { return link.unacknowledged() == kUploads - i + 1; })) << i;
+    clock.advance(40s);
+    ASSERT_TRUE(clock.awaitLooks()) << i;
+    ASSERT_EQ(link.stalls(), 0U) << "stalled waiting for the answer to " << i;
+    gate.release(i);
+  }
+  ASSERT_TRUE(link.flush(10s));
   EXPECT_EQ(link.stalls(), 0U);
   EXPECT_EQ(service.sequencesOnStream(2), std::vector<std::uint64_t>{});
+}
+
+TEST(ParentLink, AStreamReopenedAfterAStallOwesItsAnswerFromItsOwnResend) {
+  // The first two streams never answer, the third does. A stream re-opened after a stall is
+  // timed from its own re-send, not from the first send on the stalled stream: it must not be
+  // given up at once (stalls cascading on a parent that would answer).
+  RecordingIngest service([](const v1::Upload& u, int stream_number) {
+    return stream_number <= 2 ? std::vector<v1::Ack>{} : std::vector<v1::Ack>{answerWith(u.sequence(), v1::ACK_STATUS_APPLIED)};
+  });
+  TestParent parent(service);
+  ASSERT_TRUE(parent.started());
+  ManualClock clock;
+  ParentLinkConfig config = configFor(parent.target());
+  config.answer_timeout = 60s;
+  config.backoff_initial = 0ms;
+  StallLog stalls;
+  SettledLog settled;
+  ParentLink link(config, stalls.hooks({}), clock.fn());
+  link.send(mapUpload(1), settled.callbackFor(1));
+  ASSERT_TRUE(service.waitForCount(1));
+  clock.advance(60s);
+  ASSERT_TRUE(eventually([&] { return service.sequencesOnStream(2) == std::vector<std::uint64_t>{1}; }));
+  EXPECT_EQ(link.stalls(), 1U);
+
+  // Re-sent at the time of the stall; nothing owed for long on the new stream yet.
+  ASSERT_TRUE(clock.awaitLooks());
+  EXPECT_EQ(link.stalls(), 1U) << "the re-opened stream was given up at once";
+  clock.advance(60s - 1ns);
+  ASSERT_TRUE(clock.awaitLooks());
+  EXPECT_EQ(link.stalls(), 1U) << "the re-opened stream was given up before its own answer timeout";
+  EXPECT_TRUE(service.sequencesOnStream(3).empty());
+
+  clock.advance(1ns);
+  ASSERT_TRUE(settled.waitFor(1));
+  EXPECT_EQ(settled.of(1), std::vector<Outcome>{kApplied});
+  EXPECT_EQ(link.stalls(), 2U);
+  EXPECT_EQ(service.sequencesOnStream(3), std::vector<std::uint64_t>{1});
+  EXPECT_EQ(stalls.waited(), (std::vector<std::chrono::milliseconds>{60s, 60s}));
+}
+
+TEST(ParentLink, AfterAStallTheStreamIsReopenedOnceTheBackoffHasPassedOnTheLinksClock) {
+  RecordingIngest service([](const v1::Upload& u, int stream_number) {
+    return stream_number == 1 ? std::vector<v1::Ack>{} : std::vector<v1::Ack>{answerWith(u.sequence(), v1::ACK_STATUS_APPLIED)};
+  });
+  TestParent parent(service);
+  ASSERT_TRUE(parent.started());
+  ManualClock clock;
+  ParentLinkConfig config = configFor(parent.target());
+  config.answer_timeout = 10s;
+  config.backoff_initial = 60s;  // the first stream gave no answer and lived less than backoff_max
+  config.backoff_max = 120s;
+  std::atomic<std::int64_t> reopened_at{-1};  // the link's clock when the second stream opened
+  HookCounts counts;
+  ParentLinkHooks hooks = counts.hooks();
+  hooks.on_reconnect = [&] {
+    reopened_at = clock.peek();
+    ++counts.reconnects;
+  };
+  SettledLog settled;
+  ParentLink link(config, std::move(hooks), clock.fn());
+  link.send(mapUpload(1), settled.callbackFor(1));
+  ASSERT_TRUE(service.waitForCount(1));
+  clock.advance(10s);
+  ASSERT_TRUE(eventually([&] { return link.stalls() == 1U && !link.connected(); }));
+  // Only the link's stream thread reads the clock now, and it has begun the backoff at this time.
+  const std::int64_t stalled_at = clock.peek();
+  ASSERT_TRUE(clock.awaitLooks());
+
+  for (int step = 1; step < 6; ++step) {
+    clock.advance(10s);
+    ASSERT_TRUE(clock.awaitLooks()) << step;
+    ASSERT_FALSE(link.connected()) << "re-opened " << step * 10 << " s into a 60 s backoff";
+    ASSERT_EQ(counts.reconnects.load(), 0) << step;
+  }
+  clock.advance(10s);
+  ASSERT_TRUE(settled.waitFor(1));
+  EXPECT_EQ(settled.of(1), std::vector<Outcome>{kApplied});
+  EXPECT_EQ(counts.reconnects.load(), 1);
+  EXPECT_EQ(reopened_at.load(), stalled_at + std::chrono::nanoseconds(60s).count());
+  EXPECT_EQ(service.sequencesOnStream(2), std::vector<std::uint64_t>{1});
 }
 
 TEST(ParentLink, UploadsQueuedBeforeParentStartsAreDelivered) {
