@@ -36,6 +36,10 @@ while [ $# -gt 0 ]; do
 done
 
 dir=build-tsan
+# Third-party reports only (tools/tsan.supp says which and why); the build runs the test binaries
+# to list their tests, so it needs them too.
+supp=$PWD/tools/tsan.supp
+export TSAN_OPTIONS="suppressions=$supp"
 if [ $build -eq 1 ]; then
   cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DCMAKE_CXX_FLAGS="-fsanitize=thread -fno-omit-frame-pointer" -DCMAKE_C_FLAGS="-fsanitize=thread" \
@@ -49,7 +53,7 @@ logs=$PWD/$dir/tsan-logs
 rm -rf "$logs"
 mkdir -p "$logs"
 # Every process the tests start inherits this: one log file per process, all reports kept.
-export TSAN_OPTIONS="log_path=$logs/tsan halt_on_error=0 second_deadlock_stack=1 history_size=4"
+export TSAN_OPTIONS="suppressions=$supp log_path=$logs/tsan halt_on_error=0 second_deadlock_stack=1 history_size=4"
 status=0
 ctest --test-dir "$dir" -R "$tests" --output-on-failure -j 2 --timeout 900 || status=$?
 reports=$(cat "$logs"/tsan.* 2> /dev/null | grep -c '^WARNING: ThreadSanitizer' || true)
