@@ -42,8 +42,9 @@ void GlobalMapFeed::run() {
     }
     if (!first && hooks_.on_reconnect) hooks_.on_reconnect();
     first = false;
+    // Every epoch's first publication, late ones included (the root publishes epochs in order, so
+    // they come in order); the node skips revisions (their epoch was offered already).
     v1::SubscribeRequest request;
-    request.set_on_time_only(true);
     auto reader = stub->Subscribe(&context, request);
     v1::GlobalMap message;
     while (reader->Read(&message)) {

@@ -113,7 +113,9 @@ std::optional<TrackerNode::Refusal> TrackerNode::addDetections(tracking::Detecti
 }
 
 std::optional<TrackerNode::Refusal> TrackerNode::addGlobalMap(const GlobalMapMessage& global) {
-  if (global.late) return std::nullopt;  // a revision of an epoch already offered, or a stale epoch
+  // A revision of an epoch already offered. A late first publication (the root fell behind) is
+  // still the epoch's first picture: fused, as the root publishes epochs in order.
+  if (global.revision != 0) return std::nullopt;
   // No sensor time: no node contributed data to the epoch (all failed or missing). There is
   // nothing to observe, and fusing it at time 0 would put the tracker's clock 56 years back.
   if (global.header.sensor_time_ns <= 0) return std::nullopt;

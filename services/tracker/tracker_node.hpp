@@ -96,7 +96,8 @@ class TrackerNode {
   // A camera's detection frame, already validated by the adapter; may complete waiting frames.
   // Refused (reason "clock_skew") when captured outside the admission window around the clock.
   std::optional<Refusal> addDetections(tracking::DetectionFrame frame);
-  // Offers a global map's observations (late revisions are skipped: their epoch was offered).
+  // Offers a global map's observations (revisions are skipped: their epoch was offered; a late
+  // first publication is taken).
   // Refused ("clock_skew") when its sensor time lies more than the admission window ahead of the
   // clock: it would become the tracker's time and every later frame would be out of order.
   std::optional<Refusal> addGlobalMap(const GlobalMapMessage& global);

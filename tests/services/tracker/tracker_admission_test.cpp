@@ -25,6 +25,7 @@
 #include "services/tracker/tracker_metrics.hpp"
 #include "services/tracker/tracker_node.hpp"
 #include "services/tracker/tracker_service.hpp"
+#include "tests/support/front_camera.hpp"
 #include "tests/support/eventually.hpp"
 #include "tests/support/metric_values.hpp"
 #include "tests/support/test_server.hpp"
@@ -55,16 +56,7 @@ double gaugeValue(Metrics& metrics, const std::string& family, const std::string
   return std::nan("");
 }
 
-// A camera at (0, 0, 1) looking along +x.
-camera::PinholeCamera frontCamera() {
-  camera::PinholeCamera cam;
-  cam.name = "cam-1";
-  Eigen::Matrix3d r;
-  r << 0, -1, 0, 0, 0, -1, 1, 0, 0;
-  cam.world_to_camera.linear() = r;
-  cam.world_to_camera.translation() = -r * Eigen::Vector3d(0, 0, 1);
-  return cam;
-}
+using test_support::frontCamera;
 
 // A global map of one obstacle per centre, at `sensor_time_ns`.
 GlobalMapMessage globalMapWith(std::int64_t sensor_time_ns, const std::vector<Eigen::Vector3d>& centres) {

@@ -25,6 +25,7 @@
 #include "services/tracker/tracker_metrics.hpp"
 #include "services/tracker/tracker_node.hpp"
 #include "services/tracker/tracker_service.hpp"
+#include "tests/support/front_camera.hpp"
 #include "tests/support/metric_values.hpp"
 
 namespace fogmap {
@@ -55,16 +56,7 @@ GlobalMapMessage globalMapWith(std::int64_t sensor_time_ns, const std::vector<Ei
   return g;
 }
 
-// A camera at (0, 0, 1) looking along +x.
-camera::PinholeCamera frontCamera() {
-  camera::PinholeCamera cam;
-  cam.name = "cam-1";
-  Eigen::Matrix3d r;
-  r << 0, -1, 0, 0, 0, -1, 1, 0, 0;
-  cam.world_to_camera.linear() = r;
-  cam.world_to_camera.translation() = -r * Eigen::Vector3d(0, 0, 1);
-  return cam;
-}
+using test_support::frontCamera;
 
 TEST(TrackerNode, AnObjectsObservationIsThePointWeightedCentroidAndTheMixtureCovariance) {
   // Two ellipsoids of shapes alpha^2 Sigma_i: 30 points at (0,0,0), 10 at (4,0,0), alpha 2.
@@ -122,11 +114,28 @@ TEST(TrackerNode, LateRevisionsAreNotFusedTwice) {
                      EXPECT_DOUBLE_EQ(report.end_to_end_seconds, 0.1);
                    });
   node.addGlobalMap(globalMapWith(900 * kMs, {{5, 0, 0.5}}));  // no cameras: nothing to wait for
-  auto late = globalMapWith(950 * kMs, {{5, 0, 0.5}});
-  late.late = true;
-  node.addGlobalMap(late);
+  auto revision = globalMapWith(900 * kMs, {{5, 0, 0.5}});
+  revision.late = true;
+  revision.revision = 1;
+  node.addGlobalMap(revision);
   EXPECT_EQ(published, 1);
   EXPECT_EQ(node.counters().steps, 1U);
+}
+
+TEST(TrackerNode, ALateFirstPublicationIsStillFused) {
+  // The root fell behind and published the next epoch late (flagged): its picture is the only
+  // one of that instant, so the tracker takes it.
+  auto tracker = tracking::Tracker::create({}, {});
+  ASSERT_TRUE(tracker.ok());
+  int published = 0;
+  TrackerNode node(std::move(*tracker), 1.5, [] { return std::int64_t{1200} * kMs; },
+                   [&](const TrackSnapshot&, const FusionReport&) { ++published; });
+  node.addGlobalMap(globalMapWith(900 * kMs, {{5, 0, 0.5}}));
+  auto late = globalMapWith(1000 * kMs, {{5.1, 0, 0.5}});
+  late.late = true;
+  node.addGlobalMap(late);
+  EXPECT_EQ(published, 2);
+  EXPECT_EQ(node.counters().steps, 2U);
 }
 
 TEST(TrackerNode, AGlobalMapWithoutSensorTimeHasNoDataAndIsNotFused) {
@@ -447,7 +456,8 @@ class FakeRoot final : public v1::GlobalMapService::Service {
  public:
   grpc::Status Subscribe(grpc::ServerContext* context, const v1::SubscribeRequest* request,
                          grpc::ServerWriter<v1::GlobalMap>* writer) override {
-    EXPECT_TRUE(request->on_time_only());
+    // Late first publications too: the node skips only revisions.
+    EXPECT_FALSE(request->on_time_only());
     {
       std::lock_guard lock(mutex_);
       ++subscriptions_;
