@@ -10,8 +10,12 @@ namespace fogmap {
 
 namespace {
 
-void addDelta(prometheus::Counter& counter, std::uint64_t now, std::uint64_t before) {
-  if (now > before) counter.Increment(static_cast<double>(now - before));
+// Exports what `now` adds to what was exported (`exported`), and remembers it. Reports can come
+// out of order (several threads publish), so an older one adds nothing and never lowers it.
+void addDelta(prometheus::Counter& counter, std::uint64_t now, std::uint64_t& exported) {
+  if (now <= exported) return;
+  counter.Increment(static_cast<double>(now - exported));
+  exported = now;
 }
 
 }  // namespace
@@ -106,10 +110,16 @@ TrackerMetrics::TrackerMetrics(Metrics& metrics, const std::string& node, const 
 }
 
 void TrackerMetrics::fused(const FusionReport& report) {
+  // Fusion publishes from the thread that fused (a stream's handler, the tick, the global-map
+  // feed), after the node's lock is released: the exported state is guarded here.
+  std::lock_guard lock(mutex_);
   const auto& counters = report.counters;
   fusion_seconds_->Observe(report.fusion_seconds);
   metrics_.endToEndSeconds(report.end_to_end_seconds);
   for (std::size_t i = 0; i < report.steps.size(); ++i) metrics_.framesProcessed();
+  // Gauges from the newest report only: an older one, published a moment later, must not undo it.
+  const bool newest = counters.steps >= last_.steps;
+  last_.steps = std::max(last_.steps, counters.steps);
   addDelta(*created_, counters.tracks_created, last_.tracks_created);
   addDelta(*deleted_, counters.tracks_deleted, last_.tracks_deleted);
   addDelta(updates_->Add({{"kind", "overlay"}}), counters.updates_overlay, last_.updates_overlay);
@@ -117,19 +127,21 @@ void TrackerMetrics::fused(const FusionReport& report) {
   addDelta(dropped_->Add({{"reason", "stale"}}), counters.detection_frames_stale, last_.detection_frames_stale);
   addDelta(dropped_->Add({{"reason", "overflow"}}), counters.detection_frames_overflow, last_.detection_frames_overflow);
   addDelta(shed_->Add({{"reason", "over_budget"}}), counters.measurements_shed, last_.measurements_shed);
+  if (report.centroids) addDelta(*centroid_epochs_partial_, report.centroids->epochs_partial, last_partial_);
+  if (!newest) return;
   budget_->Set(static_cast<double>(report.measurement_budget));
-  last_ = counters;
-  if (report.centroids) {
-    addDelta(*centroid_epochs_partial_, report.centroids->epochs_partial, last_partial_);
-    last_partial_ = report.centroids->epochs_partial;
-  }
   std::map<std::string, double> by_state{{"tentative", 0.0}, {"confirmed", 0.0}, {"lost", 0.0}};
   for (const auto& t : report.tracks) by_state[tracking::trackStateName(t.state)] += 1.0;
   for (const auto& [state, n] : by_state) tracks_->Add({{"state", state}}).Set(n);
-  cameraStaleness(report.camera_staleness_s);
+  setStaleness(report.camera_staleness_s);
 }
 
 void TrackerMetrics::cameraStaleness(const std::map<std::string, double>& seconds) {
+  std::lock_guard lock(mutex_);
+  setStaleness(seconds);
+}
+
+void TrackerMetrics::setStaleness(const std::map<std::string, double>& seconds) {
   for (const auto& [camera, s] : seconds) staleness_->Add({{"camera", camera}}).Set(std::max(0.0, s));
 }
 

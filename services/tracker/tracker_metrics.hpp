@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <map>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,7 @@
 
 namespace fogmap {
 
+// Thread-safe: the node publishes fused reports from whichever thread fused them.
 class TrackerMetrics {
  public:
   // Adds the tracker's families to `metrics`' registry with its constant labels; `cameras` get a
@@ -59,7 +61,10 @@ class TrackerMetrics {
   prometheus::Family<prometheus::Counter>* shed_;
   prometheus::Gauge* budget_;
   prometheus::Family<prometheus::Counter>* global_maps_refused_;
-  tracking::TrackerCounters last_;  // counters already exported
+  void setStaleness(const std::map<std::string, double>& seconds);  // under mutex_
+
+  std::mutex mutex_;                // fused() and cameraStaleness() come from several threads
+  tracking::TrackerCounters last_;  // counters already exported (the highest seen)
   std::uint64_t last_partial_ = 0;
 };
 
