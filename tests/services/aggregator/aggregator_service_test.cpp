@@ -151,6 +151,7 @@ class Child {
  public:
   explicit Child(v1::MapIngest::Stub& stub) {
     context_.set_deadline(std::chrono::system_clock::now() + kRpcTimeout);
+    context_.set_wait_for_ready(true);  // a loaded machine may be slow to connect: wait, do not fail
     stream_ = stub.Push(&context_);
   }
   bool write(std::uint64_t sequence, v1::Upload upload) {
@@ -199,6 +200,7 @@ class Subscription {
  public:
   Subscription(v1::GlobalMapService::Stub& stub, bool point_labels, bool on_time_only = false) {
     context_.set_deadline(std::chrono::system_clock::now() + kRpcTimeout);
+    context_.set_wait_for_ready(true);
     v1::SubscribeRequest request;
     request.set_include_point_labels(point_labels);
     request.set_on_time_only(on_time_only);
