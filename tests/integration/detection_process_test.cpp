@@ -45,6 +45,24 @@ using test_support::TestTracker;
 
 const fs::path kImages = fs::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a" / "image_02";
 
+// A topology of a root, a tracker and the camera node `camera_name` (id 20) with `camera`, on free
+// ports, the tracker where the stand-in listens (`tracker_port`); written to `file` and read back.
+Expected<TopologyConfig> cameraTopology(const std::string& name, const std::string& camera_name,
+                                        const CameraNodeConfig& camera, int tracker_port, const fs::path& file) {
+  TopologyConfig topology;
+  topology.name = name;
+  NodeConfig tracker_node = node(50, "tracker", Role::kTracker, "");
+  tracker_node.tracker = TrackerNodeConfig{};
+  NodeConfig cam = node(20, camera_name, Role::kDetection, "tracker");
+  cam.camera = camera;
+  topology.nodes = {node(100, "root", Role::kAggregator, ""), tracker_node, cam};
+  test_support::useFreePorts(topology);
+  for (NodeConfig& n : topology.nodes) {
+    if (n.role == Role::kTracker) n.port = static_cast<std::uint16_t>(tracker_port);
+  }
+  return test_support::writeTopology(file, topology);
+}
+
 TEST(DetectionProcess, RunsTheUsersOnnxNetworkOnCameraFramesAndStreamsItsDetectionsToTheTracker) {
   SKIP_WITHOUT_ONNX(python);
   test_support::ScratchDir dir("detection-dnn");
@@ -63,12 +81,7 @@ TEST(DetectionProcess, RunsTheUsersOnnxNetworkOnCameraFramesAndStreamsItsDetecti
   TestTracker tracker(recorder);
   ASSERT_TRUE(tracker.started());
 
-  TopologyConfig topology;
-  topology.name = "dnn";
-  NodeConfig root = node(100, "root", Role::kAggregator, "");
-  NodeConfig tracker_node = node(50, "tracker", Role::kTracker, "");
-  tracker_node.tracker = TrackerNodeConfig{};
-  NodeConfig cam = node(20, "cam-front", Role::kDetection, "tracker");
+  const fs::path topology_file = dir.path() / "topology.yaml";
   CameraNodeConfig camera;
   camera.source = kImages;
   camera.rate_hz = 20.0;
@@ -85,15 +98,7 @@ TEST(DetectionProcess, RunsTheUsersOnnxNetworkOnCameraFramesAndStreamsItsDetecti
   camera.calibration.cy = 172.9;
   camera.calibration.width = first.cols;
   camera.calibration.height = first.rows;
-  cam.camera = camera;
-  topology.nodes = {root, tracker_node, cam};
-  test_support::useFreePorts(topology);
-  // The stand-in listens where the topology says the tracker is.
-  for (NodeConfig& n : topology.nodes) {
-    if (n.role == Role::kTracker) n.port = static_cast<std::uint16_t>(tracker.port());
-  }
-  const fs::path topology_file = dir.path() / "topology.yaml";
-  const auto reloaded = test_support::writeTopology(topology_file, topology);
+  const auto reloaded = cameraTopology("dnn", "cam-front", camera, tracker.port(), topology_file);
   ASSERT_TRUE(reloaded.ok()) << reloaded.error().message;
 
   cli::StartOptions options;
@@ -133,7 +138,7 @@ TEST(DetectionProcess, RunsTheUsersOnnxNetworkOnCameraFramesAndStreamsItsDetecti
   }
 
   // The service counts what it did in its own metrics.
-  const NodeConfig* cam_node = topology.find("cam-front");
+  const NodeConfig* cam_node = reloaded->find("cam-front");
   const auto metrics = cli::httpGet(cam_node->host, cam_node->metrics_port, "/metrics", 2s);
   ASSERT_TRUE(metrics.ok()) << metrics.error().message;
   EXPECT_NE(metrics->find("fogmap_detection_frames_sent_total"), std::string::npos);
@@ -193,11 +198,7 @@ TEST(DetectionProcess, SigtermEndsItWhileADetectionIsRunningWithoutWaitingForThe
   TestTracker tracker(recorder);
   ASSERT_TRUE(tracker.started());
 
-  TopologyConfig topology;
-  topology.name = "sigterm";
-  NodeConfig tracker_node = node(50, "tracker", Role::kTracker, "");
-  tracker_node.tracker = TrackerNodeConfig{};
-  NodeConfig cam = node(20, "cam", Role::kDetection, "tracker");
+  const fs::path topology_file = dir.path() / "topology.yaml";
   CameraNodeConfig camera;
   camera.source = kImages;
   camera.rate_hz = 20.0;
@@ -212,14 +213,7 @@ TEST(DetectionProcess, SigtermEndsItWhileADetectionIsRunningWithoutWaitingForThe
   camera.calibration.cy = 172.9;
   camera.calibration.width = 1242;
   camera.calibration.height = 375;
-  cam.camera = camera;
-  topology.nodes = {node(100, "root", Role::kAggregator, ""), tracker_node, cam};
-  test_support::useFreePorts(topology);
-  for (NodeConfig& n : topology.nodes) {
-    if (n.role == Role::kTracker) n.port = static_cast<std::uint16_t>(tracker.port());
-  }
-  const fs::path topology_file = dir.path() / "topology.yaml";
-  const auto reloaded = test_support::writeTopology(topology_file, topology);
+  const auto reloaded = cameraTopology("sigterm", "cam", camera, tracker.port(), topology_file);
   ASSERT_TRUE(reloaded.ok()) << reloaded.error().message;
 
   cli::StartOptions options;
