@@ -99,14 +99,10 @@ std::optional<TrackerNode::Refusal> TrackerNode::addDetections(tracking::Detecti
     return Refusal{"clock_skew", "camera '" + frame.camera + "': captured " + msText(static_cast<double>(capture - now)) +
                                      " ahead of the tracker's clock" + beyond + " (check the camera's clock)"};
   }
-  // The oldest instant a LiDAR frame may still wait for detections, less eps_sync: nothing older can match.
-  const auto& tracking = tracker_.config();
-  const std::int64_t oldest = now - nanoseconds(tracking.max_detection_wait_s + tracking.eps_sync_s);
-  if (capture < oldest - window) {
-    return Refusal{"clock_skew", "camera '" + frame.camera + "': captured " +
-                                     msText(static_cast<double>(now) - static_cast<double>(capture)) +
-                                     " before the tracker's clock, more than max_detection_wait_s + eps_sync_s" + beyond};
-  }
+  // A capture in the past is not refused here: a slow detector's frames arrive late (HOG on a busy
+  // machine takes longer than max_detection_wait_s + eps_sync_s), and the camera is still heard. One
+  // no LiDAR frame can use any more is counted stale by the tracker; it never moves the camera's
+  // newest capture back, and it is the first evicted from the camera's buffer.
   tracker_.addDetections(std::move(frame));
   publishFused(lock, tracker_.advance(now), started);
   return std::nullopt;
