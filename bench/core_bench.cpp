@@ -9,10 +9,10 @@
 
 #include <Eigen/Geometry>
 
-#include "common/cloud_io.hpp"
-#include "common/clustering.hpp"
-#include "common/map.hpp"
-#include "common/preprocess.hpp"
+#include "common/io/cloud_io.hpp"
+#include "common/perception/clustering.hpp"
+#include "common/geometry/map.hpp"
+#include "common/perception/preprocess.hpp"
 
 namespace fogmap {
 namespace {

@@ -10,7 +10,7 @@
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 
-#include "common/cloud_io.hpp"
+#include "common/io/cloud_io.hpp"
 #include "common/tracking/displacement.hpp"
 
 namespace fogmap {

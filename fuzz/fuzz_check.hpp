@@ -7,8 +7,8 @@
 #include <string>
 #include <string_view>
 
-#include "common/cloud_io.hpp"
-#include "common/status.hpp"
+#include "common/io/cloud_io.hpp"
+#include "common/base/status.hpp"
 
 namespace fogmap::fuzz {
 

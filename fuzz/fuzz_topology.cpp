@@ -19,11 +19,16 @@
 #include <system_error>
 #include <vector>
 
-#include "common/topology.hpp"
+#include "common/config/camera_node.hpp"
+#include "common/config/displacement_node.hpp"
+#include "common/config/topology.hpp"
+#include "common/config/topology_parse.hpp"
+#include "common/config/topology_yaml.hpp"
+#include "common/config/tracker_node.hpp"
 #include "fuzz/fuzz_check.hpp"
 #include "services/merge_aggregator/aggregator_core.hpp"
-#include "tools/fogctl/compose.hpp"
-#include "tools/fogctl/launcher.hpp"
+#include "harness/compose.hpp"
+#include "harness/launcher.hpp"
 
 namespace {
 
@@ -56,7 +61,7 @@ const Project& project() {
 // The checks fogctl up, up --dry-run and compose make before anything starts, on a topology whose
 // relative paths were resolved against `project_dir`.
 void checkDeployment(const TopologyConfig& topology, const fs::path& project_dir) {
-  const Status startable = cli::checkStartable(topology);
+  const Status startable = harness::checkStartable(topology);
   if (!startable) {
     const Error& e = startable.error();
     fuzz::check(e.code == ErrorCode::kInvalidArgument || e.code == ErrorCode::kNotFound || e.code == ErrorCode::kIo,
@@ -65,14 +70,14 @@ void checkDeployment(const TopologyConfig& topology, const fs::path& project_dir
                 "a topology that cannot start is refused naming the node and the field");
   }
   const fs::path state = project_dir / ".fogmap" / topology.name;
-  const auto plan = cli::planCluster(project_dir / "topology.yaml", topology, state);
+  const auto plan = harness::planCluster(project_dir / "topology.yaml", topology, state);
   fuzz::check(plan.ok() == startable.ok(), "up --dry-run refuses exactly what checkStartable refuses");
   if (plan) {
     fuzz::check(plan->size() == topology.nodes.size(), "up starts every node once");
     const auto serves = [](Role r) { return r == Role::kAggregator || r == Role::kTracker; };
-    fuzz::check(std::is_partitioned(plan->begin(), plan->end(), [&](const cli::PlannedNode& n) { return serves(n.role); }),
+    fuzz::check(std::is_partitioned(plan->begin(), plan->end(), [&](const harness::PlannedNode& n) { return serves(n.role); }),
                 "up starts the aggregators and trackers before the edges and cameras");
-    for (const cli::PlannedNode& n : *plan) {
+    for (const harness::PlannedNode& n : *plan) {
       const auto node = std::find(n.command.begin(), n.command.end(), "--node");
       fuzz::check(node != n.command.end() && node + 1 != n.command.end() && *(node + 1) == n.name &&
                       topology.find(n.name) != nullptr && n.log.parent_path() == state / "logs",
@@ -80,12 +85,12 @@ void checkDeployment(const TopologyConfig& topology, const fs::path& project_dir
     }
   }
 
-  cli::ComposeOptions options;
+  harness::ComposeOptions options;
   options.topology_file = project_dir / "topology.yaml";
   options.project_dir = project_dir;
   options.prometheus_config = "prometheus.yml";
   options.command = "fogctl compose topology.yaml";
-  const auto compose = cli::composeFile(topology, options);
+  const auto compose = harness::composeFile(topology, options);
   if (!compose) {
     fuzz::check(compose.error().code == ErrorCode::kInvalidArgument && compose.error().message.size() > 8,
                 "compose refuses what it cannot deploy as bad input, saying what");
@@ -94,7 +99,7 @@ void checkDeployment(const TopologyConfig& topology, const fs::path& project_dir
       fuzz::check(compose->find("\n  " + node.name + ":\n") != std::string::npos, "compose runs every node as a service");
     }
   }
-  const std::string scrape = cli::prometheusConfig(topology, {});
+  const std::string scrape = harness::prometheusConfig(topology, {});
   fuzz::check(scrape.find("scrape_configs:") != std::string::npos, "the Prometheus configuration scrapes");
 }
 

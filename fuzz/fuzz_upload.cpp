@@ -20,8 +20,8 @@
 #include <variant>
 #include <vector>
 
-#include "common/geofence.hpp"
-#include "common/topology.hpp"
+#include "common/geometry/geofence.hpp"
+#include "common/config/topology.hpp"
 #include "fuzz/fuzz_check.hpp"
 #include "services/common/proto_convert.hpp"
 #include "services/merge_aggregator/aggregator_core.hpp"

@@ -12,9 +12,9 @@
 
 #include <opencv2/core/mat.hpp>
 
+#include "common/base/status.hpp"
 #include "common/camera/detection.hpp"
 #include "common/camera/detector_config.hpp"
-#include "common/status.hpp"
 
 namespace fogmap::camera {
 

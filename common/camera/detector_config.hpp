@@ -5,7 +5,7 @@
 #include <array>
 #include <string>
 
-#include "common/status.hpp"
+#include "common/base/status.hpp"
 
 namespace fogmap::camera {
 

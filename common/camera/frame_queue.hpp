@@ -13,7 +13,7 @@
 
 #include <opencv2/core/mat.hpp>
 
-#include "common/status.hpp"
+#include "common/base/status.hpp"
 
 namespace fogmap::camera {
 

@@ -13,9 +13,9 @@
 
 #include <Eigen/Geometry>
 
+#include "common/base/status.hpp"
 #include "common/camera/detection.hpp"  // Box2d
 #include "common/camera/pinhole.hpp"
-#include "common/status.hpp"
 
 namespace fogmap::camera {
 

@@ -8,8 +8,8 @@
 
 #include <Eigen/Geometry>
 
+#include "common/base/status.hpp"
 #include "common/camera/detection.hpp"  // Box2d
-#include "common/status.hpp"
 
 namespace fogmap::camera {
 

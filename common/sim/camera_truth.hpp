@@ -7,11 +7,11 @@
 #include <string>
 #include <vector>
 
+#include "common/base/status.hpp"
 #include "common/camera/detection.hpp"
 #include "common/camera/pinhole.hpp"
 #include "common/sim/raycaster.hpp"
 #include "common/sim/scene.hpp"
-#include "common/status.hpp"
 
 namespace fogmap::sim {
 

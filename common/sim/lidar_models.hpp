@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-#include "common/status.hpp"
+#include "common/base/status.hpp"
 
 namespace fogmap::sim {
 

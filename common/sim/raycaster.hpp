@@ -10,10 +10,10 @@
 
 #include <Eigen/Geometry>
 
-#include "common/cloud.hpp"
+#include "common/base/status.hpp"
+#include "common/geometry/cloud.hpp"
 #include "common/sim/lidar_models.hpp"
 #include "common/sim/scene.hpp"
-#include "common/status.hpp"
 
 namespace fogmap::sim {
 

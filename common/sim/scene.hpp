@@ -9,7 +9,7 @@
 
 #include <Eigen/Geometry>
 
-#include "common/status.hpp"
+#include "common/base/status.hpp"
 
 namespace fogmap::sim {
 

@@ -1,3 +1,5 @@
+#include "common/config/displacement_node.hpp"
+#include "common/config/topology_presets.hpp"
 #include "common/sim/scene_topology.hpp"
 
 #include <algorithm>
@@ -6,8 +8,6 @@
 
 namespace fogmap::sim {
 namespace {
-
-constexpr std::size_t kMaxNameChars = 64;  // common/topology.hpp isName
 
 bool nameChar(char c) {
   return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' || c == '_' || c == '-';

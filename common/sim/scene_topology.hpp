@@ -5,8 +5,12 @@
 #include <filesystem>
 #include <string>
 
+#include "common/config/camera_node.hpp"
+#include "common/config/topology.hpp"
+#include "common/config/tracker_node.hpp"
 #include "common/sim/scene.hpp"
-#include "common/topology.hpp"
+#include "common/tracking/displacement_config.hpp"
+#include "common/tracking/tracker_config.hpp"
 
 namespace fogmap::sim {
 

@@ -6,9 +6,9 @@
 #include <cstdint>
 #include <optional>
 
+#include "common/base/status.hpp"
 #include "common/sim/raycaster.hpp"
 #include "common/sim/scene.hpp"
-#include "common/status.hpp"
 
 namespace fogmap::sim {
 

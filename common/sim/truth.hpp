@@ -6,7 +6,7 @@
 #include <span>
 #include <vector>
 
-#include "common/cloud.hpp"
+#include "common/geometry/cloud.hpp"
 
 namespace fogmap::sim {
 

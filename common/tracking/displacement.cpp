@@ -8,7 +8,7 @@
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 
-#include "common/clustering.hpp"
+#include "common/perception/clustering.hpp"
 
 namespace fogmap::tracking {
 namespace {

@@ -11,8 +11,8 @@
 
 #include <Eigen/Core>
 
-#include "common/cloud.hpp"
-#include "common/status.hpp"
+#include "common/base/status.hpp"
+#include "common/geometry/cloud.hpp"
 #include "common/tracking/displacement_config.hpp"
 #include "common/tracking/track.hpp"
 

@@ -1,10 +1,11 @@
 #pragma once
 // The displacement detector's settings (common/tracking/displacement.hpp): the octree voxel, the
 // DBSCAN on displacement points and the z-variance filter, as a plain struct with units in the
-// names, two presets and its check. Read from an edge's `displacement:` section (common/topology).
+// names, two presets and its check. Read from an edge's `displacement:` section
+// (common/config/displacement_node.hpp).
 #include <cstddef>
 
-#include "common/status.hpp"
+#include "common/base/status.hpp"
 
 namespace fogmap::tracking {
 

@@ -16,7 +16,7 @@
 
 #include <Eigen/Core>
 
-#include "common/status.hpp"
+#include "common/base/status.hpp"
 
 namespace fogmap::tracking {
 

@@ -33,7 +33,7 @@ struct DisplacementCentroid {
 // into one CloudFrame (services/tracker/centroid_collector.hpp).
 struct CentroidFrame {
   std::string edge;          // the edge node's name
-  std::uint64_t epoch = 0;   // the cluster epoch the scan was shipped in (common/epochs.hpp)
+  std::uint64_t epoch = 0;   // the cluster epoch the scan was shipped in (common/base/epochs.hpp)
   std::int64_t time_ns = 0;  // the scan's sensor time (unix epoch)
   Eigen::Vector3d sensor_position = Eigen::Vector3d::Zero();  // the LiDAR, common frame
   std::vector<DisplacementCentroid> centroids;

@@ -20,8 +20,8 @@
 
 #include <Eigen/Core>
 
+#include "common/base/status.hpp"
 #include "common/camera/pinhole.hpp"
-#include "common/status.hpp"
 #include "common/tracking/kalman.hpp"
 #include "common/tracking/track.hpp"
 #include "common/tracking/tracker_config.hpp"

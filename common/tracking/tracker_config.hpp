@@ -5,7 +5,7 @@
 #include <cstddef>
 #include <string>
 
-#include "common/status.hpp"
+#include "common/base/status.hpp"
 
 namespace fogmap::tracking {
 

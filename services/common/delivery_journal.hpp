@@ -1,6 +1,6 @@
 #pragma once
 // A node's record of how each of its uploads ended, one line per settled upload, for fault tests
-// that compare what was sent with what the root applied (tools/fogctl/faults.hpp). Each line is
+// that compare what was sent with what the root applied (harness/faults.hpp). Each line is
 // written with one write(2) on a file opened for appending, so the record survives kill -9 up to
 // the last settled upload. Format, one upload per line:  EPOCH KIND OUTCOME
 //   KIND: map | points    OUTCOME: applied | late | refused | unsettled (dropped or abandoned)
@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "common/status.hpp"
+#include "common/base/status.hpp"
 #include "fogmap/v1/fogmap.pb.h"
 
 namespace fogmap {

@@ -10,8 +10,9 @@
 
 #include <grpcpp/grpcpp.h>
 
-#include "common/certs.hpp"
-#include "common/status.hpp"
+#include "common/certs/certs.hpp"
+#include "common/base/status.hpp"
+#include "services/common/endpoint.hpp"  // every target and listening address is written by it
 
 namespace fogmap {
 

@@ -13,8 +13,8 @@
 #include <thread>
 #include <utility>
 
-#include "common/admission.hpp"
-#include "common/clock.hpp"
+#include "common/config/admission.hpp"
+#include "common/base/clock.hpp"
 
 namespace fogmap {
 namespace {

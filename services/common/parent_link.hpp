@@ -27,7 +27,7 @@
 
 #include <grpcpp/security/credentials.h>
 
-#include "common/clock.hpp"
+#include "common/base/clock.hpp"
 #include "fogmap/v1/fogmap.pb.h"
 
 namespace fogmap {

@@ -15,7 +15,7 @@
 #include <Eigen/Eigenvalues>
 #include <google/protobuf/io/coded_stream.h>
 
-#include "common/topology.hpp"
+#include "common/config/topology.hpp"
 
 
 namespace fogmap {

@@ -1,10 +1,10 @@
 #pragma once
 // The only place that translates between fogmap's domain types and the generated protobuf types.
 // FromProto validates once at the boundary: a malformed message becomes an Error naming the field.
-#include "common/admission.hpp"
-#include "common/geofence.hpp"
-#include "common/messages.hpp"
-#include "common/status.hpp"
+#include "common/config/admission.hpp"
+#include "common/geometry/geofence.hpp"
+#include "common/io/messages.hpp"
+#include "common/base/status.hpp"
 #include "common/tracking/track.hpp"
 #include "fogmap/v1/fogmap.pb.h"
 

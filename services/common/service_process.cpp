@@ -1,24 +1,11 @@
 #include "services/common/service_process.hpp"
 
 #include <algorithm>
-#include <atomic>
-#include <chrono>
-#include <csignal>
 #include <string_view>
-#include <thread>
 
-#include "common/clock.hpp"
+#include "common/base/clock.hpp"
 
 namespace fogmap {
-namespace {
-
-// The one global: a signal handler can reach nothing else. Lock-free, so safe to set there.
-std::atomic<bool> g_stop{false};
-static_assert(std::atomic<bool>::is_always_lock_free);
-
-void setStop(int /*signal*/) { g_stop.store(true); }
-
-}  // namespace
 
 std::optional<ServiceArgs> parseServiceArgs(int argc, char** argv, const std::set<std::string>& extra_flags) {
   ServiceArgs args;
@@ -45,20 +32,59 @@ bool wantsHelp(int argc, char** argv) {
   return argc == 2 && (std::string_view(argv[1]) == "--help" || std::string_view(argv[1]) == "-h");
 }
 
-void installStopFlag() {
-  std::signal(SIGINT, setStop);
-  std::signal(SIGTERM, setStop);
+void StopRequest::request() {
+  {
+    std::lock_guard lock(mutex_);
+    if (!requested_at_) requested_at_ = std::chrono::steady_clock::now();
+  }
+  requested_cv_.notify_all();
 }
 
-bool stopRequested() { return g_stop.load(); }
+bool StopRequest::requested() const {
+  std::lock_guard lock(mutex_);
+  return requested_at_.has_value();
+}
 
-bool sleepUntilUnlessStopped(std::int64_t until_ns, std::int64_t poll_ns) {
-  while (!stopRequested()) {
+void StopRequest::wait() const {
+  std::unique_lock lock(mutex_);
+  requested_cv_.wait(lock, [this] { return requested_at_.has_value(); });
+}
+
+std::optional<std::chrono::steady_clock::time_point> StopRequest::requestedAt() const {
+  std::lock_guard lock(mutex_);
+  return requested_at_;
+}
+
+bool StopRequest::sleepUntil(std::int64_t until_ns, std::chrono::nanoseconds poll) const {
+  std::unique_lock lock(mutex_);
+  while (!requested_at_) {
     const std::int64_t now_ns = systemNowNs();
     if (now_ns >= until_ns) return true;
-    std::this_thread::sleep_for(std::chrono::nanoseconds(std::min(until_ns - now_ns, poll_ns)));
+    requested_cv_.wait_for(lock, std::min(std::chrono::nanoseconds(until_ns - now_ns), poll));
   }
   return false;
+}
+
+StopSignals::StopSignals(StopRequest& stop) : stop_(stop) {
+  sigemptyset(&signals_);
+  sigaddset(&signals_, SIGINT);
+  sigaddset(&signals_, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals_, nullptr);
+  waiter_ = std::thread([this] {
+    for (;;) {
+      int signal = 0;
+      if (sigwait(&signals_, &signal) != 0) continue;
+      if (closing_.load()) return;
+      stop_.request();
+    }
+  });
+}
+
+StopSignals::~StopSignals() {
+  closing_.store(true);
+  // Directed at the waiter alone (blocked there, so it is taken by its sigwait, never delivered).
+  pthread_kill(waiter_.native_handle(), SIGTERM);
+  waiter_.join();
 }
 
 }  // namespace fogmap

@@ -11,7 +11,7 @@
 
 #include <grpcpp/grpcpp.h>
 
-#include "common/clock.hpp"
+#include "common/base/clock.hpp"
 #include "services/common/grpc_options.hpp"
 
 namespace fogmap {

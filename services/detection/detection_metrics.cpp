@@ -4,7 +4,7 @@
 #include <prometheus/gauge.h>
 #include <prometheus/registry.h>
 
-#include "common/topology.hpp"
+#include "common/config/topology.hpp"
 
 namespace fogmap {
 

@@ -20,10 +20,10 @@
 #include <string>
 #include <thread>
 
-#include "common/burst_log.hpp"
+#include "common/base/burst_log.hpp"
 #include "common/camera/detector.hpp"
 #include "common/camera/frame_queue.hpp"
-#include "common/clock.hpp"
+#include "common/base/clock.hpp"
 #include "common/tracking/track.hpp"
 #include "services/detection/frame_source.hpp"
 #include "services/detection/truth_camera.hpp"

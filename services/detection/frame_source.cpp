@@ -15,6 +15,7 @@
 #include <opencv2/videoio.hpp>
 
 #include "services/detection/image_header.hpp"
+#include "common/config/camera_node.hpp"
 
 namespace fogmap {
 namespace {

@@ -17,9 +17,9 @@
 #include <opencv2/core/mat.hpp>
 
 #include "common/camera/image_limits.hpp"
-#include "common/clock.hpp"
-#include "common/status.hpp"
-#include "common/topology.hpp"
+#include "common/base/clock.hpp"
+#include "common/base/status.hpp"
+#include "common/config/topology.hpp"
 
 namespace fogmap {
 

@@ -7,7 +7,7 @@
 #include <optional>
 #include <span>
 
-#include "common/status.hpp"
+#include "common/base/status.hpp"
 
 namespace fogmap {
 

@@ -1,4 +1,5 @@
 #include "services/detection/truth_camera.hpp"
+#include "common/config/camera_node.hpp"
 
 #include <algorithm>
 #include <cmath>

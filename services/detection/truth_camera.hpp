@@ -10,8 +10,8 @@
 #include "common/sim/camera_truth.hpp"
 #include "common/sim/scene.hpp"
 #include "common/sim/sensor_frames.hpp"
-#include "common/status.hpp"
-#include "common/topology.hpp"
+#include "common/base/status.hpp"
+#include "common/config/topology.hpp"
 #include "common/tracking/track.hpp"
 
 namespace fogmap {

@@ -2,7 +2,7 @@
 
 #include <prometheus/registry.h>
 
-#include "common/topology.hpp"
+#include "common/config/topology.hpp"
 #include "services/common/proto_convert.hpp"
 
 namespace fogmap {

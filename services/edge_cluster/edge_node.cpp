@@ -8,7 +8,8 @@
 #include <string>
 #include <utility>
 
-#include "common/virtual_lidar.hpp"
+#include "common/config/displacement_node.hpp"
+#include "common/perception/virtual_lidar.hpp"
 
 namespace fogmap {
 namespace {

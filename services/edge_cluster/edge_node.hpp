@@ -12,12 +12,12 @@
 
 #include <Eigen/Geometry>
 
-#include "common/cloud.hpp"
-#include "common/madc.hpp"
-#include "common/messages.hpp"
-#include "common/preprocess.hpp"
-#include "common/status.hpp"
-#include "common/topology.hpp"
+#include "common/geometry/cloud.hpp"
+#include "common/perception/madc.hpp"
+#include "common/io/messages.hpp"
+#include "common/perception/preprocess.hpp"
+#include "common/base/status.hpp"
+#include "common/config/topology.hpp"
 #include "common/tracking/displacement.hpp"
 
 namespace fogmap {

@@ -1,6 +1,6 @@
 #pragma once
 // The edge's replay loop (docs/design.md "Edge"): one output every epoch of the CLUSTER period
-// (common/epochs.hpp), whatever the sensor's rate. Epoch k is captured at its start, k P; it shows
+// (common/base/epochs.hpp), whatever the sensor's rate. Epoch k is captured at its start, k P; it shows
 // the sensor's most recent scan at that instant, scan number floor(k P / sensor period); a scan
 // that cannot be read or processed is shipped as a failed frame (EdgeNode::failedFrame) instead
 // of leaving the parent to wait out its deadline. Points with a NaN or infinite coordinate never
@@ -15,9 +15,9 @@
 #include <set>
 #include <string>
 
-#include "common/clock.hpp"
-#include "common/epochs.hpp"
-#include "common/status.hpp"
+#include "common/base/clock.hpp"
+#include "common/base/epochs.hpp"
+#include "common/base/status.hpp"
 #include "services/edge_cluster/edge_node.hpp"
 #include "services/edge_cluster/scan_source.hpp"
 

@@ -5,8 +5,8 @@
 #include <system_error>
 #include <utility>
 
-#include "common/cloud_io.hpp"
-#include "common/virtual_lidar.hpp"
+#include "common/io/cloud_io.hpp"
+#include "common/perception/virtual_lidar.hpp"
 
 namespace fogmap {
 namespace {

@@ -11,10 +11,10 @@
 #include <string>
 #include <vector>
 
-#include "common/cloud.hpp"
-#include "common/cloud_io.hpp"
-#include "common/status.hpp"
-#include "common/topology.hpp"
+#include "common/geometry/cloud.hpp"
+#include "common/io/cloud_io.hpp"
+#include "common/base/status.hpp"
+#include "common/config/topology.hpp"
 
 namespace fogmap {
 

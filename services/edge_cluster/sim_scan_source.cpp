@@ -5,7 +5,7 @@
 #include <sstream>
 #include <utility>
 
-#include "common/yaml_fields.hpp"
+#include "common/config/yaml_fields.hpp"
 
 namespace fogmap {
 namespace {

@@ -16,8 +16,8 @@
 #include "common/sim/raycaster.hpp"
 #include "common/sim/scene.hpp"
 #include "common/sim/sensor_frames.hpp"
-#include "common/status.hpp"
-#include "common/topology.hpp"
+#include "common/base/status.hpp"
+#include "common/config/topology.hpp"
 #include "services/edge_cluster/scan_source.hpp"
 
 namespace fogmap {

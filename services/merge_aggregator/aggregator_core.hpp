@@ -2,7 +2,7 @@
 // The merge-aggregator's core (DESIGN.md 2.2, docs/design.md "Epochs", "Admission", "Delivery"):
 // admit uploads from the direct children, collect them per epoch, MERGE maps into the epoch's
 // working map, and emit the epoch once every live child has reported or its absolute deadline
-// (common/epochs.hpp) has passed. Maps that arrive after their epoch was emitted are merged into
+// (common/base/epochs.hpp) has passed. Maps that arrive after their epoch was emitted are merged into
 // the retained epoch and emitted again as a revision flagged late. Domain types only; the clock is
 // injected (every call that depends on time takes now_ns, unix nanoseconds), so tests drive
 // deadlines by hand. Not thread-safe: the service wraps it in SharedAggregator.
@@ -15,15 +15,15 @@
 #include <variant>
 #include <vector>
 
-#include "common/admission.hpp"
-#include "common/epochs.hpp"
-#include "common/geofence.hpp"
-#include "common/madc.hpp"
-#include "common/map.hpp"
-#include "common/messages.hpp"
-#include "common/preprocess.hpp"
-#include "common/status.hpp"
-#include "common/topology.hpp"
+#include "common/base/epochs.hpp"
+#include "common/base/status.hpp"
+#include "common/config/admission.hpp"
+#include "common/config/topology.hpp"
+#include "common/geometry/geofence.hpp"
+#include "common/geometry/map.hpp"
+#include "common/io/messages.hpp"
+#include "common/perception/madc.hpp"
+#include "common/perception/preprocess.hpp"
 
 namespace fogmap {
 

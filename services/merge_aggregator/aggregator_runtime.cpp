@@ -5,45 +5,20 @@
 namespace fogmap {
 
 Emitter::Emitter(SharedAggregator& aggregator, EmitterSinks sinks, Metrics* metrics, NowNs now_ns,
-                 std::chrono::milliseconds period)
-    : aggregator_(aggregator), sinks_(std::move(sinks)), metrics_(metrics), now_ns_(std::move(now_ns)), period_(period) {}
+                 std::chrono::milliseconds period, std::shared_ptr<Pacer> pacer)
+    : aggregator_(aggregator),
+      sinks_(std::move(sinks)),
+      metrics_(metrics),
+      now_ns_(std::move(now_ns)),
+      poller_([this] { pollOnce(); }, period, std::move(pacer)) {}
 
 Emitter::~Emitter() { stop(); }
 
-void Emitter::start() {
-  std::lock_guard lock(mutex_);
-  if (thread_.joinable()) return;
-  stopping_ = false;
-  thread_ = std::thread([this] { run(); });
-}
+void Emitter::start() { poller_.start(); }
 
-void Emitter::stop() {
-  {
-    std::lock_guard lock(mutex_);
-    stopping_ = true;
-  }
-  wake_.notify_all();
-  if (thread_.joinable()) thread_.join();
-}
+void Emitter::stop() { poller_.stop(); }
 
-void Emitter::run() {
-  std::unique_lock lock(mutex_);
-  while (!stopping_) {
-    lock.unlock();
-    pollOnce();
-    lock.lock();
-    wake_.wait_for(lock, period_, [this] { return stopping_ || woken_; });
-    woken_ = false;
-  }
-}
-
-void Emitter::wake() {
-  {
-    std::lock_guard lock(mutex_);
-    woken_ = true;
-  }
-  wake_.notify_one();
-}
+void Emitter::wake() { poller_.wake(); }
 
 void Emitter::exportCounters(const AggregatorCounters& now) {
   if (metrics_ != nullptr) {

@@ -1,20 +1,19 @@
 #pragma once
 // What the gRPC adapters share: the core behind one mutex, the clock, and the emitter (the poll
 // thread that turns emitted epochs into uploads to the parent or global maps for subscribers).
-#include <atomic>
 #include <chrono>
-#include <condition_variable>
 #include <cstdint>
 #include <functional>
 #include <map>
-#include <string>
+#include <memory>
 #include <mutex>
-#include <thread>
+#include <string>
 #include <utility>
 #include <vector>
 
-#include "common/clock.hpp"
+#include "common/base/clock.hpp"
 #include "services/common/metrics.hpp"
+#include "services/common/periodic.hpp"
 #include "services/common/proto_convert.hpp"
 #include "services/merge_aggregator/aggregator_core.hpp"
 
@@ -45,9 +44,9 @@ struct EmitterSinks {
 
 class Emitter {
  public:
-  // `metrics` may be null (tests).
+  // `metrics` may be null (tests). `pacer`: how the poll thread waits (empty: the steady clock).
   Emitter(SharedAggregator& aggregator, EmitterSinks sinks, Metrics* metrics, NowNs now_ns = systemNowNs,
-          std::chrono::milliseconds period = std::chrono::milliseconds(2));
+          std::chrono::milliseconds period = std::chrono::milliseconds(2), std::shared_ptr<Pacer> pacer = nullptr);
   ~Emitter();  // stops the thread
   Emitter(const Emitter&) = delete;
   Emitter& operator=(const Emitter&) = delete;
@@ -66,7 +65,6 @@ class Emitter {
   void sensorNames(std::map<std::uint32_t, std::string> names) { sensor_names_ = std::move(names); }
 
  private:
-  void run();
   std::size_t dispatch(std::vector<EpochOutput> outputs);
   // Exports what the core counted since the last call (the core's counters are the one set).
   void exportCounters(const AggregatorCounters& now);
@@ -77,14 +75,9 @@ class Emitter {
   EmitterSinks sinks_;
   Metrics* metrics_;
   NowNs now_ns_;
-  std::chrono::milliseconds period_;
   std::map<std::uint32_t, std::string> sensor_names_;
   AggregatorCounters exported_;  // what exportCounters has reported so far (emitter thread only)
-  std::mutex mutex_;
-  std::condition_variable wake_;
-  bool stopping_ = false;
-  bool woken_ = false;
-  std::thread thread_;
+  Periodic poller_;              // last: its thread stops before the members it polls with go
 };
 
 }  // namespace fogmap

@@ -4,6 +4,7 @@
 #include <optional>
 #include <string>
 #include <utility>
+#include <variant>
 
 #include "services/common/grpc_options.hpp"
 #include "services/common/proto_convert.hpp"
@@ -46,108 +47,61 @@ GlobalMapService::GlobalMapService(SharedAggregator& aggregator, Metrics* metric
                                    std::chrono::milliseconds poll_wait)
     : aggregator_(aggregator),
       metrics_(metrics),
-      queue_capacity_(std::max<std::size_t>(1, queue_capacity)),
-      max_subscribers_(aggregator.with([](MergeAggregator& core) { return core.config().admission.max_subscribers; })),
-      poll_wait_(poll_wait) {}
+      poll_wait_(poll_wait),
+      subscribers_(queue_capacity,
+                   aggregator.with([](MergeAggregator& core) { return core.config().admission.max_subscribers; }),
+                   BroadcasterHooks{[metrics](std::uint64_t n) {
+                                      if (metrics != nullptr) metrics->subscriberDrops(n);
+                                    },
+                                    [metrics] {
+                                      if (metrics != nullptr) metrics->subscribersRefused();
+                                    }}) {}
 
 void GlobalMapService::publish(const GlobalMapMessage& message) {
   // Converted once, shared by every subscriber; the label-free copy only when someone wants it.
   const auto full = std::make_shared<const v1::GlobalMap>(toProto(message));
   const Published with_labels{full, full->ByteSizeLong()};
   std::optional<Published> without_labels;
-  std::uint64_t newly_dropped = 0;
-  {
-    std::lock_guard lock(mutex_);
-    for (const auto& subscriber : subscribers_) {
-      if (subscriber->on_time_only && message.late) continue;
-      if (!subscriber->point_labels && !without_labels) {
-        auto copy = std::make_shared<v1::GlobalMap>(*full);
-        copy->clear_point_labels();
-        const std::size_t bytes = copy->ByteSizeLong();
-        without_labels = Published{std::move(copy), bytes};
-      }
-      subscriber->queue.push_back(subscriber->point_labels ? with_labels : *without_labels);
-      while (subscriber->queue.size() > queue_capacity_) {
-        subscriber->queue.pop_front();
-        ++dropped_;
-        ++newly_dropped;
-      }
+  subscribers_.publishEach([&](const Wants& wants) -> std::optional<Published> {
+    if (wants.on_time_only && message.late) return std::nullopt;
+    if (wants.point_labels) return with_labels;
+    if (!without_labels) {
+      auto copy = std::make_shared<v1::GlobalMap>(*full);
+      copy->clear_point_labels();
+      const std::size_t bytes = copy->ByteSizeLong();
+      without_labels = Published{std::move(copy), bytes};
     }
-  }
-  published_.notify_all();
-  if (newly_dropped > 0 && metrics_ != nullptr) metrics_->subscriberDrops(newly_dropped);
+    return without_labels;
+  });
 }
 
-void GlobalMapService::shutdown(std::chrono::milliseconds drain) {
-  std::unique_lock lock(mutex_);
-  shutting_down_ = true;
-  published_.notify_all();
-  // The handlers end themselves once their queues are empty (or the client is gone).
-  drained_.wait_for(lock, drain, [&] { return subscribers_.empty(); });
-  drain_expired_ = true;
-  published_.notify_all();
-}
+void GlobalMapService::shutdown(std::chrono::milliseconds drain) { subscribers_.shutdown(drain); }
 
-std::size_t GlobalMapService::subscriberCount() const {
-  std::lock_guard lock(mutex_);
-  return subscribers_.size();
-}
+std::size_t GlobalMapService::subscriberCount() const { return subscribers_.subscriberCount(); }
 
-std::uint64_t GlobalMapService::droppedMessages() const {
-  std::lock_guard lock(mutex_);
-  return dropped_;
-}
+std::uint64_t GlobalMapService::droppedMessages() const { return subscribers_.dropped(); }
 
-std::uint64_t GlobalMapService::refusedSubscribers() const {
-  std::lock_guard lock(mutex_);
-  return refused_subscribers_;
-}
+std::uint64_t GlobalMapService::refusedSubscribers() const { return subscribers_.refused(); }
 
 grpc::Status GlobalMapService::Subscribe(grpc::ServerContext* context, const v1::SubscribeRequest* request,
                                          grpc::ServerWriter<v1::GlobalMap>* writer) {
-  auto subscriber = std::make_shared<Subscriber>();
-  subscriber->point_labels = request->include_point_labels();
-  subscriber->on_time_only = request->on_time_only();
-  {
-    std::lock_guard lock(mutex_);
-    if (shutting_down_) return {grpc::StatusCode::UNAVAILABLE, "the aggregator is shutting down"};
-    if (subscribers_.size() >= max_subscribers_) {
-      ++refused_subscribers_;
-      if (metrics_ != nullptr) metrics_->subscribersRefused();
-      return {grpc::StatusCode::RESOURCE_EXHAUSTED,
-              "the root already serves " + std::to_string(subscribers_.size()) +
-                  " subscribers, its bound (topology admission.max_subscribers); retry later"};
+  auto joined = subscribers_.subscribe({request->include_point_labels(), request->on_time_only()});
+  if (const auto* refusal = std::get_if<Subscribers::Refusal>(&joined)) {
+    if (*refusal == Subscribers::Refusal::kShuttingDown) {
+      return {grpc::StatusCode::UNAVAILABLE, "the aggregator is shutting down"};
     }
-    subscribers_.push_back(subscriber);
+    return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+            "the root already serves " + std::to_string(subscribers_.maxSubscribers()) +
+                " subscribers, its bound (topology admission.max_subscribers); retry later"};
   }
-  struct Unsubscribe {
-    GlobalMapService& service;
-    const std::shared_ptr<Subscriber>& subscriber;
-    ~Unsubscribe() {
-      {
-        std::lock_guard lock(service.mutex_);
-        std::erase(service.subscribers_, subscriber);
-      }
-      service.drained_.notify_all();
-    }
-  } unsubscribe{*this, subscriber};
-
+  auto& subscription = std::get<Subscribers::Subscription>(joined);
   // Bounded waits: a cancelled client raises no condition variable, so look again regularly.
   while (!context->IsCancelled()) {
-    Published next;
-    {
-      std::unique_lock lock(mutex_);
-      published_.wait_for(lock, poll_wait_, [&] { return shutting_down_ || !subscriber->queue.empty(); });
-      // What was published before the shutdown is still delivered (within the drain time).
-      if (shutting_down_ && (subscriber->queue.empty() || drain_expired_)) {
-        return {grpc::StatusCode::UNAVAILABLE, "the aggregator is shutting down"};
-      }
-      if (subscriber->queue.empty()) continue;
-      next = std::move(subscriber->queue.front());
-      subscriber->queue.pop_front();
-    }
-    if (!writer->Write(*next.map)) break;  // the client is gone
-    if (metrics_ != nullptr) metrics_->bytesSent("subscriber", "global_map", next.bytes);
+    auto next = subscription.next(poll_wait_);
+    if (next.ended) return {grpc::StatusCode::UNAVAILABLE, "the aggregator is shutting down"};
+    if (!next.message) continue;
+    if (!writer->Write(*next.message->map)) break;  // the client is gone
+    if (metrics_ != nullptr) metrics_->bytesSent("subscriber", "global_map", next.message->bytes);
   }
   return grpc::Status::OK;
 }

@@ -12,17 +12,15 @@
 // peer the server let in (any certificate the CA issued).
 #include <atomic>
 #include <chrono>
-#include <condition_variable>
 #include <cstddef>
 #include <cstdint>
-#include <deque>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "fogmap/v1/fogmap.grpc.pb.h"
+#include "services/common/broadcaster.hpp"
 #include "services/common/metrics.hpp"
 #include "services/merge_aggregator/aggregator_runtime.hpp"
 
@@ -63,27 +61,19 @@ class GlobalMapService final : public v1::GlobalMapService::Service {
     std::shared_ptr<const v1::GlobalMap> map;
     std::size_t bytes = 0;
   };
-  struct Subscriber {
+  // What a subscriber asked for.
+  struct Wants {
     bool point_labels = false;
     bool on_time_only = false;
-    std::deque<Published> queue;
   };
+  using Subscribers = Broadcaster<Published, Wants>;
 
   SharedAggregator& aggregator_;
   Metrics* metrics_;
-  std::size_t queue_capacity_;
-  std::size_t max_subscribers_;  // the core's admission.max_subscribers
   std::chrono::milliseconds poll_wait_;
-  mutable std::mutex mutex_;
-  std::condition_variable published_;
-  std::condition_variable drained_;  // a subscriber left
-  std::vector<std::shared_ptr<Subscriber>> subscribers_;
-  std::uint64_t dropped_ = 0;
-  std::uint64_t refused_subscribers_ = 0;
+  Subscribers subscribers_;  // bounded by the core's admission.max_subscribers
   std::optional<std::vector<std::string>> geofence_setters_;  // none: everyone may (plaintext)
   std::atomic<std::uint64_t> denied_geofences_{0};
-  bool shutting_down_ = false;
-  bool drain_expired_ = false;
 };
 
 }  // namespace fogmap

@@ -5,6 +5,7 @@
 #include <string>
 #include <utility>
 
+#include "common/config/tracker_node.hpp"
 #include "common/tracking/centroid_merge.hpp"
 
 namespace fogmap {

@@ -3,7 +3,7 @@
 // edges stream, collected per cluster epoch and merged into one LiDAR frame per epoch.
 //
 // Why one frame per epoch and not one per edge: the edges of a cluster share the epochs
-// (common/epochs.hpp), so the frames of one epoch are one instant seen from several sides. Fed one
+// (common/base/epochs.hpp), so the frames of one epoch are one instant seen from several sides. Fed one
 // by one, the tracker would give each camera frame to the first of them only (it fuses a detection
 // frame with the LiDAR frame nearest in time), read an object the last edge did not see as lost,
 // and spawn a track per extra view; merged, an object seen by several LiDARs is one measurement
@@ -22,8 +22,8 @@
 #include <string>
 #include <vector>
 
-#include "common/epochs.hpp"
-#include "common/topology.hpp"
+#include "common/base/epochs.hpp"
+#include "common/config/topology.hpp"
 #include "common/tracking/track.hpp"
 
 namespace fogmap {

@@ -13,7 +13,7 @@
 
 #include <grpcpp/grpcpp.h>
 
-#include "common/messages.hpp"
+#include "common/io/messages.hpp"
 
 namespace fogmap {
 

@@ -1,10 +1,10 @@
 #pragma once
 // What the tracker process does with what its adapter and its global-map feed see: counts it in the
-// metrics, and logs every refusal and drop through one BurstLog (common/burst_log.hpp), so a
+// metrics, and logs every refusal and drop through one BurstLog (common/base/burst_log.hpp), so a
 // flood of bad frames writes one line per reason per burst with a count, not one line per frame.
 #include <string>
 
-#include "common/burst_log.hpp"
+#include "common/base/burst_log.hpp"
 #include "services/common/metrics.hpp"
 #include "services/tracker/global_map_feed.hpp"
 #include "services/tracker/tracker_metrics.hpp"

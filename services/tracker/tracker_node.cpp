@@ -1,6 +1,6 @@
 #include "services/tracker/tracker_node.hpp"
 
-#include "common/map.hpp"
+#include "common/geometry/map.hpp"
 
 #include <algorithm>
 #include <chrono>

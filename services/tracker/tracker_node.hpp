@@ -13,10 +13,10 @@
 #include <string>
 #include <vector>
 
-#include "common/clock.hpp"
-#include "common/messages.hpp"
-#include "common/status.hpp"
-#include "common/topology.hpp"
+#include "common/base/clock.hpp"
+#include "common/io/messages.hpp"
+#include "common/base/status.hpp"
+#include "common/config/topology.hpp"
 #include "common/tracking/tracker.hpp"
 #include "services/tracker/centroid_collector.hpp"
 

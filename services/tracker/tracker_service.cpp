@@ -1,7 +1,9 @@
 #include "services/tracker/tracker_service.hpp"
 
 #include <algorithm>
+#include <optional>
 #include <utility>
+#include <variant>
 
 #include "services/common/grpc_options.hpp"
 #include "services/common/proto_convert.hpp"
@@ -27,40 +29,17 @@ TrackerService::TrackerService(TrackerNode& node, std::vector<std::string> camer
       cameras_(std::move(cameras)),
       identify_by_certificate_(identify_by_certificate),
       hooks_(std::move(hooks)),
-      queue_capacity_(std::max<std::size_t>(1, queue_capacity)),
       poll_wait_(poll_wait),
-      max_subscribers_(max_subscribers) {}
+      subscribers_(queue_capacity, max_subscribers,
+                   BroadcasterHooks{hooks_.on_subscriber_drops, hooks_.on_subscriber_refused}) {}
 
 void TrackerService::publish(const TrackSnapshot& snapshot) {
-  const auto shared = std::make_shared<const TrackSnapshot>(snapshot);
-  std::uint64_t dropped = 0;
-  {
-    std::lock_guard lock(mutex_);
-    for (const auto& subscriber : subscribers_) {
-      subscriber->queue.push_back(shared);
-      while (subscriber->queue.size() > queue_capacity_) {
-        subscriber->queue.pop_front();
-        ++dropped;
-      }
-    }
-  }
-  published_.notify_all();
-  if (dropped > 0 && hooks_.on_subscriber_drops) hooks_.on_subscriber_drops(dropped);
+  subscribers_.publish(std::make_shared<const TrackSnapshot>(snapshot));
 }
 
-void TrackerService::shutdown(std::chrono::milliseconds drain) {
-  std::unique_lock lock(mutex_);
-  shutting_down_ = true;
-  published_.notify_all();
-  drained_.wait_for(lock, drain, [&] { return subscribers_.empty(); });
-  drain_expired_ = true;
-  published_.notify_all();
-}
+void TrackerService::shutdown(std::chrono::milliseconds drain) { subscribers_.shutdown(drain); }
 
-std::size_t TrackerService::subscriberCount() const {
-  std::lock_guard lock(mutex_);
-  return subscribers_.size();
-}
+std::size_t TrackerService::subscriberCount() const { return subscribers_.subscriberCount(); }
 
 grpc::Status TrackerService::PushDetections(grpc::ServerContext* context, grpc::ServerReader<v1::DetectionFrame>* reader,
                                             v1::DetectionSummary* summary) {
@@ -143,44 +122,26 @@ grpc::Status TrackerService::PushCentroids(grpc::ServerContext* context, grpc::S
 
 grpc::Status TrackerService::Subscribe(grpc::ServerContext* context, const v1::TrackSubscribeRequest* request,
                                        grpc::ServerWriter<v1::TrackList>* writer) {
-  auto subscriber = std::make_shared<Subscriber>();
-  subscriber->include_tentative = request->include_tentative();
-  bool full = false;
-  {
-    std::lock_guard lock(mutex_);
-    if (shutting_down_) return {grpc::StatusCode::UNAVAILABLE, "the tracker is shutting down"};
-    full = subscribers_.size() >= max_subscribers_;
-    if (!full) subscribers_.push_back(subscriber);
-  }
-  if (full) {
-    if (hooks_.on_subscriber_refused) hooks_.on_subscriber_refused();
-    return {grpc::StatusCode::RESOURCE_EXHAUSTED, "the tracker already serves " + std::to_string(max_subscribers_) +
+  using Subscribers = decltype(subscribers_);
+  auto joined = subscribers_.subscribe();
+  if (const auto* refusal = std::get_if<Subscribers::Refusal>(&joined)) {
+    if (*refusal == Subscribers::Refusal::kShuttingDown) {
+      return {grpc::StatusCode::UNAVAILABLE, "the tracker is shutting down"};
+    }
+    return {grpc::StatusCode::RESOURCE_EXHAUSTED, "the tracker already serves " +
+                                                      std::to_string(subscribers_.maxSubscribers()) +
                                                       " subscribers (admission max_subscribers)"};
   }
-  const auto leave = [&] {
-    std::lock_guard lock(mutex_);
-    subscribers_.erase(std::remove(subscribers_.begin(), subscribers_.end(), subscriber), subscribers_.end());
-    drained_.notify_all();
-  };
-  bool shut_down = false;
+  auto& subscription = std::get<Subscribers::Subscription>(joined);
+  const bool include_tentative = request->include_tentative();
+  // Bounded waits: a cancelled client raises no condition variable, so look again regularly.
   while (!context->IsCancelled()) {
-    std::shared_ptr<const TrackSnapshot> next;
-    {
-      std::unique_lock lock(mutex_);
-      published_.wait_for(lock, poll_wait_, [&] { return !subscriber->queue.empty() || shutting_down_; });
-      shut_down = shutting_down_;
-      if (subscriber->queue.empty()) {
-        if (shutting_down_) break;
-        continue;
-      }
-      if (drain_expired_) break;
-      next = subscriber->queue.front();
-      subscriber->queue.pop_front();
-    }
-    if (!writer->Write(toTrackList(*next, subscriber->include_tentative))) break;
+    auto next = subscription.next(poll_wait_);
+    if (next.ended) return {grpc::StatusCode::UNAVAILABLE, "the tracker is shutting down"};
+    if (!next.message) continue;
+    if (!writer->Write(toTrackList(**next.message, include_tentative))) break;  // the client is gone
   }
-  leave();
-  return shut_down ? grpc::Status(grpc::StatusCode::UNAVAILABLE, "the tracker is shutting down") : grpc::Status::OK;
+  return grpc::Status::OK;
 }
 
 }  // namespace fogmap

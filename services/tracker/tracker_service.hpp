@@ -3,18 +3,15 @@
 // their displacement centroids (validated by proto_convert, refusals counted), subscribers read the
 // tracks. Every subscriber has its own bounded queue: a slow one loses its oldest track lists
 // (counted), never slows fusion; and their number is bounded (one more is refused, counted).
-#include <atomic>
 #include <chrono>
-#include <condition_variable>
 #include <cstdint>
-#include <deque>
+#include <functional>
 #include <memory>
-#include <mutex>
-#include <optional>
 #include <string>
 #include <vector>
 
 #include "fogmap/v1/fogmap.grpc.pb.h"
+#include "services/common/broadcaster.hpp"
 #include "services/tracker/tracker_node.hpp"
 
 namespace fogmap {
@@ -58,24 +55,12 @@ class TrackerService final : public v1::TrackerService::Service {
                          grpc::ServerWriter<v1::TrackList>* writer) override;
 
  private:
-  struct Subscriber {
-    bool include_tentative = false;
-    std::deque<std::shared_ptr<const TrackSnapshot>> queue;
-  };
-
   TrackerNode& node_;
   std::vector<std::string> cameras_;
   bool identify_by_certificate_;
   TrackerServiceHooks hooks_;
-  std::size_t queue_capacity_;
   std::chrono::milliseconds poll_wait_;
-  std::size_t max_subscribers_;
-  mutable std::mutex mutex_;
-  std::condition_variable published_;
-  std::condition_variable drained_;
-  std::vector<std::shared_ptr<Subscriber>> subscribers_;
-  bool shutting_down_ = false;
-  bool drain_expired_ = false;
+  Broadcaster<std::shared_ptr<const TrackSnapshot>> subscribers_;
 };
 
 // The tracks a subscriber sees: confirmed and lost ones, and tentative ones when asked.

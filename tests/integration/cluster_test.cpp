@@ -16,22 +16,24 @@
 #include <sstream>
 #include <vector>
 
-#include "common/clock.hpp"
-#include "common/epochs.hpp"
-#include "common/geofence.hpp"
-#include "common/map.hpp"
-#include "tools/fogctl/cluster_run.hpp"
+#include "common/base/clock.hpp"
+#include "common/base/epochs.hpp"
+#include "common/config/topology_presets.hpp"
+#include "common/geometry/geofence.hpp"
+#include "common/geometry/map.hpp"
+#include "harness/cluster_run.hpp"
 #include "tests/support/cluster_control.hpp"
 #include "tests/support/eventually.hpp"
 #include "tests/support/free_ports.hpp"
-#include "tools/fogctl/launcher.hpp"
+#include "harness/launcher.hpp"
+#include "services/common/endpoint.hpp"
 
 namespace fogmap {
 namespace {
 
 using namespace std::chrono_literals;
-using cli::RunOptions;
-using cli::RunResult;
+using harness::RunOptions;
+using harness::RunResult;
 
 std::filesystem::path dataDir() { return std::filesystem::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a"; }
 constexpr std::size_t kScans = 5;  // bundled frames: epoch e replays scan e mod 5
@@ -73,12 +75,12 @@ std::map<std::size_t, Map> runAndCheckAgainstInProcessMerge(const TopologyConfig
   RunOptions options;
   options.frames = 1000;  // everything the edges produce
   options.timeout = 120s;
-  const auto run = cli::runCluster(scratchDir(name), t, options);
+  const auto run = harness::runCluster(scratchDir(name), t, options);
   EXPECT_TRUE(run.ok()) << (run.ok() ? "" : run.error().message);
   if (!run.ok()) return {};
   const auto epochs = completeEpochs(*run);
   EXPECT_GE(epochs.size(), 3U) << name << ": too few complete epochs (" << run->epochs.size() << " published)";
-  const auto views = cli::recomputeEdges(t, epochs);
+  const auto views = harness::recomputeEdges(t, epochs);
   EXPECT_TRUE(views.ok()) << (views.ok() ? "" : views.error().message);
   if (!views.ok()) return {};
   std::map<std::size_t, Map> by_scan;
@@ -125,10 +127,10 @@ TEST(Cluster, MadcAgreesWithBaselineRandIndexAtLeast095) {
   RunOptions options;
   options.frames = 1000;  // everything the edges produce
   options.timeout = 120s;
-  const auto madc = cli::runCluster(scratchDir("ri-madc"), topology("star", 3, Mode::kMadc, 20), options);
+  const auto madc = harness::runCluster(scratchDir("ri-madc"), topology("star", 3, Mode::kMadc, 20), options);
   ASSERT_TRUE(madc.ok()) << madc.error().message;
   options.point_labels = true;
-  const auto baseline = cli::runCluster(scratchDir("ri-base"), topology("star", 3, Mode::kBaseline, 20), options);
+  const auto baseline = harness::runCluster(scratchDir("ri-base"), topology("star", 3, Mode::kBaseline, 20), options);
   ASSERT_TRUE(baseline.ok()) << baseline.error().message;
   std::map<std::size_t, const GlobalMapMessage*> baseline_by_scan;
   for (const auto& [e, g] : baseline->epochs) {
@@ -139,10 +141,10 @@ TEST(Cluster, MadcAgreesWithBaselineRandIndexAtLeast095) {
     if (baseline_by_scan.count(e % kScans) > 0) epochs.push_back(e);
   }
   ASSERT_GE(epochs.size(), 3U);
-  const auto views = cli::recomputeEdges(topology("star", 3, Mode::kMadc, 10), epochs);
+  const auto views = harness::recomputeEdges(topology("star", 3, Mode::kMadc, 10), epochs);
   ASSERT_TRUE(views.ok()) << views.error().message;
   for (const auto e : epochs) {
-    const auto a = cli::accuracy(madc->epochs.at(e), *baseline_by_scan.at(e % kScans), views->at(e));
+    const auto a = harness::accuracy(madc->epochs.at(e), *baseline_by_scan.at(e % kScans), views->at(e));
     ASSERT_TRUE(a.ok) << a.problem;
     std::printf("epoch %lu (scan %zu): Rand index %.4f (ARI %.4f) over local clusters, %.4f over points\n",
                 static_cast<unsigned long>(e), static_cast<std::size_t>(e % kScans), a.clusters.rand_index,
@@ -183,18 +185,18 @@ TEST(Cluster, KillingAnEdgeLeavesTheOthersFlowingAndListsItMissing) {
   RunOptions options;
   options.frames = std::numeric_limits<std::uint64_t>::max();  // every epoch until the edges are stopped
   options.timeout = 120s;
-  const auto run = cli::runCluster(scratchDir("kill"), t, options, [&](const cli::Cluster& cluster) {
+  const auto run = harness::runCluster(scratchDir("kill"), t, options, [&](const harness::Cluster& cluster) {
     const test_support::EdgesStopper stop_edges(cluster, t);  // once the test has seen enough
     test_support::RootSubscription published(t, options.timeout);
     ASSERT_TRUE(published.readUntil([&](const GlobalMapMessage& g) { return test_support::everySensor(t, g); }).has_value())
         << "no global map with every edge before the kill";
     const auto edge = std::find_if(cluster.nodes.begin(), cluster.nodes.end(),
-                                   [](const cli::RunningNode& n) { return n.name == "edge-2"; });
+                                   [](const harness::RunningNode& n) { return n.name == "edge-2"; });
     ASSERT_NE(edge, cluster.nodes.end());
     ASSERT_EQ(::kill(edge->pid, SIGKILL), 0);
     // Reaped: it sends nothing more. An edge ships epoch k only once k has begun, so no later
     // epoch can hold its data.
-    ASSERT_TRUE(test_support::eventually([&] { return !cli::isRunning(edge->pid); }));
+    ASSERT_TRUE(test_support::eventually([&] { return !harness::isRunning(edge->pid); }));
     death_epoch = schedule->epochAt(systemNowNs());
 
     // The root notices, and the survivors keep flowing: each of them is seen in epochs after the
@@ -262,14 +264,14 @@ std::pair<int, std::string> run(const std::string& command) {
 TEST(Cluster, FogctlGeofenceReportsTheIntrusionsOfThePublishedGlobalMap) {
   TopologyConfig t = topology("star", 3, Mode::kMadc, 40);
   test_support::replayUntilStopped(t);  // the subscriber collects until the queries are done
-  const std::string target = t.root()->host + ":" + std::to_string(t.root()->port);
-  const std::string fogctl = (cli::binaryDir() / "fogctl").string() + " geofence ";
+  const std::string target = endpoint(t.root()->host, t.root()->port);
+  const std::string fogctl = (harness::binaryDir() / "fogctl").string() + " geofence ";
   const Geofence fence = boxGeofence("front", {0, -4, -3}, {20, 4, 3});
   std::pair<int, std::string> set, query, unknown;
   RunOptions options;
   options.frames = std::numeric_limits<std::uint64_t>::max();
   options.timeout = 120s;
-  const auto result = cli::runCluster(scratchDir("geofence"), t, options, [&](const cli::Cluster& cluster) {
+  const auto result = harness::runCluster(scratchDir("geofence"), t, options, [&](const harness::Cluster& cluster) {
     const test_support::EdgesStopper stop_edges(cluster, t);  // once the queries are done
     // The queries name the root's latest map: one with every edge's objects by now.
     test_support::RootSubscription published(t, options.timeout);

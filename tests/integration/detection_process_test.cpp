@@ -22,7 +22,10 @@
 
 #include <opencv2/imgcodecs.hpp>
 
-#include "common/topology.hpp"
+#include "common/config/camera_node.hpp"
+#include "common/config/topology.hpp"
+#include "common/config/topology_yaml.hpp"
+#include "common/config/tracker_node.hpp"
 #include "tests/support/eventually.hpp"
 #include "tests/support/free_ports.hpp"
 #include "tests/support/process_cluster.hpp"
@@ -30,7 +33,7 @@
 #include "tests/support/scratch_dir.hpp"
 #include "tests/support/tiny_detector.hpp"
 #include "tests/support/topology_builders.hpp"
-#include "tools/fogctl/launcher.hpp"
+#include "harness/launcher.hpp"
 
 namespace fogmap {
 namespace {
@@ -101,9 +104,9 @@ TEST(DetectionProcess, RunsTheUsersOnnxNetworkOnCameraFramesAndStreamsItsDetecti
   const auto reloaded = cameraTopology("dnn", "cam-front", camera, tracker.port(), topology_file);
   ASSERT_TRUE(reloaded.ok()) << reloaded.error().message;
 
-  cli::StartOptions options;
+  harness::StartOptions options;
   options.only = {"cam-front"};
-  auto cluster = cli::startCluster(topology_file, *reloaded, dir.path() / "state", 30s, options);
+  auto cluster = harness::startCluster(topology_file, *reloaded, dir.path() / "state", 30s, options);
   ASSERT_TRUE(cluster.ok()) << cluster.error().message;
   const test_support::StopOnExit stop(*cluster);
   ASSERT_EQ(cluster->nodes.size(), 1U);
@@ -139,7 +142,7 @@ TEST(DetectionProcess, RunsTheUsersOnnxNetworkOnCameraFramesAndStreamsItsDetecti
 
   // The service counts what it did in its own metrics.
   const NodeConfig* cam_node = reloaded->find("cam-front");
-  const auto metrics = cli::httpGet(cam_node->host, cam_node->metrics_port, "/metrics", 2s);
+  const auto metrics = harness::httpGet(cam_node->host, cam_node->metrics_port, "/metrics", 2s);
   ASSERT_TRUE(metrics.ok()) << metrics.error().message;
   EXPECT_NE(metrics->find("fogmap_detection_frames_sent_total"), std::string::npos);
 }
@@ -168,9 +171,9 @@ TEST(DetectionProcess, RefusesANetworkFileThatIsNotAModelAndNamesIt) {
     std::ofstream out(topology_file);
     out << toYaml(topology);
   }
-  cli::StartOptions options;
+  harness::StartOptions options;
   options.only = {"cam"};
-  auto cluster = cli::startCluster(topology_file, topology, dir.path() / "state", 10s, options);
+  auto cluster = harness::startCluster(topology_file, topology, dir.path() / "state", 10s, options);
   ASSERT_FALSE(cluster.ok()) << "a detection service with a broken model must not start";
   std::ifstream log(dir.path() / "state" / "logs" / "cam.log");
   const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
@@ -216,20 +219,20 @@ TEST(DetectionProcess, SigtermEndsItWhileADetectionIsRunningWithoutWaitingForThe
   const auto reloaded = cameraTopology("sigterm", "cam", camera, tracker.port(), topology_file);
   ASSERT_TRUE(reloaded.ok()) << reloaded.error().message;
 
-  cli::StartOptions options;
+  harness::StartOptions options;
   options.only = {"cam"};
-  auto cluster = cli::startCluster(topology_file, *reloaded, dir.path() / "state", 30s, options);
+  auto cluster = harness::startCluster(topology_file, *reloaded, dir.path() / "state", 30s, options);
   ASSERT_TRUE(cluster.ok()) << cluster.error().message;
   const test_support::StopOnExit stop(*cluster);
   ASSERT_EQ(cluster->nodes.size(), 1U);
-  const cli::RunningNode& process = cluster->nodes.front();
+  const harness::RunningNode& process = cluster->nodes.front();
 
   // Busy: the service says a detection is running (the gauge is set just before the detector is
   // called, and the detection takes far longer than the polls).
   const NodeConfig* cam_node = reloaded->find("cam");
   ASSERT_TRUE(test_support::eventually(
       [&] {
-        const auto metrics = cli::httpGet(cam_node->host, cam_node->metrics_port, "/metrics", 2s);
+        const auto metrics = harness::httpGet(cam_node->host, cam_node->metrics_port, "/metrics", 2s);
         return metrics.ok() && gaugeValue(*metrics, "fogmap_detection_in_progress") == 1.0;
       },
       30s))
@@ -267,9 +270,9 @@ TEST(DetectionProcess, StartingANodeTheTopologyDoesNotHaveIsAnError) {
   tracker_node.tracker = TrackerNodeConfig{};
   topology.nodes = {node(100, "root", Role::kAggregator, ""), tracker_node};
   test_support::useFreePorts(topology);
-  cli::StartOptions options;
+  harness::StartOptions options;
   options.only = {"camera-that-is-not-there"};
-  auto cluster = cli::startCluster(dir.path() / "topology.yaml", topology, dir.path() / "state", 5s, options);
+  auto cluster = harness::startCluster(dir.path() / "topology.yaml", topology, dir.path() / "state", 5s, options);
   ASSERT_FALSE(cluster.ok());
   EXPECT_NE(cluster.error().message.find("camera-that-is-not-there"), std::string::npos) << cluster.error().message;
 }

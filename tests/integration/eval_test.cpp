@@ -10,9 +10,10 @@
 #include <string>
 #include <unistd.h>
 
-#include "tools/fogctl/eval_run.hpp"
+#include "harness/eval_run.hpp"
+#include "pictures/eval_figures.hpp"
 
-namespace fogmap::cli {
+namespace fogmap::harness {
 namespace {
 
 namespace fs = std::filesystem;
@@ -33,6 +34,7 @@ TEST(Eval, QuickEvaluationReproducesThePapersClaimsWithTheRunningServices) {
   auto result = runEvaluation(plan, [](const std::string& line) { std::printf("%s\n", line.c_str()); });
   ASSERT_TRUE(result.ok()) << result.error().message;
   ASSERT_TRUE(writeEvaluation(plan, *result).ok());
+  ASSERT_TRUE(pictures::drawEvaluationFigures(plan, *result).ok());
 
   // Every configuration ran and scored every frame against the baseline of the same frame.
   ASSERT_EQ(result->sizes.size(), plan.object_counts.size() * plan.lidar_counts.size());
@@ -153,4 +155,4 @@ TEST(Eval, QuickEvaluationReproducesThePapersClaimsWithTheRunningServices) {
 }
 
 }  // namespace
-}  // namespace fogmap::cli
+}  // namespace fogmap::harness

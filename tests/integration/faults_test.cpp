@@ -1,5 +1,5 @@
 // Faults against a real cluster: a tree of 8 edges at 10 Hz under the fault harness
-// (tools/fogctl/faults.hpp), the short forms of `fogctl faults`. Each run prints the harness's
+// (harness/faults.hpp), the short forms of `fogctl faults`. Each run prints the harness's
 // summary; every check of the harness must pass.
 #include <unistd.h>
 
@@ -11,16 +11,17 @@
 #include <string>
 
 #include "tests/support/free_ports.hpp"
-#include "tools/fogctl/faults.hpp"
-#include "tools/fogctl/netns.hpp"
+#include "harness/faults.hpp"
+#include "harness/netns.hpp"
+#include "common/config/topology_presets.hpp"
 
 namespace fogmap {
 namespace {
 
 using namespace std::chrono_literals;
-using cli::FaultPlan;
-using cli::FaultReport;
-using cli::FaultScenario;
+using harness::FaultPlan;
+using harness::FaultReport;
+using harness::FaultScenario;
 
 TopologyConfig tree8(const std::string& name) {
   constexpr int kAnyBasePort = 40000;  // replaced by free ports below
@@ -40,9 +41,9 @@ std::filesystem::path scratchDir() {
 }
 
 void expectAllChecksPass(const FaultReport& report) {
-  std::cout << cli::summary(report);
+  std::cout << harness::summary(report);
   ASSERT_FALSE(report.checks.empty());
-  for (const cli::Check& c : report.checks) EXPECT_TRUE(c.passed) << c.name << ": " << c.detail;
+  for (const harness::Check& c : report.checks) EXPECT_TRUE(c.passed) << c.name << ": " << c.detail;
 }
 
 // The short form of a fault: 25 s of load after a 5 s warm-up, the fault lasting `downtime`.
@@ -57,7 +58,7 @@ FaultPlan shortForm(FaultScenario scenario, std::uint64_t seed, std::chrono::sec
 }
 
 FaultReport run(const std::string& name, const FaultPlan& plan) {
-  auto report = cli::runFaults(scratchDir(), tree8(name), plan);
+  auto report = harness::runFaults(scratchDir(), tree8(name), plan);
   EXPECT_TRUE(report.ok()) << (report ? "" : report.error().message);
   return report ? *report : FaultReport{};
 }
@@ -104,11 +105,11 @@ TEST(Faults, ALinkWhosePacketsAreDroppedIsNoticedOnBothSidesAndTheRootConverges)
   // packet in or out of it is dropped for 5 s (no FIN, no RST). Where namespaces cannot be made
   // (no root, no ip or iptables) the test says so and is skipped; the SIGSTOP form above runs.
   {
-    auto probe = cli::NetnsLink::create(static_cast<unsigned>(::getpid()) + 1U);
+    auto probe = harness::NetnsLink::create(static_cast<unsigned>(::getpid()) + 1U);
     if (!probe) GTEST_SKIP() << "no network namespace here: " << probe.error().message;
   }
   FaultPlan plan = shortForm(FaultScenario::kStall, 5, 5s);
-  plan.stall_method = cli::StallMethod::kNetns;
+  plan.stall_method = harness::StallMethod::kNetns;
   const FaultReport report = run("stall-netns", plan);
   expectAllChecksPass(report);
   EXPECT_NE(report.fault.find("iptables DROP"), std::string::npos) << report.fault;

@@ -17,15 +17,16 @@
 
 #include <grpcpp/grpcpp.h>
 
-#include "common/clock.hpp"
-#include "common/epochs.hpp"
+#include "common/base/clock.hpp"
+#include "common/base/epochs.hpp"
+#include "common/config/topology_presets.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "services/common/grpc_options.hpp"
 #include "services/common/proto_convert.hpp"
 #include "tests/support/cluster_control.hpp"
 #include "tests/support/free_ports.hpp"
-#include "tools/fogctl/cluster_run.hpp"
-#include "tools/fogctl/launcher.hpp"
+#include "harness/cluster_run.hpp"
+#include "harness/launcher.hpp"
 
 namespace fogmap {
 namespace {
@@ -115,7 +116,7 @@ TEST(HostileClient, RootKeepsPublishingHonestDataAndCountsEveryAttack) {
   t.admission.window_periods = std::chrono::duration<double, std::milli>(kAttackTime).count() / t.period_ms;
   test_support::replayUntilStopped(t);  // the attacks take as long as they take; the edges go on
   const NodeConfig& root = *t.root();
-  const std::string target = root.host + ":" + std::to_string(root.port);
+  const std::string target = endpoint(root.host, root.port);
   const auto schedule = EpochSchedule::create(t.period_ms, t.deadline_ms);
   ASSERT_TRUE(schedule.ok());
   const auto now_epoch = [&] { return schedule->epochAt(systemNowNs()); };
@@ -129,12 +130,12 @@ TEST(HostileClient, RootKeepsPublishingHonestDataAndCountsEveryAttack) {
   std::uint64_t attack_start_epoch = 0;
   std::uint64_t attack_end_epoch = 0;
   std::string answers;  // what the root said to each attack, for the failure messages
-  cli::RunOptions options;
+  harness::RunOptions options;
   options.frames = std::numeric_limits<std::uint64_t>::max();  // every epoch until the edges are stopped
   options.timeout = 3 * kAttackTime;
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("fogmap-it-" + std::to_string(::getpid()) + "-hostile");
   std::filesystem::create_directories(dir);
-  const auto result = cli::runCluster(dir, t, options, [&](const cli::Cluster& cluster) {
+  const auto result = harness::runCluster(dir, t, options, [&](const harness::Cluster& cluster) {
     const test_support::EdgesStopper stop_edges(cluster, t);  // when the attacks are over
     // Once the root has published a map with every honest edge, attack on one stream that claims
     // to be edge 1.
@@ -238,7 +239,7 @@ TEST(HostileClient, RootKeepsPublishingHonestDataAndCountsEveryAttack) {
     ASSERT_TRUE(after.has_value()) << "nothing with every honest edge was published after the attacks";
     for (const auto& n : t.nodes) {
       if (n.role != Role::kEdge) continue;
-      const auto page = cli::httpGet(n.host, n.metrics_port, "/metrics", 2000ms);
+      const auto page = harness::httpGet(n.host, n.metrics_port, "/metrics", 2000ms);
       ASSERT_TRUE(page.ok()) << n.name << ": " << page.error().message;
       edge_pages[n.name] = *page;
     }
@@ -259,7 +260,7 @@ TEST(HostileClient, RootKeepsPublishingHonestDataAndCountsEveryAttack) {
     epoch_after_query = now_epoch();
     geofences = report;
 
-    const auto page = cli::httpGet(root.host, root.metrics_port, "/metrics", 2000ms);
+    const auto page = harness::httpGet(root.host, root.metrics_port, "/metrics", 2000ms);
     ASSERT_TRUE(page.ok()) << page.error().message;
     metrics_page = *page;
   });
@@ -296,9 +297,9 @@ TEST(HostileClient, RootKeepsPublishingHonestDataAndCountsEveryAttack) {
   // publication is the machine's speed: a starved edge skips epochs by design, docs/design.md.)
   ASSERT_EQ(edge_pages.size(), kHonestEdges);
   for (const auto& [name, page] : edge_pages) {
-    EXPECT_EQ(cli::sumMetric(page, "fogmap_uploads_refused_by_parent_total"), 0.0) << name << "'s maps were refused";
-    EXPECT_EQ(cli::sumMetric(page, "fogmap_dropped_uploads_total"), 0.0) << name << "'s maps were dropped";
-    EXPECT_GT(cli::sumMetric(page, "fogmap_frames_total"), 0.0) << name;
+    EXPECT_EQ(harness::sumMetric(page, "fogmap_uploads_refused_by_parent_total"), 0.0) << name << "'s maps were refused";
+    EXPECT_EQ(harness::sumMetric(page, "fogmap_dropped_uploads_total"), 0.0) << name << "'s maps were dropped";
+    EXPECT_GT(harness::sumMetric(page, "fogmap_frames_total"), 0.0) << name;
   }
   std::size_t during_attacks = 0;
   std::size_t complete = 0;

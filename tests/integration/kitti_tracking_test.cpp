@@ -14,7 +14,8 @@
 #include <vector>
 
 #include "common/camera/kitti.hpp"
-#include "common/topology.hpp"
+#include "common/config/topology.hpp"
+#include "common/config/tracker_node.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "services/common/proto_convert.hpp"
 #include "tests/support/cluster_streams.hpp"
@@ -22,7 +23,7 @@
 #include "tests/support/process_cluster.hpp"
 #include "tests/support/scratch_dir.hpp"
 #include "tests/support/topology_builders.hpp"
-#include "tools/fogctl/launcher.hpp"
+#include "harness/launcher.hpp"
 
 namespace fogmap {
 namespace {
@@ -62,7 +63,7 @@ TEST(KittiTracking, TheCarsAheadKeepTheirTrackIdsFromFrameToFrame) {
   const fs::path topology_file = dir.path() / "topology.yaml";
   const auto reloaded = test_support::writeTopology(topology_file, topology);
   ASSERT_TRUE(reloaded.ok()) << reloaded.error().message;
-  auto cluster = cli::startCluster(topology_file, *reloaded, dir.path() / "state", 60s);
+  auto cluster = harness::startCluster(topology_file, *reloaded, dir.path() / "state", 60s);
   ASSERT_TRUE(cluster.ok()) << cluster.error().message;
   const test_support::StopOnExit stop(*cluster);
 

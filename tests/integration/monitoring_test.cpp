@@ -24,10 +24,13 @@
 #include <utility>
 #include <vector>
 
-#include "common/topology.hpp"
+#include "common/config/topology.hpp"
+#include "common/config/topology_parse.hpp"
+#include "common/config/topology_presets.hpp"
+#include "common/config/topology_yaml.hpp"
 #include "tests/support/free_ports.hpp"
-#include "tools/fogctl/compose.hpp"
-#include "tools/fogctl/launcher.hpp"
+#include "harness/compose.hpp"
+#include "harness/launcher.hpp"
 
 namespace fogmap {
 namespace {
@@ -148,7 +151,7 @@ class PrometheusServer {
   bool started() const { return pid_ > 0; }
   // The answer of /api/v1/query, or the error.
   std::string query(const std::string& promql) const {
-    const auto body = cli::httpGet("127.0.0.1", port_, "/api/v1/query?query=" + urlEncode(promql), 2000ms);
+    const auto body = harness::httpGet("127.0.0.1", port_, "/api/v1/query?query=" + urlEncode(promql), 2000ms);
     return body.ok() ? *body : "error: " + body.error().message;
   }
   // True when the query succeeded with at least one sample.
@@ -191,7 +194,7 @@ TEST(Monitoring, PromtoolAcceptsTheRulesAndTheirUnitTests) {
 // Every committed file that a command generates records the command in its header; running it
 // again must give the same file.
 TEST(Monitoring, CommittedDeploymentFilesAreWhatTheirCommandsGenerate) {
-  const std::string fogctl = (cli::binaryDir() / "fogctl").string();
+  const std::string fogctl = (harness::binaryDir() / "fogctl").string();
   std::vector<fs::path> checked;
   for (const char* compose : {"compose.yaml", "compose.tree.yaml"}) {
     std::istringstream lines(readFile(kSource / compose));
@@ -222,11 +225,11 @@ TEST(Monitoring, CommittedDeploymentFilesAreWhatTheirCommandsGenerate) {
 
 TEST(Monitoring, ComposeRefusesFilesOutsideTheMountedDirectoryAndReservedNames) {
   TopologyConfig t = makeStarTopology(2, kSource / "data" / "kitti_raw_seq_a", 41000);
-  cli::ComposeOptions options;
+  harness::ComposeOptions options;
   options.topology_file = kSource / "docker" / "topologies" / "star-4.yaml";
   options.project_dir = kSource;
   options.prometheus_config = "docker/prometheus/prometheus.yml";
-  const auto ok = cli::composeFile(t, options);
+  const auto ok = harness::composeFile(t, options);
   ASSERT_TRUE(ok.ok()) << ok.error().message;
   for (const NodeConfig& node : t.nodes) {
     EXPECT_NE(ok->find("  " + node.name + ":\n"), std::string::npos) << node.name;
@@ -236,14 +239,14 @@ TEST(Monitoring, ComposeRefusesFilesOutsideTheMountedDirectoryAndReservedNames) 
         << *ok;
   }
   t.nodes[1].sensor->source = "/somewhere/else";
-  const auto outside = cli::composeFile(t, options);
+  const auto outside = harness::composeFile(t, options);
   ASSERT_FALSE(outside.ok());
   EXPECT_NE(outside.error().message.find("edge-1's sensor source /somewhere/else lies outside"), std::string::npos)
       << outside.error().message;
   t = makeStarTopology(2, kSource / "data" / "kitti_raw_seq_a", 41000);
   t.nodes[0].name = "prometheus";
   t.nodes[1].parent = t.nodes[2].parent = "prometheus";
-  const auto reserved = cli::composeFile(t, options);
+  const auto reserved = harness::composeFile(t, options);
   ASSERT_FALSE(reserved.ok());
   EXPECT_NE(reserved.error().message.find("node 'prometheus' has the name of the deployment's prometheus service"),
             std::string::npos)
@@ -253,7 +256,7 @@ TEST(Monitoring, ComposeRefusesFilesOutsideTheMountedDirectoryAndReservedNames) 
 TEST(Monitoring, EveryDashboardQueryAndRuleHasDataFromARealPrometheusAndAKilledEdgeFiresTheAlert) {
   REQUIRE_PROMETHEUS();
   const fs::path dir = scratchDir("cluster");
-  const std::string fogctl = (cli::binaryDir() / "fogctl").string();
+  const std::string fogctl = (harness::binaryDir() / "fogctl").string();
   // The star the deployment runs, smaller: 3 edges, the root, the tracker and a camera node running
   // HOG on the bundled KITTI frames (at 2 Hz: the test machine's cores go to the LiDAR pipeline).
   const fs::path topology_file = dir / "monitoring.yaml";
@@ -280,7 +283,7 @@ TEST(Monitoring, EveryDashboardQueryAndRuleHasDataFromARealPrometheusAndAKilledE
 
   // Each service's exposition passes promtool's lint.
   for (const NodeConfig& n : t.nodes) {
-    const auto text = cli::httpGet(n.host, n.metrics_port, "/metrics", 2000ms);
+    const auto text = harness::httpGet(n.host, n.metrics_port, "/metrics", 2000ms);
     ASSERT_TRUE(text.ok()) << n.name;
     std::ofstream(dir / (n.name + ".prom")) << *text;
     const auto [code, problems] = run("promtool check metrics < " + (dir / (n.name + ".prom")).string());
@@ -288,12 +291,12 @@ TEST(Monitoring, EveryDashboardQueryAndRuleHasDataFromARealPrometheusAndAKilledE
     EXPECT_EQ(problems, "") << n.name;
   }
 
-  cli::PrometheusOptions scrape;
+  harness::PrometheusOptions scrape;
   scrape.rule_files = {(kSource / "docker" / "prometheus" / "rules.yml").string()};
   scrape.scrape_interval = "1s";
   scrape.evaluation_interval = "1s";
   scrape.command = "monitoring_test";
-  const std::string config = cli::prometheusConfig(t, scrape);
+  const std::string config = harness::prometheusConfig(t, scrape);
   std::ofstream(dir / "check.yml") << config;
   const auto [config_code, config_check] = run("promtool check config " + (dir / "check.yml").string());
   EXPECT_EQ(config_code, 0) << config_check;

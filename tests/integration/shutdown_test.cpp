@@ -27,13 +27,15 @@
 
 #include <grpcpp/grpcpp.h>
 
-#include "common/clock.hpp"
-#include "common/epochs.hpp"
+#include "common/base/clock.hpp"
+#include "common/base/epochs.hpp"
+#include "common/config/topology_presets.hpp"
+#include "common/config/topology_yaml.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "services/common/grpc_options.hpp"
 #include "services/common/proto_convert.hpp"
 #include "tests/support/free_ports.hpp"
-#include "tools/fogctl/launcher.hpp"
+#include "harness/launcher.hpp"
 
 namespace fogmap {
 namespace {
@@ -57,7 +59,7 @@ std::filesystem::path scratchDir(const std::string& name) {
   return dir;
 }
 
-const cli::RunningNode& nodeNamed(const cli::Cluster& cluster, const std::string& name) {
+const harness::RunningNode& nodeNamed(const harness::Cluster& cluster, const std::string& name) {
   for (const auto& n : cluster.nodes) {
     if (n.name == name) return n;
   }
@@ -287,13 +289,13 @@ TopologyConfig withFreePorts(TopologyConfig t, const std::string& name) {
   return t;
 }
 
-Expected<cli::Cluster> start(const TopologyConfig& t, const std::filesystem::path& dir) {
+Expected<harness::Cluster> start(const TopologyConfig& t, const std::filesystem::path& dir) {
   const auto file = dir / (t.name + ".yaml");
   std::ofstream(file) << toYaml(t);
-  return cli::startCluster(file, t, dir / t.name, 30s);
+  return harness::startCluster(file, t, dir / t.name, 30s);
 }
 
-std::string target(const NodeConfig& node) { return node.host + ":" + std::to_string(node.port); }
+std::string target(const NodeConfig& node) { return endpoint(node.host, node.port); }
 
 std::string missingMarks(const std::vector<Mark>& applied, const std::set<Mark>& seen) {
   std::string out;
@@ -338,7 +340,7 @@ TEST(Shutdown, RootExitsWithinItsDeadlineAndPublishesEveryAppliedUploadFirst) {
   }
   EXPECT_TRUE(exitedCleanlyWithin(root_exit, kAggregatorDeadline));
   EXPECT_GE(applied, 200U);
-  cli::stopCluster(*cluster, 5000ms);
+  harness::stopCluster(*cluster, 5000ms);
   if (!HasFailure()) std::filesystem::remove_all(dir);
 }
 
@@ -380,7 +382,7 @@ TEST(Shutdown, EdgeExitsPromptlyAndAnIntermediateFlushesToItsParent) {
   }
   EXPECT_TRUE(exitedCleanlyWithin(edge_exit, kEdgeDeadline)) << "edge-2";
   EXPECT_TRUE(exitedCleanlyWithin(intermediate_exit, kAggregatorDeadline)) << "agg-1";
-  cli::stopCluster(*cluster, 5000ms);
+  harness::stopCluster(*cluster, 5000ms);
   if (!HasFailure()) std::filesystem::remove_all(dir);
 }
 

@@ -21,17 +21,18 @@
 
 #include <grpcpp/grpcpp.h>
 
-#include "common/certs.hpp"
-#include "common/clock.hpp"
-#include "common/epochs.hpp"
-#include "common/geofence.hpp"
+#include "common/certs/certs.hpp"
+#include "common/base/clock.hpp"
+#include "common/base/epochs.hpp"
+#include "common/config/topology_presets.hpp"
+#include "common/geometry/geofence.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "services/common/grpc_options.hpp"
 #include "services/common/proto_convert.hpp"
 #include "tests/support/cluster_control.hpp"
 #include "tests/support/free_ports.hpp"
-#include "tools/fogctl/cluster_run.hpp"
-#include "tools/fogctl/launcher.hpp"
+#include "harness/cluster_run.hpp"
+#include "harness/launcher.hpp"
 
 namespace fogmap {
 namespace {
@@ -212,7 +213,7 @@ TEST(MutualTls, OnlyTheHonestChildrensDataIsAppliedAndEveryAttemptIsTurnedAway) 
   no_certificate.pem_root_certs = ca->cert;
 
   const NodeConfig& root = *t.root();
-  const std::string target = root.host + ":" + std::to_string(root.port);
+  const std::string target = endpoint(root.host, root.port);
   const auto channel = [&](const std::shared_ptr<grpc::ChannelCredentials>& credentials) {
     return makeChannel(target, credentials, 64U << 20);
   };
@@ -227,11 +228,11 @@ TEST(MutualTls, OnlyTheHonestChildrensDataIsAppliedAndEveryAttemptIsTurnedAway) 
   std::uint64_t denied_geofences = 0;
   std::string metrics_page;
   std::map<std::string, std::string> sender_pages;  // each edge's and agg-1's /metrics after the attacks
-  cli::RunOptions options;
+  harness::RunOptions options;
   options.frames = std::numeric_limits<std::uint64_t>::max();  // everything the edges publish
   options.timeout = 120s;
   options.identity = "operator";
-  const auto result = cli::runCluster(dir, t, options, [&](const cli::Cluster& cluster) {
+  const auto result = harness::runCluster(dir, t, options, [&](const harness::Cluster& cluster) {
     const test_support::EdgesStopper stop_edges(cluster, t);  // once the attacks are over
     // Subscribe is open to any certificate the CA issued: the intruder watches, and the attacks
     // start once a global map with every honest sensor came out.
@@ -324,11 +325,11 @@ TEST(MutualTls, OnlyTheHonestChildrensDataIsAppliedAndEveryAttemptIsTurnedAway) 
     })) << "nothing complete was published after the attacks";
     for (const auto& n : t.nodes) {
       if (n.name == root.name) continue;
-      const auto sender = cli::httpGet(n.host, n.metrics_port, "/metrics", 2000ms);
+      const auto sender = harness::httpGet(n.host, n.metrics_port, "/metrics", 2000ms);
       ASSERT_TRUE(sender.ok()) << n.name << ": " << sender.error().message;
       sender_pages[n.name] = *sender;
     }
-    const auto page = cli::httpGet(root.host, root.metrics_port, "/metrics", 2000ms);
+    const auto page = harness::httpGet(root.host, root.metrics_port, "/metrics", 2000ms);
     ASSERT_TRUE(page.ok()) << page.error().message;
     metrics_page = *page;
   });

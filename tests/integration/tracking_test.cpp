@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "common/epochs.hpp"
+#include "common/base/epochs.hpp"
 #include "common/sim/generators.hpp"
 #include "common/sim/scene.hpp"
 #include "common/sim/scene_topology.hpp"
@@ -25,10 +25,10 @@
 #include "tests/support/free_ports.hpp"
 #include "tests/support/process_cluster.hpp"
 #include "tests/support/scratch_dir.hpp"
-#include "tools/fogctl/launcher.hpp"
-#include "tools/fogctl/scene_picture.hpp"
-#include "tools/fogctl/scene_run.hpp"
-#include "tools/fogctl/track_scoring.hpp"
+#include "harness/launcher.hpp"
+#include "pictures/scene_picture.hpp"
+#include "harness/scene_run.hpp"
+#include "harness/track_scoring.hpp"
 
 namespace fogmap {
 namespace {
@@ -57,7 +57,7 @@ TEST(TrackingCluster, TracksFromLidarsAndCamerasFollowTheSimulatedPeopleWithThei
   ASSERT_TRUE(reloaded.ok()) << reloaded.error().message;
   ASSERT_EQ(reloaded->camerasOf("tracker").size(), 2U);
 
-  auto cluster = cli::startCluster(topology_file, *reloaded, dir.path() / "state", 60s);
+  auto cluster = harness::startCluster(topology_file, *reloaded, dir.path() / "state", 60s);
   ASSERT_TRUE(cluster.ok()) << cluster.error().message;
   const test_support::StopOnExit stop(*cluster);
 
@@ -80,7 +80,7 @@ TEST(TrackingCluster, TracksFromLidarsAndCamerasFollowTheSimulatedPeopleWithThei
   std::size_t labelled_right = 0;
   std::size_t labelled = 0;
   std::vector<double> person_errors;
-  std::vector<cli::TrackingFrame> frames;
+  std::vector<harness::TrackingFrame> frames;
   std::int64_t first_ns = 0;
   while (scored < 100 && track_lists.read(list)) {
     ++lists;
@@ -90,15 +90,15 @@ TEST(TrackingCluster, TracksFromLidarsAndCamerasFollowTheSimulatedPeopleWithThei
     if (!map) continue;  // the tracks of a map the recorder did not get
     ++scored;
     // The LiDAR frame's instant: the scan its epoch replays, as the edges pick it.
-    const double t = cli::sceneTimeOf(scene, *schedule, 1000.0 / reloaded->period_ms, list.lidar_time_ns());
+    const double t = harness::sceneTimeOf(scene, *schedule, 1000.0 / reloaded->period_ms, list.lidar_time_ns());
     std::vector<tracking::Track> tracks;
     for (const auto& proto : list.tracks()) {
       const auto track = fromProto(proto);
       ASSERT_TRUE(track.ok()) << track.error().message;
       tracks.push_back(*track);
     }
-    frames.push_back(cli::trackingFrame(scene, t, tracks));
-    const cli::TrackingFrame& frame = frames.back();
+    frames.push_back(harness::trackingFrame(scene, t, tracks));
+    const harness::TrackingFrame& frame = frames.back();
     for (std::size_t i = 0; i < frame.mot.truth.size(); ++i) {
       const Eigen::Vector2d truth = frame.mot.truth[i].position;
       const std::string& label = frame.truth_labels[i];
@@ -133,7 +133,7 @@ TEST(TrackingCluster, TracksFromLidarsAndCamerasFollowTheSimulatedPeopleWithThei
               "labels %zu of %zu right\n",
               covered, observable, coverage, person_error, person_errors.size(), labelled_right, labelled);
   ASSERT_EQ(scored, 100) << lists << " track lists in all";
-  const auto mot = cli::scoreTracking(frames);
+  const auto mot = harness::scoreTracking(frames);
   ASSERT_TRUE(mot.ok()) << mot.error().message;
   std::printf("tracking cluster, every moving object (1 m gate): MOTA %.3f, IDF1 %.3f, %zu ID switches, error mean %.3f m",
               mot->mot.clear.mota, mot->mot.identity.idf1, mot->mot.clear.id_switches, mot->mot.localization.mean_m);
@@ -151,7 +151,7 @@ TEST(TrackingCluster, TracksFromLidarsAndCamerasFollowTheSimulatedPeopleWithThei
   EXPECT_GE(static_cast<double>(labelled_right), 0.95 * static_cast<double>(labelled));
 }
 
-// fogctl demo --scene's tracking run (tools/fogctl/scene_run): the cluster of `fogctl topology
+// fogctl demo --scene's tracking run (harness/scene_run): the cluster of `fogctl topology
 // --scene F --tracker` as processes, its tracker's published tracks read, placed at their scene
 // instants and scored against the truth, and drawn.
 TEST(TrackingCluster, TheDemosTrackingRunScoresThePublishedTracksAgainstTheTruth) {
@@ -169,16 +169,16 @@ TEST(TrackingCluster, TheDemosTrackingRunScoresThePublishedTracksAgainstTheTruth
     std::ofstream out(scene_file);
     out << sim::toYaml(scene);
   }
-  ASSERT_TRUE(cli::tracksScene(scene));
-  cli::SceneTrackingOptions options;
+  ASSERT_TRUE(harness::tracksScene(scene));
+  harness::SceneTrackingOptions options;
   options.free_ports = true;
   options.warmup_lists = 30;
   options.scored_lists = 40;
-  const auto run = cli::runSceneTracking(dir.path(), scene_file, scene, options);
+  const auto run = harness::runSceneTracking(dir.path(), scene_file, scene, options);
   ASSERT_TRUE(run.ok()) << run.error().message;
-  const auto scored = cli::scoreSceneTracking(scene, *run, options);
+  const auto scored = harness::scoreSceneTracking(scene, *run, options);
   ASSERT_TRUE(scored.ok()) << scored.error().message;
-  std::printf("%s", cli::sceneTrackingText(*scored, options, 4).c_str());
+  std::printf("%s", harness::sceneTrackingText(*scored, options, 4).c_str());
 
   // The window: 40 lists after 30, their scene instants one frame apart within one cycle.
   EXPECT_EQ(scored->frames, 40U);
@@ -198,7 +198,7 @@ TEST(TrackingCluster, TheDemosTrackingRunScoresThePublishedTracksAgainstTheTruth
   EXPECT_LE(scored->latency_p95_ms, scored->latency_max_ms);
   EXPECT_LT(scored->latency_p50_ms, 1000.0);
 
-  const std::string json = cli::sceneTrackingJson(*scored, options, 4);
+  const std::string json = harness::sceneTrackingJson(*scored, options, 4);
   for (const char* key : {"\"mota\": ", "\"motp_m\": ", "\"id_switches\": ", "\"idf1\": ", "\"loc_error_mean_m\": ",
                           "\"loc_error_max_m\": ", "\"tracks_confirmed\": ", "\"fragmentations\": ", "\"e2e_p50_ms\": "}) {
     EXPECT_NE(json.find(key), std::string::npos) << key << " in " << json;
@@ -208,11 +208,11 @@ TEST(TrackingCluster, TheDemosTrackingRunScoresThePublishedTracksAgainstTheTruth
   // The picture of the last scored list, with the tracks held then (birdseye_test checks how they
   // are drawn).
   const std::size_t last = scored->first_list + scored->frames - 1;
-  const auto tracks = cli::birdseyeTracks(run->lists, last, 30);
-  EXPECT_TRUE(std::any_of(tracks.begin(), tracks.end(), [](const cli::BirdseyeTrack& t) { return t.confirmed && !t.trail.empty(); }))
+  const auto tracks = pictures::birdseyeTracks(run->lists, last, 30);
+  EXPECT_TRUE(std::any_of(tracks.begin(), tracks.end(), [](const pictures::BirdseyeTrack& t) { return t.confirmed && !t.trail.empty(); }))
       << tracks.size() << " tracks";
   const fs::path png = dir.path() / "tracks.png";
-  const Status drawn = cli::drawSceneTracks(png, scene, *run, last, 30);
+  const Status drawn = pictures::drawSceneTracks(png, scene, *run, last, 30);
   ASSERT_TRUE(drawn.ok()) << drawn.error().message;
   EXPECT_GT(fs::file_size(png), 20000U);
 }

@@ -10,10 +10,11 @@
 
 #include <gtest/gtest.h>
 
-#include "common/cloud_io.hpp"
-#include "common/clustering.hpp"
-#include "common/preprocess.hpp"
-#include "common/virtual_lidar.hpp"
+#include "common/config/displacement_node.hpp"
+#include "common/io/cloud_io.hpp"
+#include "common/perception/clustering.hpp"
+#include "common/perception/preprocess.hpp"
+#include "common/perception/virtual_lidar.hpp"
 #include "services/common/proto_convert.hpp"
 
 namespace fogmap {

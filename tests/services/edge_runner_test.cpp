@@ -18,7 +18,7 @@
 
 #include <gtest/gtest.h>
 
-#include "common/cloud_io.hpp"
+#include "common/io/cloud_io.hpp"
 #include "services/common/metrics.hpp"
 #include "services/edge_cluster/edge_metrics.hpp"
 #include "tests/support/metric_values.hpp"

@@ -20,7 +20,7 @@
 
 #include <grpcpp/grpcpp.h>
 
-#include "common/clock.hpp"
+#include "common/base/clock.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "tests/support/eventually.hpp"
 #include "tests/support/test_server.hpp"

@@ -11,8 +11,8 @@
 
 #include <gtest/gtest.h>
 
-#include "common/cloud_io.hpp"
-#include "common/virtual_lidar.hpp"
+#include "common/io/cloud_io.hpp"
+#include "common/perception/virtual_lidar.hpp"
 
 namespace fogmap {
 namespace {

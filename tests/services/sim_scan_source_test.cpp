@@ -13,7 +13,7 @@
 
 #include <gtest/gtest.h>
 
-#include "common/cloud_io.hpp"
+#include "common/io/cloud_io.hpp"
 #include "common/sim/generators.hpp"
 #include "common/sim/raycaster.hpp"
 #include "common/sim/scene.hpp"

@@ -1,5 +1,5 @@
 #pragma once
-// Pacing a cluster that cli::runCluster runs by what it does, not by the clock: wait for the root
+// Pacing a cluster that harness::runCluster runs by what it does, not by the clock: wait for the root
 // to publish a global map the test needs, and let the edges replay until the test stops them, so
 // a run lasts as long as the test's part does, however slow the machine.
 #include <chrono>
@@ -9,12 +9,12 @@
 
 #include <grpcpp/grpcpp.h>
 
-#include "common/messages.hpp"
-#include "common/topology.hpp"
+#include "common/io/messages.hpp"
+#include "common/config/topology.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "services/common/grpc_options.hpp"
 #include "services/common/proto_convert.hpp"
-#include "tools/fogctl/launcher.hpp"
+#include "harness/launcher.hpp"
 
 namespace fogmap::test_support {
 
@@ -24,7 +24,7 @@ class RootSubscription {
   // Subscribes to the root of `topology`; the call ends after `timeout` at the latest.
   RootSubscription(const TopologyConfig& topology, std::chrono::milliseconds timeout)
       : stub_(v1::GlobalMapService::NewStub(
-            makeChannel(topology.root()->host + ":" + std::to_string(topology.root()->port), 64U << 20))) {
+            makeChannel(endpoint(topology.root()->host, topology.root()->port), 64U << 20))) {
     context_.set_deadline(std::chrono::system_clock::now() + timeout);
     v1::SubscribeRequest request;
     request.set_on_time_only(true);
@@ -67,21 +67,21 @@ inline void replayUntilStopped(TopologyConfig& topology) {
 }
 
 // Stops the cluster's edges when it goes out of scope, however the test's part ends (an assertion
-// may end it early); cli::runCluster then ends once the root has published what they sent.
+// may end it early); harness::runCluster then ends once the root has published what they sent.
 class EdgesStopper {
  public:
-  EdgesStopper(const cli::Cluster& cluster, const TopologyConfig& topology) {
+  EdgesStopper(const harness::Cluster& cluster, const TopologyConfig& topology) {
     for (const auto& n : cluster.nodes) {
       const NodeConfig* config = topology.find(n.name);
       if (config != nullptr && config->role == Role::kEdge) edges_.push_back(n);
     }
   }
-  ~EdgesStopper() { cli::stopNodes(edges_, std::chrono::seconds(5)); }
+  ~EdgesStopper() { harness::stopNodes(edges_, std::chrono::seconds(5)); }
   EdgesStopper(const EdgesStopper&) = delete;
   EdgesStopper& operator=(const EdgesStopper&) = delete;
 
  private:
-  std::vector<cli::RunningNode> edges_;
+  std::vector<harness::RunningNode> edges_;
 };
 
 }  // namespace fogmap::test_support

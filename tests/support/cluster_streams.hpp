@@ -12,8 +12,8 @@
 
 #include <grpcpp/grpcpp.h>
 
-#include "common/map.hpp"
-#include "common/topology.hpp"
+#include "common/geometry/map.hpp"
+#include "common/config/topology.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "services/common/grpc_options.hpp"
 #include "services/common/proto_convert.hpp"
@@ -22,7 +22,7 @@ namespace fogmap::test_support {
 
 // A channel to the node's gRPC port, with room for large maps.
 inline std::shared_ptr<grpc::Channel> channelTo(const NodeConfig& node) {
-  return makeChannel(node.host + ":" + std::to_string(node.port), 64U << 20);
+  return makeChannel(endpoint(node.host, node.port), 64U << 20);
 }
 
 // A Subscribe call to the root's GlobalMapService (maps published on time only), read in a thread

@@ -1,10 +1,10 @@
 #pragma once
 // Loopback ports for tests, chosen free at run time: the one implementation is fogctl's.
-#include "tools/fogctl/free_ports.hpp"
+#include "harness/free_ports.hpp"
 
 namespace fogmap::test_support {
 
-using cli::freePorts;
-using cli::useFreePorts;
+using harness::freePorts;
+using harness::useFreePorts;
 
 }  // namespace fogmap::test_support

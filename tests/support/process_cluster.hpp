@@ -5,9 +5,11 @@
 #include <filesystem>
 #include <fstream>
 
-#include "common/status.hpp"
-#include "common/topology.hpp"
-#include "tools/fogctl/launcher.hpp"
+#include "common/base/status.hpp"
+#include "common/config/topology.hpp"
+#include "common/config/topology_parse.hpp"
+#include "common/config/topology_yaml.hpp"
+#include "harness/launcher.hpp"
 
 namespace fogmap::test_support {
 
@@ -23,14 +25,14 @@ inline Expected<TopologyConfig> writeTopology(const std::filesystem::path& file,
 // Stops a started cluster when it goes out of scope: SIGTERM, SIGKILL after the grace period.
 class StopOnExit {
  public:
-  explicit StopOnExit(const cli::Cluster& cluster, std::chrono::milliseconds grace = std::chrono::seconds(5))
+  explicit StopOnExit(const harness::Cluster& cluster, std::chrono::milliseconds grace = std::chrono::seconds(5))
       : cluster_(cluster), grace_(grace) {}
-  ~StopOnExit() { cli::stopCluster(cluster_, grace_); }
+  ~StopOnExit() { harness::stopCluster(cluster_, grace_); }
   StopOnExit(const StopOnExit&) = delete;
   StopOnExit& operator=(const StopOnExit&) = delete;
 
  private:
-  const cli::Cluster& cluster_;
+  const harness::Cluster& cluster_;
   std::chrono::milliseconds grace_;
 };
 

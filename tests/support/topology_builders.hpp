@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <string>
 
-#include "common/topology.hpp"
+#include "common/config/topology.hpp"
 
 namespace fogmap::test_support {
 

@@ -1,12 +1,23 @@
 #pragma once
-// Minimal "--flag value" parsing for fogctl subcommands; unknown flags are errors.
+// Minimal "--flag value" parsing for fogctl's commands (unknown flags are errors), and what the
+// flags several commands share mean: the state directory of up and down, the root connection of
+// watch and geofence, the clustering flags of cluster and bench.
+#include <filesystem>
 #include <map>
+#include <memory>
 #include <optional>
 #include <set>
 #include <string>
 #include <vector>
 
-#include "common/status.hpp"
+#include "common/base/status.hpp"
+#include "common/config/topology.hpp"
+#include "common/geometry/cloud.hpp"
+#include "common/perception/clustering.hpp"
+
+namespace grpc {
+class ChannelCredentials;
+}  // namespace grpc
 
 namespace fogmap::cli {
 
@@ -29,5 +40,38 @@ class Args {
 
 // Prints "WHO: message" on stderr and returns the exit code: 2 for invalid arguments, else 1.
 int fail(const Error& error, const std::string& who = "fogctl");
+
+// State directories are absolute, so that up and down find the same one from any working
+// directory: --state is taken relative to where fogctl runs, the default (.fogmap/NAME) relative
+// to the topology file.
+Expected<std::filesystem::path> absoluteDir(const std::filesystem::path& dir);
+Expected<std::filesystem::path> stateDir(const Args& args, const std::filesystem::path& topology_file, const TopologyConfig& t);
+
+// The client identity flags of the commands that talk to the root, for their usage text.
+inline constexpr const char* kTlsFlagsUsage =
+    "With TLS (the topology's tls section) fogctl presents a client certificate:\n"
+    "  --identity NAME  NAME.crt and NAME.key in the topology's tls.cert_dir (default: operator)\n"
+    "  --cert FILE --key FILE --ca FILE   explicit files instead (with --target, no topology needed)\n";
+
+// How fogctl reaches the root aggregator (or a tracker): its address and the transport credentials.
+struct RootConnection {
+  std::string target;
+  std::shared_ptr<grpc::ChannelCredentials> credentials;
+};
+
+// The root's address: --target HOST:PORT, or the root (`server` kTracker: the first tracker) of
+// the topology file given. The credentials: --cert, --key and --ca when given; else, when the
+// topology has a tls section, the certificate of --identity NAME (default: operator) in its
+// cert_dir; else plaintext. Every file is read and checked here, so a problem is reported before
+// any connection is tried. `usage` is the error without a topology or a target.
+Expected<RootConnection> rootConnection(const Args& args, const std::string& usage, Role server = Role::kAggregator);
+
+// --eps, --min-points and --threads, validated.
+Expected<ClusteringParams> clusteringParams(const Args& args);
+
+// Reads --input within --max-scan-bytes (--remove-ground: the points above the ground); non-finite
+// points are kept in place (they cluster as noise) when `keep_non_finite`, so that the cloud lines
+// up with the file point for point. Says on stderr how many non-finite points it met.
+Expected<Cloud> loadScan(const Args& args, bool keep_non_finite);
 
 }  // namespace fogmap::cli

@@ -16,8 +16,9 @@
 #include <string>
 #include <vector>
 
-#include "common/certs.hpp"
-#include "common/topology.hpp"
+#include "common/certs/certs.hpp"
+#include "common/config/topology.hpp"
+#include "common/config/topology_parse.hpp"
 #include "tools/fogctl/args.hpp"
 #include "tools/fogctl/commands.hpp"
 
@@ -78,8 +79,6 @@ std::string dateOf(std::chrono::system_clock::time_point t) {
   std::strftime(text, sizeof text, "%Y-%m-%d %H:%M UTC", &utc);
   return text;
 }
-
-}  // namespace
 
 int runCerts(int argc, char** argv) {
   const std::string usage =
@@ -163,6 +162,25 @@ int runCerts(int argc, char** argv) {
     std::printf("note: the topology's tls.ca is %s, not this CA\n", topology->tls->ca.c_str());
   }
   return 0;
+}
+
+}  // namespace
+
+Command certsCommand() {
+  return {"certs",
+          "TOPOLOGY.yaml --out DIR [--days 365] [--clients operator,...]   a CA and certificates for mutual TLS",
+          "usage: fogctl certs TOPOLOGY.yaml --out DIR [--days 365] [--clients operator,...] [--owner UID] [--force]\n"
+          "Makes a CA (DIR/ca.crt, ca.key) and a certificate for every node of the topology and every client\n"
+          "named (DIR/NAME.crt, NAME.key; keys readable by their owner only), EC P-256, signed by the CA.\n"
+          "A certificate's common name is its holder's identity; a node's also names its host (IP\n"
+          "subjectAltName), so its peers verify HOST:PORT. Point the topology at them: tls: {ca: DIR/ca.crt}.\n"
+          "  --days N       valid from now for N days (default 365)\n"
+          "  --clients A,B  client identities besides the nodes, for fogctl --identity\n"
+          "                 (default: operator and the topology's tls.geofence_clients)\n"
+          "  --owner UID    give the nodes' private keys to UID (as root): the user the services run as,\n"
+          "                 10001 in the fogmap image (fogctl compose)\n"
+          "  --force        replace a CA already in DIR (what it issued is no longer trusted)\n",
+          runCerts};
 }
 
 }  // namespace fogmap::cli

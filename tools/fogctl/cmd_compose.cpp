@@ -1,4 +1,4 @@
-// fogctl compose: a docker compose deployment of a topology (tools/fogctl/compose.hpp).
+// fogctl compose: a docker compose deployment of a topology (harness/compose.hpp).
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -7,14 +7,20 @@
 #include <string>
 #include <string_view>
 
-#include "common/topology.hpp"
+#include "common/config/topology.hpp"
+#include "harness/compose.hpp"
+#include "harness/launcher.hpp"
 #include "tools/fogctl/args.hpp"
 #include "tools/fogctl/commands.hpp"
-#include "tools/fogctl/compose.hpp"
-#include "tools/fogctl/launcher.hpp"
 
 namespace fogmap::cli {
 namespace {
+
+using harness::ComposeOptions;
+using harness::PrometheusOptions;
+using harness::composeFile;
+using harness::loadStartableTopology;
+using harness::prometheusConfig;
 
 namespace fs = std::filesystem;
 
@@ -37,8 +43,6 @@ Expected<fs::path> absolutePath(const fs::path& path) {
   if (!normal.has_filename() && normal.has_parent_path() && normal != normal.root_path()) normal = normal.parent_path();
   return normal;
 }
-
-}  // namespace
 
 int runCompose(int argc, char** argv) {
   const std::string usage =
@@ -119,6 +123,27 @@ int runCompose(int argc, char** argv) {
   if (const Status written = writeText(args->get("out"), *compose); !written.ok()) return fail(written.error(), "fogctl compose");
   std::cout << "wrote " << args->get("out") << " and " << prometheus.string() << "\n";
   return 0;
+}
+
+}  // namespace
+
+Command composeCommand() {
+  return {"compose",
+          "TOPOLOGY.yaml [--out FILE] [--prometheus FILE]   a docker compose deployment of the topology",
+          "usage: fogctl compose TOPOLOGY.yaml [--out FILE] [--prometheus FILE] [--image fogmap:latest]\n"
+          "                      [--prometheus-listen 127.0.0.1:9090] [--grafana-listen 127.0.0.1:3000] [--check]\n"
+          "Writes a docker compose file (to stdout unless --out) that runs every node of the topology as a\n"
+          "container of the fogmap image with host networking (each service listens where its topology entry\n"
+          "says, as under fogctl up), Prometheus scraping every service with the alert rules of\n"
+          "docker/prometheus/rules.yml, and Grafana with the provisioned dashboard (profile grafana). The\n"
+          "directory of the compose file is mounted read-only at /fogmap: the topology and every file it\n"
+          "names must lie inside it. Also writes the Prometheus configuration the deployment uses. The\n"
+          "topology is checked first as fogctl up checks it.\n"
+          "  --prometheus FILE  where (default: docker/prometheus/NAME.yml, NAME the topology's name)\n"
+          "  --image NAME       the fogmap image (default fogmap:latest, built from docker/Dockerfile)\n"
+          "  --check            write nothing; exit 1 when --out or the Prometheus file differ from what\n"
+          "                     the topology generates\n",
+          runCompose};
 }
 
 }  // namespace fogmap::cli

@@ -8,25 +8,61 @@
 #include <fstream>
 #include <map>
 #include <numeric>
+#include <optional>
 
-#include "common/rand_index.hpp"
+#include "common/config/topology.hpp"
+#include "common/config/topology_presets.hpp"
+#include "common/config/tracker_node.hpp"
+#include "common/scoring/rand_index.hpp"
 #include "common/sim/scene.hpp"
 #include "common/tracking/tracker_config.hpp"
-#include "common/topology.hpp"
+#include "harness/cluster_run.hpp"
+#include "harness/epoch_latency.hpp"
+#include "harness/launcher.hpp"
+#include "harness/report_text.hpp"
+#include "harness/scene_run.hpp"
+#include "harness/track_scoring.hpp"
+#include "pictures/birdseye.hpp"
+#include "pictures/scene_picture.hpp"
 #include "services/edge_cluster/scan_source.hpp"
 #include "tools/fogctl/args.hpp"
-#include "tools/fogctl/birdseye.hpp"
-#include "tools/fogctl/cluster_run.hpp"
 #include "tools/fogctl/commands.hpp"
-#include "tools/fogctl/epoch_latency.hpp"
-#include "tools/fogctl/launcher.hpp"
-#include "tools/fogctl/scene_picture.hpp"
-#include "tools/fogctl/scene_run.hpp"
-#include "tools/fogctl/track_scoring.hpp"
 
 namespace fogmap::cli {
 namespace {
 
+using harness::Accuracy;
+using harness::EdgeView;
+using harness::EpochLatencies;
+using harness::Json;
+using harness::RunOptions;
+using harness::SceneRunOptions;
+using harness::SceneScores;
+using harness::SceneTrackingOptions;
+using harness::accuracy;
+using harness::binaryDir;
+using harness::epochLatencies;
+using harness::installStopHandlers;
+using harness::jsonNumber;
+using harness::jsonText;
+using harness::lastCompleteView;
+using harness::movingObjects;
+using harness::percentile;
+using harness::recomputeEdges;
+using harness::runCluster;
+using harness::runScene;
+using harness::runSceneTracking;
+using harness::sceneTrackingReport;
+using harness::sceneTrackingText;
+using harness::scoreSceneRuns;
+using harness::scoreSceneTracking;
+using harness::stopRequested;
+using harness::tracksScene;
+using harness::writeCycledScene;
+using pictures::BirdseyeScene;
+using pictures::drawBirdseye;
+using pictures::drawSceneBirdseye;
+using pictures::drawSceneTracks;
 
 // The bird's-eye picture of a global map of recorded scans: the edges' points, the global objects
 // and the recording's LiDAR (every virtual LiDAR is a sector of it, at its place).
@@ -144,7 +180,7 @@ int runSceneDemo(const Args& args) {
     }
     std::printf("  bird's-eye view of epoch %lu: %s\n", static_cast<unsigned long>(last->first), png.c_str());
   }
-  std::string tracking_json;
+  std::optional<Json> tracking_report;
   if (tracks) {
     if (stopRequested()) return 1;
     std::printf("\nrunning the tracking cluster (%zu edges, a detection service per camera replaying the truth with %.0f %% "
@@ -157,7 +193,7 @@ int runSceneDemo(const Args& args) {
     if (!scored) return fail(scored.error(), "fogctl demo");
     const std::size_t moving = movingObjects(uncycled).size();
     std::fputs(sceneTrackingText(*scored, tracking_options, moving).c_str(), stdout);
-    tracking_json = sceneTrackingJson(*scored, tracking_options, moving);
+    tracking_report = sceneTrackingReport(*scored, tracking_options, moving);
     const std::filesystem::path tracks_png = args.get("tracks-png", (dir / "tracks.png").string());
     const std::size_t last_scored = scored->first_list + scored->frames - 1;
     constexpr std::size_t kTrailLists = 30;  // 3 s at 10 Hz
@@ -167,43 +203,42 @@ int runSceneDemo(const Args& args) {
     std::printf("  bird's-eye view of the last scored track list, with 3 s trails: %s\n", tracks_png.c_str());
   }
   const std::filesystem::path report = args.get("report", (dir / "report.json").string());
+  Json j;
+  j["scene"] = scene_path.string();
+  j["topology"] = shape;
+  j["nodes"] = scene->lidars.size();
+  j["frames"] = s.frames;
+  j["frames_vs_baseline"] = s.frames_vs_baseline;
+  j["alpha"] = jsonNumber(*alpha);
+  j["bytes_madc_per_frame"] = jsonNumber(s.madc_bytes_per_frame);
+  j["bytes_baseline_per_frame"] = jsonNumber(s.baseline_bytes_per_frame);
+  j["bytes_ratio"] = jsonNumber(ratio);
+  j["bytes_raw_per_frame"] = jsonNumber(s.raw_bytes_per_frame);
+  j["rand_index_mean"] = jsonNumber(s.madc_vs_baseline.rand_index);
+  j["ari_mean"] = jsonNumber(s.madc_vs_baseline.adjusted_rand_index);
+  j["rand_index_points_mean"] = jsonNumber(s.ext_vs_baseline.rand_index);
+  j["rand_index_truth_mean"] = jsonNumber(s.madc_vs_truth.rand_index);
+  j["ari_truth_mean"] = jsonNumber(s.madc_vs_truth.adjusted_rand_index);
+  j["baseline_rand_index_truth_mean"] = jsonNumber(s.baseline_vs_truth.rand_index);
+  j["baseline_ari_truth_mean"] = jsonNumber(s.baseline_vs_truth.adjusted_rand_index);
+  j["objects_true"] = s.madc_objects.objects_true;
+  j["objects_found_whole"] = s.madc_objects.found_whole;
+  j["objects_split"] = s.madc_objects.split;
+  j["objects_merged"] = s.madc_objects.merged;
+  j["objects_missed"] = s.madc_objects.missed;
+  j["baseline_objects_found_whole"] = s.baseline_objects.found_whole;
+  j["clustering_ms"] = jsonNumber(s.clustering_ms);
+  j["merge_ms"] = jsonNumber(s.merge_ms);
+  j["baseline_clustering_ms"] = jsonNumber(s.baseline_clustering_ms);
+  j["e2e_p50_ms"] = jsonNumber(s.madc_e2e_p50_ms);
+  j["baseline_e2e_p50_ms"] = jsonNumber(s.baseline_e2e_p50_ms);
+  if (tracking_report) j["tracking"] = *tracking_report;
   std::ofstream out(report);
-  out << "{\n"
-      << "  \"scene\": \"" << scene_path.string() << "\",\n"
-      << "  \"topology\": \"" << shape << "\",\n"
-      << "  \"nodes\": " << scene->lidars.size() << ",\n"
-      << "  \"frames\": " << s.frames << ",\n"
-      << "  \"frames_vs_baseline\": " << s.frames_vs_baseline << ",\n"
-      << "  \"alpha\": " << *alpha << ",\n"
-      << "  \"bytes_madc_per_frame\": " << s.madc_bytes_per_frame << ",\n"
-      << "  \"bytes_baseline_per_frame\": " << s.baseline_bytes_per_frame << ",\n"
-      << "  \"bytes_ratio\": " << ratio << ",\n"
-      << "  \"bytes_raw_per_frame\": " << s.raw_bytes_per_frame << ",\n"
-      << "  \"rand_index_mean\": " << s.madc_vs_baseline.rand_index << ",\n"
-      << "  \"ari_mean\": " << s.madc_vs_baseline.adjusted_rand_index << ",\n"
-      << "  \"rand_index_points_mean\": " << s.ext_vs_baseline.rand_index << ",\n"
-      << "  \"rand_index_truth_mean\": " << s.madc_vs_truth.rand_index << ",\n"
-      << "  \"ari_truth_mean\": " << s.madc_vs_truth.adjusted_rand_index << ",\n"
-      << "  \"baseline_rand_index_truth_mean\": " << s.baseline_vs_truth.rand_index << ",\n"
-      << "  \"baseline_ari_truth_mean\": " << s.baseline_vs_truth.adjusted_rand_index << ",\n"
-      << "  \"objects_true\": " << s.madc_objects.objects_true << ",\n"
-      << "  \"objects_found_whole\": " << s.madc_objects.found_whole << ",\n"
-      << "  \"objects_split\": " << s.madc_objects.split << ",\n"
-      << "  \"objects_merged\": " << s.madc_objects.merged << ",\n"
-      << "  \"objects_missed\": " << s.madc_objects.missed << ",\n"
-      << "  \"baseline_objects_found_whole\": " << s.baseline_objects.found_whole << ",\n"
-      << "  \"clustering_ms\": " << s.clustering_ms << ",\n"
-      << "  \"merge_ms\": " << s.merge_ms << ",\n"
-      << "  \"baseline_clustering_ms\": " << s.baseline_clustering_ms << ",\n"
-      << "  \"e2e_p50_ms\": " << s.madc_e2e_p50_ms << ",\n"
-      << "  \"baseline_e2e_p50_ms\": " << s.baseline_e2e_p50_ms << (tracks ? ",\n  \"tracking\": " + tracking_json : "") << "\n"
-      << "}\n";
+  out << jsonText(j);
   if (!out) return fail(ioError("cannot write " + report.string()), "fogctl demo");
   std::printf("  report: %s\n", report.c_str());
   return 0;
 }
-
-}  // namespace
 
 int runDemo(int argc, char** argv) {
   const auto args =
@@ -343,31 +378,57 @@ int runDemo(int argc, char** argv) {
     std::printf("  bird's-eye view of frame %lu: %s\n", static_cast<unsigned long>(last_epoch), png.c_str());
   }
   const std::filesystem::path report = args->get("report", (dir / "report.json").string());
+  Json j;
+  j["topology"] = shape;
+  j["nodes"] = *nodes;
+  j["input"] = input.string();
+  j["frames"] = compared.size();
+  j["epochs_published"] = madc->epochs.size();
+  j["alpha"] = jsonNumber(*alpha);
+  j["bytes_madc_per_frame"] = jsonNumber(madc_per_frame);
+  j["bytes_baseline_per_frame"] = jsonNumber(baseline_per_frame);
+  j["bytes_ratio"] = jsonNumber(ratio);
+  j["rand_index_mean"] = jsonNumber(mean(ri));
+  j["ari_mean"] = jsonNumber(mean(ari));
+  j["rand_index_points_mean"] = jsonNumber(mean(ri_points));
+  j["e2e_p50_ms"] = jsonNumber(percentile(e2e_ms, 0.5));
+  j["e2e_p99_ms"] = jsonNumber(percentile(e2e_ms, 0.99));
+  j["e2e_all_epochs_p99_ms"] = jsonNumber(percentile(e2e_all_ms, 0.99));
+  j["epochs_incomplete"] = incomplete;
+  j["epochs_without_sensor_time"] = latencies.without_sensor_time;
+  j["merge_p50_ms"] = jsonNumber(percentile(merge_ms, 0.5));
+  j["merge_p99_ms"] = jsonNumber(percentile(merge_ms, 0.99));
   std::ofstream out(report);
-  out << "{\n"
-      << "  \"topology\": \"" << shape << "\",\n"
-      << "  \"nodes\": " << *nodes << ",\n"
-      << "  \"input\": \"" << input.string() << "\",\n"
-      << "  \"frames\": " << compared.size() << ",\n"
-      << "  \"epochs_published\": " << madc->epochs.size() << ",\n"
-      << "  \"alpha\": " << *alpha << ",\n"
-      << "  \"bytes_madc_per_frame\": " << madc_per_frame << ",\n"
-      << "  \"bytes_baseline_per_frame\": " << baseline_per_frame << ",\n"
-      << "  \"bytes_ratio\": " << ratio << ",\n"
-      << "  \"rand_index_mean\": " << mean(ri) << ",\n"
-      << "  \"ari_mean\": " << mean(ari) << ",\n"
-      << "  \"rand_index_points_mean\": " << mean(ri_points) << ",\n"
-      << "  \"e2e_p50_ms\": " << percentile(e2e_ms, 0.5) << ",\n"
-      << "  \"e2e_p99_ms\": " << percentile(e2e_ms, 0.99) << ",\n"
-      << "  \"e2e_all_epochs_p99_ms\": " << percentile(e2e_all_ms, 0.99) << ",\n"
-      << "  \"epochs_incomplete\": " << incomplete << ",\n"
-      << "  \"epochs_without_sensor_time\": " << latencies.without_sensor_time << ",\n"
-      << "  \"merge_p50_ms\": " << percentile(merge_ms, 0.5) << ",\n"
-      << "  \"merge_p99_ms\": " << percentile(merge_ms, 0.99) << "\n"
-      << "}\n";
+  out << jsonText(j);
   if (!out) return fail(ioError("cannot write " + report.string()), "fogctl demo");
   std::printf("  report: %s\n", report.c_str());
   return 0;
+}
+
+}  // namespace
+
+Command demoCommand() {
+  return {"demo",
+          "[--input DIR | --scene FILE] [--nodes 4] [--topology star|tree] [--frames 20] [--report FILE] [--png FILE]",
+          "usage: fogctl demo [--input DIR] [--nodes 4] [--topology star|tree] [--frames 20] [--report FILE] [--png FILE]\n"
+          "                   [--alpha 1.5] [--base-port 46000] [--state DIR]\n"
+          "       fogctl demo --scene FILE [--topology star|tree] [--frames 10] [--report FILE] [--png FILE] [--alpha 1.5]\n"
+          "                   [--base-port 46000] [--state DIR] [--miss-rate 0.3] [--association kalman|paper]\n"
+          "                   [--tracker-input global_map|centroids] [--track-frames 100] [--tracks-png FILE]\n"
+          "Runs a local MAD-C cluster and the baseline over the same frames and compares them: bytes,\n"
+          "latency, Rand index; writes a JSON report and a bird's-eye PNG (under --state, default .fogmap/demo).\n"
+          "  --input DIR    recorded scans (default: the bundled KITTI frames), cut into --nodes virtual LiDARs\n"
+          "  --scene FILE   a simulated scene (fogctl scene): one edge per LiDAR of the scene, MAD-C-ext and the\n"
+          "                 baseline over its first --frames frames (replayed in a loop, so both see the same\n"
+          "                 frames), both also scored against the scene's truth (Rand index, ARI, objects found\n"
+          "                 whole, split, merged, missed). When something in the scene moves and it has cameras,\n"
+          "                 then also the cluster of fogctl topology --scene FILE --tracker: the tracker and a\n"
+          "                 detection service per camera replaying the truth (--miss-rate of it missed, 2 px box\n"
+          "                 jitter, 50 ms latency); after 30 track lists, --track-frames of them within one cycle\n"
+          "                 of the scene are scored against the truth (CLEAR MOT, IDF1, localization error, sensor\n"
+          "                 time to published tracks: the report's \"tracking\" object), and --tracks-png (default\n"
+          "                 tracks.png under --state) shows the last with the tracks, their ids, labels and trails\n",
+          runDemo};
 }
 
 }  // namespace fogmap::cli

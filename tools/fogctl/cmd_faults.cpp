@@ -1,15 +1,25 @@
-// fogctl faults: the fault harness (tools/fogctl/faults.hpp) from the command line.
+// fogctl faults: the fault harness (harness/faults.hpp) from the command line.
 #include <chrono>
 #include <fstream>
 #include <iostream>
 
-#include "common/topology.hpp"
+#include "common/config/topology.hpp"
+#include "harness/faults.hpp"
+#include "harness/launcher.hpp"
 #include "tools/fogctl/args.hpp"
 #include "tools/fogctl/commands.hpp"
-#include "tools/fogctl/faults.hpp"
-#include "tools/fogctl/launcher.hpp"
 
 namespace fogmap::cli {
+namespace {
+
+using harness::FaultPlan;
+using harness::FaultScenario;
+using harness::StallMethod;
+using harness::installStopHandlers;
+using harness::loadStartableTopology;
+using harness::parseScenario;
+using harness::summary;
+using harness::toJson;
 
 int runFaults(int argc, char** argv) {
   const auto args = Args::parse(argc, argv, 2,
@@ -56,7 +66,7 @@ int runFaults(int argc, char** argv) {
 
   installStopHandlers();
   const std::filesystem::path state = args->get("state", (file.parent_path() / ".fogmap" / "faults").string());
-  const auto report = runFaults(state, *topology, plan);
+  const auto report = harness::runFaults(state, *topology, plan);
   if (!report) return fail(report.error(), "fogctl faults");
   std::cout << summary(*report);
   const std::filesystem::path json = args->get("report", (state / topology->name / "faults.json").string());
@@ -65,6 +75,33 @@ int runFaults(int argc, char** argv) {
   if (!out) return fail(ioError("cannot write " + json.string()), "fogctl faults");
   std::cout << "report: " << json.string() << "\n";
   return report->passed() ? 0 : 1;
+}
+
+}  // namespace
+
+Command faultsCommand() {
+  return {"faults",
+          "TOPOLOGY.yaml --scenario soak|edge-crash|aggregator-crash|stall [--duration-s 60] [--seed 1] [--report FILE]",
+          "usage: fogctl faults TOPOLOGY.yaml [--scenario soak|edge-crash|aggregator-crash|stall] [--duration-s 60]\n"
+          "                     [--warmup-s 20] [--seed 1] [--kills 2] [--downtime-s S] [--report FILE] [--state DIR]\n"
+          "                     [--stall-by sigstop|netns] [--no-oracle]\n"
+          "Runs the topology as local processes under load, injects a fault at seeded times, and checks the\n"
+          "root's global maps: every map an edge's parent acknowledged reaches the root, none is applied twice,\n"
+          "every epoch is published, every global map equals the specification over its contributing nodes\n"
+          "(mode madc), and the fault's own bounds. Exits 0 when every check passes, 1 otherwise.\n"
+          "  --scenario S     soak (no fault), edge-crash (kill -9 of --kills edges, restarted after --downtime-s),\n"
+          "                   aggregator-crash (kill -9 of one non-root aggregator, restarted after --downtime-s),\n"
+          "                   stall (SIGSTOP of one non-root aggregator for --downtime-s, default 5)\n"
+          "  --stall-by M     sigstop (default), or netns: the aggregator runs in a network namespace of its\n"
+          "                   own and every packet of it is dropped with iptables (root, ip and iptables)\n"
+          "  --duration-s S   how long the load runs (default 60); --warmup-s: RSS growth is measured after it\n"
+          "  --seed N         chooses the victims and the times (default 1)\n"
+          "  --report FILE    the JSON report (default STATE/NAME/faults.json)\n"
+          "  --state DIR      logs, journals and the report (default .fogmap/faults next to the topology)\n"
+          "  --no-oracle      skip the comparison with the specification (it recomputes every edge's maps)\n"
+          "The long soak: fogctl topology tree --edges 8 --source data/kitti_raw_seq_a --out tree-8.yaml &&\n"
+          "               fogctl faults tree-8.yaml --scenario soak --duration-s 600 --warmup-s 60\n",
+          runFaults};
 }
 
 }  // namespace fogmap::cli

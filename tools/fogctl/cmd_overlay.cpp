@@ -1,5 +1,5 @@
 // fogctl overlay: a camera frame with LiDAR points, labelled 3D boxes and detections drawn over it
-// (tools/fogctl/camera_overlay.hpp), to check a calibration and a detector by eye.
+// (pictures/camera_overlay.hpp), to check a calibration and a detector by eye.
 #include <cstdio>
 #include <fstream>
 #include <span>
@@ -9,15 +9,19 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "common/camera/detector.hpp"
-#include "common/cloud_io.hpp"
-#include "common/topology.hpp"
+#include "common/config/topology.hpp"
+#include "common/config/topology_presets.hpp"
+#include "common/io/cloud_io.hpp"
+#include "pictures/camera_overlay.hpp"
 #include "services/edge_cluster/edge_node.hpp"
 #include "tools/fogctl/args.hpp"
-#include "tools/fogctl/camera_overlay.hpp"
 #include "tools/fogctl/commands.hpp"
 
 namespace fogmap::cli {
 namespace {
+
+using pictures::OverlayLayers;
+using pictures::writeCameraOverlay;
 
 Expected<std::string> readText(const std::string& path) {
   std::ifstream in(path);
@@ -42,8 +46,6 @@ Expected<std::vector<MapObject>> edgeMapOf(const Cloud& scan) {
   if (!output->map) return std::vector<MapObject>{};
   return output->map->map.objects;
 }
-
-}  // namespace
 
 int runOverlay(int argc, char** argv) {
   const std::string who = "fogctl overlay";
@@ -103,6 +105,23 @@ int runOverlay(int argc, char** argv) {
   std::printf("wrote %s: %zu LiDAR points, %zu labelled boxes, %zu detections, %zu map objects\n", args->get("out").c_str(),
               counts->points_drawn, counts->boxes_drawn, counts->detections_drawn, counts->objects_drawn);
   return 0;
+}
+
+}  // namespace
+
+Command overlayCommand() {
+  return {"overlay",
+          "--image IMG --calib CALIB --out PNG [--labels FILE] [--scan FILE [--objects]] [--hog]   draw on a camera frame",
+          "usage: fogctl overlay --image IMG --calib CALIB --out PNG [--labels FILE] [--scan FILE [--objects]] [--hog]\n"
+          "                      [--hog-upscale 1.5]\n"
+          "Draws over a camera frame (KITTI camera 2) what fogmap knows: a LiDAR scan's points projected into\n"
+          "the image (coloured by depth), the 3D boxes of a label_2 file as wireframes, and with --hog the\n"
+          "people OpenCV's HOG detector finds; writes PNG. For checking a calibration and a detector by eye.\n"
+          "  --calib FILE   KITTI calibration (P2, R0_rect, Tr_velo_to_cam)\n"
+          "  --labels FILE  KITTI label_2 objects; --scan FILE  a Velodyne scan (.bin, .pcd)\n"
+          "  --objects      instead of the scan's points, the map an edge makes of it (the ready-made KITTI\n"
+          "                 topology's crop, ground and MAD-C): each object the box of its projected ellipsoids\n",
+          runOverlay};
 }
 
 }  // namespace fogmap::cli

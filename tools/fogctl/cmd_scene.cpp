@@ -9,6 +9,7 @@
 #include "tools/fogctl/commands.hpp"
 
 namespace fogmap::cli {
+namespace {
 
 int runScene(int argc, char** argv) {
   const std::string usage =
@@ -76,6 +77,24 @@ int runScene(int argc, char** argv) {
   std::cout << "wrote " << args->get("out") << ": " << scene.objects.size() << " objects, " << scene.lidars.size()
             << " LiDARs, " << scene.cameras.size() << " cameras\n";
   return 0;
+}
+
+}  // namespace
+
+Command sceneCommand() {
+  return {"scene",
+          "random|factory|moving [...] [--seed S] [--out FILE]   a simulated scene with ground truth",
+          "usage: fogctl scene random --objects N --lidars K [--seed 1] [--out FILE]\n"
+          "       fogctl scene factory [--seed 1] [--out FILE]\n"
+          "       fogctl scene moving --people N --vehicles M --lidars K --cameras C [--seed 1] [--out FILE]\n"
+          "Writes a scene file (format: data/scenes/example.yaml) made from the seed; to stdout unless --out.\n"
+          "  random   N objects from 0.8 m crates to cars, people and poles, placed apart and turned at random\n"
+          "           on 50 x 50 m; K HDL-32E LiDARs at the MAD-C paper's spots (Lambda_1 .. Lambda_7)\n"
+          "  factory  shelves, forklifts driving the aisles, people walking, a crane; LiDARs in the four\n"
+          "           corners and the middle\n"
+          "  moving   people and vehicles on crossing and parallel paths across 40 x 40 m, K VLP-16 LiDARs and\n"
+          "           C cameras around the area looking inwards\n",
+          runScene};
 }
 
 }  // namespace fogmap::cli

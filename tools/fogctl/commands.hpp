@@ -1,22 +1,31 @@
 #pragma once
-// fogctl subcommands; each returns the process exit code (0 ok, 1 failure, 2 usage error).
+// fogctl's commands: each cmd_*.cpp defines one, with its usage text; main.cpp lists them.
+#include <string>
+
 namespace fogmap::cli {
 
-int runCluster(int argc, char** argv);
-int runBench(int argc, char** argv);
-int runUp(int argc, char** argv);
-int runDown(int argc, char** argv);
-int runTopology(int argc, char** argv);
-int runSplit(int argc, char** argv);
-int runWatch(int argc, char** argv);
-int runGeofence(int argc, char** argv);
-int runDemo(int argc, char** argv);
-int runFaults(int argc, char** argv);
-int runCerts(int argc, char** argv);
-int runCompose(int argc, char** argv);
-int runScene(int argc, char** argv);
-int runEval(int argc, char** argv);
-int runTrackEval(int argc, char** argv);
-int runOverlay(int argc, char** argv);
+struct Command {
+  std::string name;
+  std::string synopsis;  // its line in `fogctl --help`
+  std::string usage;     // `fogctl NAME --help`
+  int (*run)(int argc, char** argv);  // the process exit code: 0 ok, 1 failure, 2 usage error
+};
+
+Command clusterCommand();
+Command benchCommand();
+Command demoCommand();
+Command evalCommand();
+Command trackEvalCommand();
+Command overlayCommand();
+Command upCommand();
+Command downCommand();
+Command watchCommand();
+Command geofenceCommand();
+Command faultsCommand();
+Command certsCommand();
+Command composeCommand();
+Command topologyCommand();
+Command sceneCommand();
+Command splitCommand();
 
 }  // namespace fogmap::cli

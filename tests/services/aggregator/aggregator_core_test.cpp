@@ -11,8 +11,9 @@
 
 #include <Eigen/Geometry>
 
-#include "common/clustering.hpp"
-#include "common/madc.hpp"
+#include "common/config/topology_presets.hpp"
+#include "common/perception/clustering.hpp"
+#include "common/perception/madc.hpp"
 #include "tests/support/topology_builders.hpp"
 
 namespace fogmap {

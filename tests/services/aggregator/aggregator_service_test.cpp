@@ -13,8 +13,8 @@
 
 #include <grpcpp/grpcpp.h>
 
-#include "common/clustering.hpp"
-#include "common/madc.hpp"
+#include "common/perception/clustering.hpp"
+#include "common/perception/madc.hpp"
 #include "services/common/grpc_options.hpp"
 #include "services/common/metrics.hpp"
 #include "services/common/parent_link.hpp"

@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "common/map.hpp"
+#include "common/geometry/map.hpp"
 #include "services/common/proto_convert.hpp"
 #include "services/merge_aggregator/aggregator_core.hpp"
 

@@ -14,8 +14,8 @@
 
 #include <grpcpp/grpcpp.h>
 
-#include "common/certs.hpp"
-#include "common/geofence.hpp"
+#include "common/certs/certs.hpp"
+#include "common/geometry/geofence.hpp"
 #include "services/common/grpc_options.hpp"
 #include "services/common/metrics.hpp"
 #include "services/common/proto_convert.hpp"

@@ -21,6 +21,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "common/camera/kitti.hpp"
+#include "common/config/camera_node.hpp"
 #include "common/sim/camera_truth.hpp"
 #include "common/sim/generators.hpp"
 #include "common/sim/raycaster.hpp"

@@ -15,7 +15,10 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
 
-#include "common/topology.hpp"
+#include "common/config/camera_node.hpp"
+#include "common/config/topology.hpp"
+#include "common/config/topology_parse.hpp"
+#include "common/config/topology_yaml.hpp"
 
 namespace fogmap {
 namespace {

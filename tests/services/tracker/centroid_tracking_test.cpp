@@ -22,6 +22,9 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include "common/config/camera_node.hpp"
+#include "common/config/topology_presets.hpp"
+#include "common/config/tracker_node.hpp"
 #include "common/sim/camera_truth.hpp"
 #include "common/sim/generators.hpp"
 #include "common/sim/raycaster.hpp"

@@ -17,7 +17,7 @@
 
 #include <grpcpp/grpcpp.h>
 
-#include "common/burst_log.hpp"
+#include "common/base/burst_log.hpp"
 #include "services/common/grpc_options.hpp"
 #include "services/common/metrics.hpp"
 #include "services/common/proto_convert.hpp"

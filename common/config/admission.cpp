@@ -1,0 +1,111 @@
+#include "common/config/admission.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <utility>
+
+#include <Eigen/Eigenvalues>
+
+namespace fogmap {
+namespace {
+
+std::string num(double v) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.6g", v);
+  return buffer;
+}
+
+bool within(const Eigen::Vector3d& v, double extent) {
+  return v.allFinite() && v.cwiseAbs().maxCoeff() <= extent;
+}
+
+}  // namespace
+
+Status validateAdmissionLimits(const AdmissionLimits& l) {
+  for (const auto& [name, value] : {std::pair{"window_periods", l.window_periods},
+                                    std::pair{"world_extent_m", l.world_extent_m},
+                                    std::pair{"min_eigenvalue_m2", l.min_eigenvalue_m2},
+                                    std::pair{"max_eigenvalue_m2", l.max_eigenvalue_m2},
+                                    std::pair{"max_condition", l.max_condition}}) {
+    if (!std::isfinite(value) || value <= 0.0) {
+      return invalidArgument(std::string("admission ") + name + " must be a positive number, got " + num(value));
+    }
+  }
+  if (l.max_ellipsoids_per_map == 0 || l.max_map_bytes == 0 || l.max_subscribers == 0) {
+    return invalidArgument("admission max_ellipsoids_per_map, max_map_bytes and max_subscribers must be at least 1");
+  }
+  if (l.min_eigenvalue_m2 >= l.max_eigenvalue_m2) {
+    return invalidArgument("admission min_eigenvalue_m2 (" + num(l.min_eigenvalue_m2) +
+                           ") must be below max_eigenvalue_m2 (" + num(l.max_eigenvalue_m2) + ")");
+  }
+  return {};
+}
+
+const char* refusalName(Refusal refusal) {
+  switch (refusal) {
+    case Refusal::kMalformed: return "malformed";
+    case Refusal::kWrongMode: return "wrong_mode";
+    case Refusal::kUnknownNode: return "unknown_node";
+    case Refusal::kForgedNode: return "forged_node";
+    case Refusal::kClockSkew: return "clock_skew";
+    case Refusal::kTooLarge: return "too_large";
+    case Refusal::kOutOfWorld: return "out_of_world";
+    case Refusal::kBadShape: return "bad_shape";
+    case Refusal::kSequenceConflict: return "sequence_conflict";
+    case Refusal::kEllipsoidConflict: return "ellipsoid_conflict";
+    case Refusal::kInconsistentChunks: return "inconsistent_chunks";
+    case Refusal::kUnknownPeer: return "unknown_peer";
+  }
+  return "unknown";
+}
+
+ErrorCode refusalCode(Refusal refusal) {
+  return refusal == Refusal::kTooLarge ? ErrorCode::kResourceExhausted : ErrorCode::kInvalidArgument;
+}
+
+std::optional<Refused> checkMapBounds(const Map& map, const AdmissionLimits& limits, const std::string& what) {
+  const std::size_t count = map.ellipsoidCount();
+  if (count > limits.max_ellipsoids_per_map) {
+    return Refused{Refusal::kTooLarge, what + " has " + std::to_string(count) + " ellipsoids, more than the bound of " +
+                                           std::to_string(limits.max_ellipsoids_per_map)};
+  }
+  for (const auto& object : map.objects) {
+    for (const auto& e : object.ellipsoids) {
+      const std::string which = what + ", ellipsoid " + toString(e.id);
+      if (!within(e.center, limits.world_extent_m)) {
+        return Refused{Refusal::kOutOfWorld, which + ": centre (" + num(e.center.x()) + ", " + num(e.center.y()) +
+                                                 ", " + num(e.center.z()) + ") lies outside the world extent of " +
+                                                 num(limits.world_extent_m) + " m"};
+      }
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(e.shape, Eigen::EigenvaluesOnly);
+      const Eigen::Vector3d values = solver.eigenvalues();  // ascending
+      if (solver.info() != Eigen::Success || !values.allFinite() || values[0] < limits.min_eigenvalue_m2 ||
+          values[2] > limits.max_eigenvalue_m2 || values[2] > limits.max_condition * values[0]) {
+        return Refused{Refusal::kBadShape, which + ": shape eigenvalues " + num(values[0]) + ", " + num(values[1]) +
+                                               ", " + num(values[2]) + " m^2 are outside [" +
+                                               num(limits.min_eigenvalue_m2) + ", " + num(limits.max_eigenvalue_m2) +
+                                               "] or more ill-conditioned than " + num(limits.max_condition)};
+      }
+    }
+    if (!within(object.box.min, limits.world_extent_m) || !within(object.box.max, limits.world_extent_m)) {
+      return Refused{Refusal::kOutOfWorld, what + ": an object's box reaches outside the world extent of " +
+                                               num(limits.world_extent_m) + " m"};
+    }
+  }
+  return std::nullopt;
+}
+
+Status validateClusteringParams(const ClusteringParams& params) {
+  if (!std::isfinite(params.eps_m) || params.eps_m < kMinEpsM || params.eps_m > kMaxEpsM) {
+    return invalidArgument("eps_m must be between " + num(kMinEpsM) + " and " + num(kMaxEpsM) + " m, got " +
+                           num(params.eps_m));
+  }
+  if (params.min_points < 1) return invalidArgument("min_points must be at least 1");
+  if (params.max_points < params.min_points) {
+    return invalidArgument("max_points (" + std::to_string(params.max_points) + ") must be at least min_points (" +
+                           std::to_string(params.min_points) + ")");
+  }
+  return {};
+}
+
+}  // namespace fogmap

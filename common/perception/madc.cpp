@@ -1,0 +1,20 @@
+#include "common/perception/madc.hpp"
+
+namespace fogmap {
+
+LocalMapResult genLocalMap(std::span<const Point> points, std::uint32_t node, std::uint64_t frame,
+                           const MadcParams& params) {
+  LocalMapResult result;
+  result.clustering = euclideanClusters(points, params.clustering);
+  const auto summaries = summarizeClusters(points, result.clustering);
+  std::vector<Ellipsoid> ellipsoids;
+  ellipsoids.reserve(summaries.size());
+  const EllipsoidParams ellipsoid_params = params.ellipsoidParams();
+  for (std::size_t k = 0; k < summaries.size(); ++k) {
+    ellipsoids.push_back(ellipsoidFromSummary(summaries[k], {node, frame, static_cast<std::uint32_t>(k)}, ellipsoid_params));
+  }
+  result.map = localMap(std::move(ellipsoids));
+  return result;
+}
+
+}  // namespace fogmap

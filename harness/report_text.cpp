@@ -1,0 +1,27 @@
+#include "harness/report_text.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+
+namespace fogmap::harness {
+
+std::string fixedText(double v, int digits) {
+  if (!std::isfinite(v)) return "n/a";
+  char text[64];
+  std::snprintf(text, sizeof text, "%.*f", digits, v);
+  return text;
+}
+
+Json jsonNumber(double v) {
+  if (!std::isfinite(v)) return nullptr;
+  char text[64];
+  std::snprintf(text, sizeof text, "%.10g", v);
+  return std::strtod(text, nullptr);
+}
+
+std::string jsonText(const Json& report) {
+  return report.dump(2, ' ', false, Json::error_handler_t::replace) + "\n";
+}
+
+}  // namespace fogmap::harness

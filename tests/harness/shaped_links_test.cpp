@@ -1,0 +1,324 @@
+// Shaped links (harness/shaped_links.hpp, NetnsLink::setRate): real network namespaces, veth
+// pairs and tbf, as root. Where they cannot be made (no root, no ip/tc, namespaces refused) the
+// tests that need them are skipped with the reason.
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <sched.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/time.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+
+#include "common/config/topology.hpp"
+#include "common/config/topology_presets.hpp"
+#include "common/config/topology_yaml.hpp"
+#include "fogmap/v1/fogmap.grpc.pb.h"
+#include "services/common/grpc_options.hpp"
+#include "services/common/proto_convert.hpp"
+#include "tests/support/free_ports.hpp"
+#include "harness/launcher.hpp"
+#include "harness/shaped_links.hpp"
+
+namespace fogmap {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using harness::NetnsLink;
+using harness::ShapedLinks;
+
+#define SKIP_UNLESS_SHAPING_IS_POSSIBLE()                                                \
+  if (const auto available = harness::shapingAvailable(); !available) {                      \
+    GTEST_SKIP() << "shaped links cannot be made here: " << available.error().message; \
+  }
+
+fs::path dataDir() { return fs::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a"; }
+constexpr double kRateMbitPerS = 10.0;  // the paper's sensor links
+
+// ---- a bulk transfer across one pair ----
+
+constexpr std::size_t kTransferBytes = 2'500'000;  // 2.0 s at 10 Mbit/s
+
+enum class Direction { kUpload, kDownload };  // namespace -> host (the edge's uploads), host -> namespace
+
+struct Transfer {
+  std::size_t bytes = 0;  // what the receiver got
+  double seconds = 0.0;   // the receiver's time from the connection to the last byte
+  std::string error;
+};
+
+// A TCP socket whose every call gives up after 15 s: no transfer below can hang.
+int boundedSocket() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  const timeval limit{15, 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &limit, sizeof limit);
+  ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &limit, sizeof limit);
+  return fd;
+}
+
+sockaddr_in ipv4(const std::string& ip, std::uint16_t port) {
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(port);
+  ::inet_pton(AF_INET, ip.c_str(), &addr.sin_addr);
+  return addr;
+}
+
+bool sendAll(int fd, std::size_t bytes) {
+  const std::vector<char> chunk(64 * 1024, 'x');
+  while (bytes > 0) {
+    const ssize_t n = ::send(fd, chunk.data(), std::min(bytes, chunk.size()), MSG_NOSIGNAL);
+    if (n <= 0) return false;
+    bytes -= static_cast<std::size_t>(n);
+  }
+  return ::shutdown(fd, SHUT_WR) == 0;
+}
+
+// Reads until the peer closes (or a call times out); the bytes and the seconds it took.
+std::pair<std::size_t, double> receiveAll(int fd) {
+  const auto start = std::chrono::steady_clock::now();
+  std::vector<char> buffer(64 * 1024);
+  std::size_t total = 0;
+  for (ssize_t n = 0; (n = ::recv(fd, buffer.data(), buffer.size(), 0)) > 0;) total += static_cast<std::size_t>(n);
+  return {total, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()};
+}
+
+// kTransferBytes across the pair: the host listens on the pair's host side, a thread that joined
+// the namespace (setns: no helper program needed) connects from inside.
+Transfer transfer(const NetnsLink& link, Direction direction) {
+  Transfer result;
+  const int listener = boundedSocket();
+  sockaddr_in addr = ipv4(link.hostAddress(), 0);
+  socklen_t len = sizeof addr;
+  if (::bind(listener, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0 || ::listen(listener, 1) != 0 ||
+      ::getsockname(listener, reinterpret_cast<sockaddr*>(&addr), &len) != 0) {
+    ::close(listener);
+    result.error = "cannot listen on " + link.hostAddress();
+    return result;
+  }
+  const std::uint16_t port = ntohs(addr.sin_port);
+  Transfer inside_result;
+  std::thread inside([&] {
+    // setns moves this thread only; the namespace's file is what `ip netns add` made.
+    const int ns = ::open(("/var/run/netns/" + link.name()).c_str(), O_RDONLY | O_CLOEXEC);
+    if (ns < 0 || ::setns(ns, CLONE_NEWNET) != 0) {
+      if (ns >= 0) ::close(ns);
+      inside_result.error = "cannot join namespace " + link.name();
+      return;
+    }
+    ::close(ns);
+    const int fd = boundedSocket();
+    const sockaddr_in server = ipv4(link.hostAddress(), port);
+    if (::connect(fd, reinterpret_cast<const sockaddr*>(&server), sizeof server) != 0) {
+      inside_result.error = "cannot connect from the namespace to " + link.hostAddress();
+    } else if (direction == Direction::kUpload) {
+      if (!sendAll(fd, kTransferBytes)) inside_result.error = "upload interrupted";
+    } else {
+      std::tie(inside_result.bytes, inside_result.seconds) = receiveAll(fd);
+    }
+    ::close(fd);
+  });
+  const int conn = ::accept4(listener, nullptr, nullptr, SOCK_CLOEXEC);  // SO_RCVTIMEO bounds it
+  if (conn < 0) {
+    result.error = "no connection from the namespace";
+  } else if (direction == Direction::kUpload) {
+    std::tie(result.bytes, result.seconds) = receiveAll(conn);
+  } else if (!sendAll(conn, kTransferBytes)) {
+    result.error = "download interrupted";
+  }
+  if (conn >= 0) ::close(conn);
+  ::close(listener);
+  inside.join();
+  if (!inside_result.error.empty()) result.error = inside_result.error;
+  if (direction == Direction::kDownload && result.error.empty()) {
+    result.bytes = inside_result.bytes;
+    result.seconds = inside_result.seconds;
+  }
+  return result;
+}
+
+void report(const char* what, const Transfer& t) {
+  std::printf("[ measured ] %s: %zu bytes in %.3f s = %.2f Mbit/s\n", what, t.bytes, t.seconds,
+              static_cast<double>(t.bytes) * 8.0 / 1e6 / t.seconds);
+}
+
+TEST(ShapedLinks, RefuseBadRatesAndMoreEdgesThanAnOctetHoldsBeforeMakingAnything) {
+  const TopologyConfig star = makeStarTopology(3, dataDir(), 40000);
+  for (const double rate : {0.0, -10.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    const auto shaped = ShapedLinks::create(star, rate, static_cast<unsigned>(::getpid()));
+    ASSERT_FALSE(shaped) << rate;
+    EXPECT_EQ(shaped.error().code, ErrorCode::kInvalidArgument) << rate;
+  }
+  const auto crowded = ShapedLinks::create(makeStarTopology(static_cast<int>(harness::kPairsPerOctet) + 1, dataDir(), 40000),
+                                           kRateMbitPerS, static_cast<unsigned>(::getpid()));
+  ASSERT_FALSE(crowded);
+  EXPECT_EQ(crowded.error().code, ErrorCode::kResourceExhausted);
+}
+
+TEST(ShapedLinks, APairCarriesNoMoreThanItsRateEitherWayAndAllOnceCleared) {
+  SKIP_UNLESS_SHAPING_IS_POSSIBLE();
+  auto shaped = ShapedLinks::create(makeStarTopology(1, dataDir(), 40000), kRateMbitPerS, static_cast<unsigned>(::getpid()));
+  ASSERT_TRUE(shaped) << shaped.error().message;
+  NetnsLink& link = *shaped->link("edge-1");
+
+  // 2.5 MB at 10 Mbit/s take 2.0 s (plus headers); the bucket lets 12.5 kB through at once.
+  for (const Direction d : {Direction::kUpload, Direction::kDownload}) {
+    const Transfer t = transfer(link, d);
+    ASSERT_TRUE(t.error.empty()) << t.error;
+    report(d == Direction::kUpload ? "upload, 10 Mbit/s" : "download, 10 Mbit/s", t);
+    EXPECT_EQ(t.bytes, kTransferBytes);
+    EXPECT_GE(t.seconds, 1.6);
+    EXPECT_LT(t.seconds, 8.0);  // shaped, not starved by a bucket too small for a frame
+  }
+  ASSERT_TRUE(link.clearRate());
+  for (const Direction d : {Direction::kUpload, Direction::kDownload}) {
+    const Transfer t = transfer(link, d);
+    ASSERT_TRUE(t.error.empty()) << t.error;
+    report(d == Direction::kUpload ? "upload, unshaped" : "download, unshaped", t);
+    EXPECT_EQ(t.bytes, kTransferBytes);
+    EXPECT_LT(t.seconds, 0.8);
+  }
+}
+
+// ---- whole clusters behind shaped links ----
+
+// A Subscribe call to the root: the global maps as it publishes them.
+class Subscription {
+ public:
+  Subscription(const std::string& target, std::size_t max_message_bytes)
+      : stub_(v1::GlobalMapService::NewStub(makeChannel(target, max_message_bytes))) {
+    context_.set_deadline(std::chrono::system_clock::now() + 20s);
+    v1::SubscribeRequest request;
+    request.set_on_time_only(true);
+    reader_ = stub_->Subscribe(&context_, request);
+  }
+  ~Subscription() { context_.TryCancel(); }
+  // Reads global maps until `wanted` of them miss no sensor; how many did before the stream ended.
+  int completeMaps(int wanted) {
+    int complete = 0;
+    v1::GlobalMap message;
+    while (complete < wanted && reader_->Read(&message)) {
+      const auto global = fromProto(message);
+      if (global.ok() && global->header.missing_nodes.empty()) ++complete;
+    }
+    return complete;
+  }
+
+ private:
+  std::unique_ptr<v1::GlobalMapService::Stub> stub_;
+  grpc::ClientContext context_;
+  std::unique_ptr<grpc::ClientReader<v1::GlobalMap>> reader_;
+};
+
+TopologyConfig withFreePorts(TopologyConfig t) {
+  test_support::useFreePorts(t);
+  t.deadline_ms = 500.0;  // generous: a loaded CI machine must not turn slow epochs into partial ones
+  return t;
+}
+
+// The inode of a network namespace: a process is inside the namespace when its /proc/PID/ns/net
+// names the same one as /var/run/netns/NAME.
+ino_t namespaceInode(const fs::path& path) {
+  struct stat st {};
+  return ::stat(path.c_str(), &st) == 0 ? st.st_ino : 0;
+}
+
+// Starts the shaped topology as real processes, each edge under its prefix, checks that every edge
+// runs in its own namespace, and reads complete global maps from the root.
+void expectCompleteEpochsThroughShapedLinks(const ShapedLinks& shaped) {
+  const TopologyConfig& t = shaped.topology();
+  const auto state = fs::temp_directory_path() / ("fogmap-shaped-" + std::to_string(::getpid()) + "-" + t.name);
+  fs::remove_all(state);
+  fs::create_directories(state);
+  const auto file = state / (t.name + ".yaml");
+  std::ofstream(file) << toYaml(t);
+  harness::StartOptions options;
+  options.prefixes = shaped.prefixes();
+  // Ready means each edge's /metrics answered on its namespace address: the host reaches it over the pair.
+  auto cluster = harness::startCluster(file, t, state, 30s, options);
+  ASSERT_TRUE(cluster) << cluster.error().message;
+  for (const harness::RunningNode& node : cluster->nodes) {
+    const NetnsLink* link = shaped.link(node.name);
+    const ino_t inode = namespaceInode("/proc/" + std::to_string(node.pid) + "/ns/net");
+    if (link == nullptr) {
+      EXPECT_EQ(inode, namespaceInode("/proc/self/ns/net")) << node.name << " is an aggregator: on the host";
+    } else {
+      EXPECT_EQ(inode, namespaceInode("/var/run/netns/" + link->name())) << node.name << " runs outside its namespace";
+    }
+  }
+  const NodeConfig* root = t.root();
+  Subscription watch(endpoint(root->host, root->port), t.max_message_bytes);
+  EXPECT_EQ(watch.completeMaps(3), 3) << "the root published fewer than 3 complete epochs in 20 s; see " << state / "logs";
+  harness::stopCluster(*cluster, 5s);
+  fs::remove_all(state);
+}
+
+TEST(ShapedLinks, StarOfThreeEdgesEachInItsNamespacePublishesCompleteEpochs) {
+  SKIP_UNLESS_SHAPING_IS_POSSIBLE();
+  const TopologyConfig given = withFreePorts(makeStarTopology(3, dataDir(), 40000));
+  const auto shaped = ShapedLinks::create(given, kRateMbitPerS, static_cast<unsigned>(::getpid()));
+  ASSERT_TRUE(shaped) << shaped.error().message;
+  const TopologyConfig& t = shaped->topology();
+
+  std::set<std::string> addresses;
+  std::set<std::string> namespaces;
+  for (const char* edge : {"edge-1", "edge-2", "edge-3"}) {
+    const NetnsLink* link = shaped->link(edge);
+    ASSERT_NE(link, nullptr) << edge;
+    EXPECT_EQ(t.find(edge)->host, link->namespaceAddress());
+    EXPECT_EQ(t.find(edge)->metrics_port, given.find(edge)->metrics_port);
+    EXPECT_EQ(shaped->prefixes().at(edge), (std::vector<std::string>{harness::findProgram("ip"), "netns", "exec", link->name()}));
+    EXPECT_EQ(link->namespaceAddress().rfind("10.213.", 0), 0U) << link->namespaceAddress();
+    addresses.insert(link->namespaceAddress());
+    addresses.insert(link->hostAddress());
+    namespaces.insert(link->name());
+  }
+  EXPECT_EQ(addresses.size(), 6U);  // three pairs of their own
+  EXPECT_EQ(namespaces.size(), 3U);
+  EXPECT_EQ(shaped->prefixes().size(), 3U);  // the sink runs on the host
+  EXPECT_EQ(t.find("sink")->host, shaped->link("edge-1")->hostAddress());
+  EXPECT_EQ(t.find("sink")->port, given.find("sink")->port);
+  EXPECT_EQ(shaped->link("sink"), nullptr);
+
+  expectCompleteEpochsThroughShapedLinks(*shaped);
+}
+
+TEST(ShapedLinks, TreeOfFourEdgesKeepsAggregatorLinksOnTheHostAndPublishesCompleteEpochs) {
+  SKIP_UNLESS_SHAPING_IS_POSSIBLE();
+  // sink <- agg-1 <- edge-1, edge-2; sink <- agg-2 <- edge-3, edge-4.
+  const TopologyConfig given = withFreePorts(makeTreeTopology(4, dataDir(), 40000));
+  ASSERT_EQ(given.find("edge-3")->parent, "agg-2");
+  const auto shaped = ShapedLinks::create(given, kRateMbitPerS, static_cast<unsigned>(::getpid()));
+  ASSERT_TRUE(shaped) << shaped.error().message;
+  const TopologyConfig& t = shaped->topology();
+
+  for (const char* edge : {"edge-1", "edge-2", "edge-3", "edge-4"}) {
+    ASSERT_NE(shaped->link(edge), nullptr) << edge;
+    EXPECT_EQ(t.find(edge)->host, shaped->link(edge)->namespaceAddress());
+    EXPECT_EQ(shaped->prefixes().count(edge), 1U);
+  }
+  EXPECT_EQ(shaped->prefixes().size(), 4U);
+  EXPECT_EQ(t.find("agg-1")->host, shaped->link("edge-1")->hostAddress());
+  EXPECT_EQ(t.find("agg-2")->host, shaped->link("edge-3")->hostAddress());
+  EXPECT_EQ(t.find("sink")->host, given.find("sink")->host);  // no edge children: stays where it was
+
+  expectCompleteEpochsThroughShapedLinks(*shaped);
+}
+
+}  // namespace
+}  // namespace fogmap
