@@ -35,7 +35,10 @@ function(fogmap_add_test name)
   fogmap_add_executable(${name} SOURCES ${ARG_SOURCES} LIBS ${ARG_LIBS} GTest::gtest_main)
   fogmap_test_flags(${name})
   if(TARGET fogmap_test_pch)
+    # The header names the generated wire and Eigen: their folders are visible to every test.
     target_precompile_headers(${name} REUSE_FROM fogmap_test_pch)
+    target_include_directories(${name} SYSTEM PRIVATE $<TARGET_PROPERTY:fogmap_proto,INTERFACE_INCLUDE_DIRECTORIES>
+                               $<TARGET_PROPERTY:Eigen3::Eigen,INTERFACE_INCLUDE_DIRECTORIES>)
   endif()
   if(ARG_SERIAL)
     gtest_discover_tests(${name} DISCOVERY_TIMEOUT 120 PROPERTIES TIMEOUT 900 RUN_SERIAL TRUE LABELS integration)

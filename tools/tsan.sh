@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # ThreadSanitizer over the threaded parts: the merge-aggregator (core, ingest, emitter, global-map
 # service), the tracker service, the client links (parent link, tracker link) and the integration
-# tests that run them as real processes. Builds with g++ -fsanitize=thread -O1 -g into build-tsan/
+# tests that run them as real processes. Builds with g++ -fsanitize=thread -O2 -g into build-tsan/
 # (services and tests), runs the chosen tests with every service process instrumented too, and
-# counts the reports. Exit status: 0 no report, 1 reports (listed in build-tsan/tsan-logs/), 2 bad
+# counts the reports (CMakePresets.json, preset tsan). Exit status: 0 no report, 1 reports (listed in build-tsan/tsan-logs/), 2 bad
 # usage or a failed build.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -41,9 +41,7 @@ dir=build-tsan
 supp=$PWD/tools/tsan.supp
 export TSAN_OPTIONS="suppressions=$supp"
 if [ $build -eq 1 ]; then
-  cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-    -DCMAKE_CXX_FLAGS="-fsanitize=thread -fno-omit-frame-pointer" -DCMAKE_C_FLAGS="-fsanitize=thread" \
-    -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=thread" -DCMAKE_SHARED_LINKER_FLAGS="-fsanitize=thread" > /dev/null ||
+  cmake --preset tsan > /dev/null ||
     { echo "tsan.sh: configure failed" >&2; exit 2; }
   cmake --build "$dir" -j "$(nproc)" --target merge-aggregator edge-cluster tracker detection fogctl \
     fogmap_aggregator_tests fogmap_service_tests fogmap_tracker_service_tests fogmap_integration_tests ||

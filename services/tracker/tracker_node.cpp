@@ -54,8 +54,6 @@ tracking::CloudFrame observationsOf(const GlobalMapMessage& global, double alpha
 
 namespace {
 
-std::int64_t nanoseconds(double s) { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
-
 std::string msText(double ns) { return std::to_string(std::llround(ns * 1e-6)) + " ms"; }
 
 }  // namespace

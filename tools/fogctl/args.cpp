@@ -26,7 +26,7 @@ Expected<Args> Args::parse(int argc, char** argv, int first, const std::set<std:
     }
     const std::string name = token.substr(2);
     if (switches.count(name) > 0) {
-      args.values_[name] = "1";
+      args.values_.insert_or_assign(name, std::string("1"));
     } else if (valued.count(name) > 0) {
       if (i + 1 >= argc) return invalidArgument("flag --" + name + " needs a value");
       args.values_[name] = argv[++i];
