@@ -161,8 +161,11 @@ Metrics::Metrics(const std::string& bind_address, const std::string& service, co
     refused_->Add({{"reason", refusalName(static_cast<Refusal>(reason))}});
   }
   for (const char* what : kMalformedKinds) malformed_->Add({{"what", what}});
+  serve(bind_address);
+}
 
-  if (!bind_address.empty()) {
+void Metrics::serve(const std::string& bind_address) {
+  if (!bind_address.empty() && !exposer_) {
     host_ = bind_address.substr(0, bind_address.rfind(':'));
     try {
       exposer_ = std::make_unique<prometheus::Exposer>(bind_address);

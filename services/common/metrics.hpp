@@ -22,6 +22,9 @@ class Metrics {
   // listeningPort); an empty bind_address serves nothing (tests, tools). `service` and `node`
   // become constant labels. Throws std::runtime_error when the address cannot be bound.
   Metrics(const std::string& bind_address, const std::string& service, const std::string& node);
+  // Starts serving /metrics on bind_address, once (a Metrics made with an empty address): a service
+  // opens its port only after its own configuration is checked. Throws as the constructor does.
+  void serve(const std::string& bind_address);
   // Stops serving within milliseconds (the HTTP server alone would take up to 2 s).
   ~Metrics();
   Metrics(const Metrics&) = delete;

@@ -9,6 +9,8 @@
 
 namespace fogmap {
 
+void ServiceContext::serveMetrics() const { metrics.serve(endpoint(node.host, node.metrics_port)); }
+
 std::string ServiceContext::prefix() const { return std::string(serviceName(spec.role)) + " " + node.name + ": "; }
 
 // One write per line, so that lines of several threads never interleave.
@@ -85,7 +87,7 @@ int runService(int argc, char** argv, const ServiceSpec& spec, const std::functi
       std::cerr << name << " " << node->name << ": tls: " << tls.error().message << "\n";
       return kExitBadConfig;
     }
-    Metrics metrics(endpoint(node->host, node->metrics_port), name, node->name);
+    Metrics metrics("", name, node->name);
     ServiceContext context{spec, topology_file, *topology, *node, *tls, args->extra, stop, metrics};
     return run(context);
   } catch (const std::exception& e) {

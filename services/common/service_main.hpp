@@ -49,7 +49,12 @@ struct ServiceContext {
   const std::optional<TlsPem>& tls;  // its identity; std::nullopt: plaintext
   const std::map<std::string, std::string>& flags;  // the extra flags given, names without "--"
   StopRequest& stop;
-  Metrics& metrics;  // served on the node's metrics_port
+  Metrics& metrics;  // served on the node's metrics_port once serveMetrics() is called
+
+  // Opens /metrics on the node's metrics address: each main calls it once its own parts are built
+  // and checked, so a service refused by its configuration never shows a live port. Throws
+  // std::runtime_error when the port is taken (runService reports it).
+  void serveMetrics() const;
 
   // "<service> <node>: ", leading every line the process writes once it runs.
   std::string prefix() const;

@@ -36,6 +36,7 @@ int main(int argc, char** argv) {
   return fogmap::runService(argc, argv, spec, [](fogmap::ServiceContext& context) {
     auto process = fogmap::DetectionProcess::create(context);
     if (!process) return context.badConfig(process.error().message);
+    context.serveMetrics();
     const int code = (*process)->run();
     // Not destroyed: its loops' threads would be joined, and a detection at work would hold the
     // exit for as long as it takes.

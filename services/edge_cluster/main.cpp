@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
   return fogmap::runService(argc, argv, spec, [](fogmap::ServiceContext& context) {
     auto process = fogmap::EdgeProcess::create(context);
     if (!process) return context.badConfig(process.error().message);
+    context.serveMetrics();
     return (*process)->run();
   });
 }

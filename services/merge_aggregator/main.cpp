@@ -10,6 +10,7 @@ int main(int argc, char** argv) {
   return fogmap::runService(argc, argv, spec, [](fogmap::ServiceContext& context) {
     auto process = fogmap::AggregatorProcess::create(context);
     if (!process) return context.badConfig(context.topology_file.string() + ": " + process.error().message);
+    context.serveMetrics();
     return fogmap::serveUntilStopped(context, (*process)->services(), (*process)->lifecycle());
   });
 }

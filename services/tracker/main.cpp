@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
       context.log(process.error().message);
       return fogmap::kExitBadConfig;
     }
+    context.serveMetrics();
     return fogmap::serveUntilStopped(context, (*process)->services(), (*process)->lifecycle());
   });
 }

@@ -149,6 +149,8 @@ TEST(RunService, TheServiceRunsWithItsNodeFlagsAndMetricsAndItsExitCodeIsTheProc
                               EXPECT_FALSE(context.flag("other"));
                               EXPECT_FALSE(context.tls) << "no tls section: plaintext";
                               EXPECT_EQ(context.prefix(), "edge-cluster edge-1: ");
+                              EXPECT_EQ(context.metrics.listeningPort(), 0) << "not before its parts are checked";
+                              context.serveMetrics();
                               EXPECT_EQ(context.metrics.listeningPort(), edge.metrics_port);
                               EXPECT_FALSE(context.stop.requested());
                               return 42;
@@ -164,15 +166,17 @@ TEST(RunService, TheOutsideWorldFailingIsARuntimeError) {
                       [](ServiceContext&) -> int { throw std::runtime_error("the world ended"); });
   EXPECT_EQ(o.code, kExitRuntimeError);
   EXPECT_TRUE(contains(o.err, "merge-aggregator: the world ended")) << o.err;
-  // Its metrics port taken: nothing runs.
+  // Its metrics port taken: the service's parts are built, and nothing serves past the port.
   Metrics taken(endpoint(sink.host, sink.metrics_port), "merge-aggregator", "sink");
-  bool ran = false;
-  o = runWith(kAggregatorSpec, {"--topology", file.path(), "--node", "sink"}, [&](ServiceContext&) {
-    ran = true;
+  bool served = false;
+  o = runWith(kAggregatorSpec, {"--topology", file.path(), "--node", "sink"}, [&](ServiceContext& context) {
+    context.serveMetrics();
+    served = true;
     return 0;
   });
   EXPECT_EQ(o.code, kExitRuntimeError);
-  EXPECT_FALSE(ran);
+  EXPECT_FALSE(served);
+  EXPECT_TRUE(contains(o.err, "cannot serve /metrics")) << o.err;
 }
 
 // A hand-made context for serveUntilStopped: node "sink" on 127.0.0.1, gRPC port `port` (0: any).
