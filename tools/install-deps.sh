@@ -2,21 +2,19 @@
 # Installs what fogmap needs from Debian bookworm, only if something is missing.
 # Runs apt-get as root directly, or through sudo. The one list of fogmap's packages:
 #   tools/install-deps.sh            building and testing (the README's commands)
-#   tools/install-deps.sh --build    building the services only (docker/Dockerfile's build stage,
-#                                    which builds its own static OpenCV: no libopencv-dev there)
+#   tools/install-deps.sh --build    building the services only (docker/Dockerfile's build stage)
 #   tools/install-deps.sh --deploy   the container deployment on this host (Docker, docker-compose,
 #                                    debootstrap for base images without a registry)
 set -euo pipefail
 
 build=(
   build-essential cmake pkg-config
-  libeigen3-dev libpcl-dev
+  libeigen3-dev libpcl-dev libopencv-dev
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   prometheus-cpp-dev libyaml-cpp-dev libssl-dev
   nlohmann-json3-dev  # harness/ and fogctl: JSON reports
   libembree-dev  # common/sim: ray casting
 )
-opencv=(libopencv-dev)  # the host's OpenCV (the image's build stage makes its own, smaller)
 test=(
   libgtest-dev libgmock-dev libbenchmark-dev
   prometheus  # a real Prometheus server and promtool for the monitoring tests
@@ -27,7 +25,7 @@ test=(
 deploy=(docker.io docker-compose debootstrap curl jq)
 
 case "${1:-}" in
-  "") packages=("${build[@]}" "${opencv[@]}" "${test[@]}") ;;
+  "") packages=("${build[@]}" "${test[@]}") ;;
   --build) packages=("${build[@]}") ;;
   --deploy) packages=("${deploy[@]}") ;;
   -h | --help)
