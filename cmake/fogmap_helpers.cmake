@@ -28,18 +28,26 @@ function(fogmap_test_flags target)
   target_compile_options(${target} PRIVATE $<$<CONFIG:Release>:-O1>)
 endfunction()
 
-# fogmap_add_test(name [SERIAL] SOURCES ... LIBS ...): one GoogleTest binary, its tests discovered
-# by ctest. SERIAL tests (whole clusters of processes) run alone, so timing is not starved, and carry
-# the label "integration"; the others carry "unit" and are built by the target unit-tests (with the
-# binaries they start), which the dev preset builds and runs under the sanitizers.
+# fogmap_add_test(name [SERIAL] [CLUSTERS gtest-filter] SOURCES ... LIBS ...): one GoogleTest binary,
+# its tests discovered by ctest. SERIAL tests (whole clusters of processes) run alone, so timing is
+# not starved, and carry the label "integration"; the others carry "unit" and are built by the
+# target unit-tests (with the binaries they start), which the dev preset builds and runs under the
+# sanitizers. CLUSTERS names the tests of a unit binary that are whole clusters of processes
+# (a gtest filter, ':'-separated): they are integration tests, run alone.
 function(fogmap_add_test name)
-  cmake_parse_arguments(ARG "SERIAL" "" "SOURCES;LIBS" ${ARGN})
+  cmake_parse_arguments(ARG "SERIAL" "CLUSTERS" "SOURCES;LIBS" ${ARGN})
   fogmap_add_executable(${name} SOURCES ${ARG_SOURCES} LIBS ${ARG_LIBS} GTest::gtest_main)
   fogmap_test_flags(${name})
   if(ARG_SERIAL)
     gtest_discover_tests(${name} DISCOVERY_TIMEOUT 120 PROPERTIES TIMEOUT 900 RUN_SERIAL TRUE LABELS integration)
   else()
-    gtest_discover_tests(${name} DISCOVERY_TIMEOUT 120 PROPERTIES TIMEOUT 600 LABELS unit)
+    if(ARG_CLUSTERS)
+      gtest_discover_tests(${name} DISCOVERY_TIMEOUT 120 TEST_FILTER "-${ARG_CLUSTERS}" PROPERTIES TIMEOUT 600 LABELS unit)
+      gtest_discover_tests(${name} DISCOVERY_TIMEOUT 120 TEST_FILTER "${ARG_CLUSTERS}"
+                           PROPERTIES TIMEOUT 900 RUN_SERIAL TRUE LABELS integration)
+    else()
+      gtest_discover_tests(${name} DISCOVERY_TIMEOUT 120 PROPERTIES TIMEOUT 600 LABELS unit)
+    endif()
     set_property(GLOBAL APPEND PROPERTY FOGMAP_UNIT_TESTS ${name})
   endif()
 endfunction()

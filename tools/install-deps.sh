@@ -14,6 +14,7 @@ build=(
   prometheus-cpp-dev libyaml-cpp-dev libssl-dev
   nlohmann-json3-dev  # harness/ and fogctl: JSON reports
   libembree-dev  # common/sim: ray casting
+  lld  # the linker (CMakeLists.txt): links in a fraction of GNU ld's time
 )
 test=(
   libgtest-dev libgmock-dev libbenchmark-dev

@@ -15,8 +15,10 @@ Usage: tools/tsan.sh [--tests REGEX] [--no-build]
 Builds fogmap with ThreadSanitizer into build-tsan/ and runs the threaded tests under it.
 
   --tests REGEX  ctest -R pattern (default: the aggregator service, tracker service, link and
-                 integration tests: AggregatorService|TlsService|TrackerService|TrackerNode|
-                 ParentLink|DetectionLink|CentroidLink|GlobalMapFeed|Cluster.|HostileClient|Shutdown)
+                 start-up and stop helpers, and integration tests: AggregatorService|
+                 AggregatorProcess|TlsService|TrackerService|TrackerNode|TrackerTicker|ParentLink|
+                 DetectionLink|CentroidLink|GlobalMapFeed|Broadcaster|Periodic|RunService|
+                 ServeUntilStopped|StopSignals.|StopRequest|EdgeProcess|Cluster.|HostileClient|Shutdown)
   --no-build     run what build-tsan/ holds
   --help         this text
 
@@ -24,7 +26,7 @@ Reports go to build-tsan/tsan-logs/<process>.<pid>; the summary counts them.
 USAGE
 }
 
-tests='AggregatorService|TlsService|TrackerService|TrackerNode|ParentLink|DetectionLink|CentroidLink|GlobalMapFeed|Cluster\.|HostileClient|Shutdown'
+tests='AggregatorService|AggregatorProcess|TlsService|TrackerService|TrackerNode|TrackerTicker|ParentLink|DetectionLink|CentroidLink|GlobalMapFeed|Broadcaster|Periodic|RunService|ServeUntilStopped|StopSignals\.|StopRequest|EdgeProcess|Cluster\.|HostileClient|Shutdown'
 build=1
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -44,7 +46,7 @@ if [ $build -eq 1 ]; then
   cmake --preset tsan > /dev/null ||
     { echo "tsan.sh: configure failed" >&2; exit 2; }
   cmake --build "$dir" -j "$(nproc)" --target merge-aggregator edge-cluster tracker detection fogctl \
-    fogmap_aggregator_tests fogmap_service_tests fogmap_tracker_service_tests fogmap_integration_tests ||
+    fogmap_aggregator_tests fogmap_service_tests fogmap_tracker_service_tests fogmap_edge_tests fogmap_integration_tests ||
     { echo "tsan.sh: build failed" >&2; exit 2; }
 fi
 logs=$PWD/$dir/tsan-logs
