@@ -26,6 +26,7 @@
 #include "common/config/topology_presets.hpp"
 #include "harness/launcher.hpp"
 #include "harness/shaped_links.hpp"
+#include "tests/support/shaping.hpp"
 
 namespace fogmap {
 namespace {
@@ -35,13 +36,8 @@ using namespace std::chrono_literals;
 using harness::NetnsLink;
 using harness::ShapedLinks;
 
-#define SKIP_UNLESS_SHAPING_IS_POSSIBLE()                                                \
-  if (const auto available = harness::shapingAvailable(); !available) {                      \
-    GTEST_SKIP() << "shaped links cannot be made here: " << available.error().message; \
-  }
-
 fs::path dataDir() { return fs::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a"; }
-constexpr double kRateMbitPerS = 10.0;  // the paper's sensor links
+constexpr double kRateMbitPerS = test_support::kShapedRateMbitPerS;
 
 // ---- a bulk transfer across one pair ----
 

@@ -24,6 +24,7 @@
 #include "services/common/grpc_options.hpp"
 #include "services/common/proto_convert.hpp"
 #include "tests/support/free_ports.hpp"
+#include "tests/support/shaping.hpp"
 
 namespace fogmap {
 namespace {
@@ -33,13 +34,8 @@ using namespace std::chrono_literals;
 using harness::NetnsLink;
 using harness::ShapedLinks;
 
-#define SKIP_UNLESS_SHAPING_IS_POSSIBLE()                                                \
-  if (const auto available = harness::shapingAvailable(); !available) {                      \
-    GTEST_SKIP() << "shaped links cannot be made here: " << available.error().message; \
-  }
-
 fs::path dataDir() { return fs::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a"; }
-constexpr double kRateMbitPerS = 10.0;  // the paper's sensor links
+constexpr double kRateMbitPerS = test_support::kShapedRateMbitPerS;
 
 // ---- whole clusters behind shaped links ----
 
