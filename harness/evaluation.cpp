@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <string>
+#include <utility>
 
 #include "common/perception/clustering.hpp"
 
@@ -72,9 +73,10 @@ Expected<TruthScores> scoreAgainstTruth(const PointObjects& objects, const EdgeV
   auto rand = randScores(found, truth_singles);
   if (!rand) return rand.error();
   scores.points = *rand;
-  auto match = matchObjects(truth, found, params);
-  if (!match) return match.error();
-  scores.objects = *match;
+  auto outcomes = matchEachObject(truth, found, params);
+  if (!outcomes) return outcomes.error();
+  scores.objects = countOutcomes(*outcomes);
+  scores.outcomes = std::move(*outcomes);
   return scores;
 }
 

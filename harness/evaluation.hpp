@@ -30,6 +30,7 @@ Expected<PointObjects> baselinePointObjects(const GlobalMapMessage& baseline, co
 struct TruthScores {
   RandScores points;    // over every point of the view (points of no true object: singletons)
   ObjectMatch objects;  // true objects found whole, split, merged, missed
+  std::vector<ObjectOutcome> outcomes;  // the same per true object (objects = countOutcomes(outcomes))
   std::size_t point_count = 0;
 };
 // Errors when the view has no truth or `objects` does not cover it.

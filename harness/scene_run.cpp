@@ -41,12 +41,12 @@ RandScores meanScores(const std::vector<RandScores>& v) {
   return out;
 }
 
-void add(ObjectMatch& sum, const ObjectMatch& m) {
-  sum.objects_true += m.objects_true;
-  sum.found_whole += m.found_whole;
-  sum.split += m.split;
-  sum.merged += m.merged;
-  sum.missed += m.missed;
+// The scene instant of a run's epoch: sim::sceneTime of the scan number its edges replayed.
+Expected<double> sceneTimeOfEpoch(const sim::Scene& scene, const TopologyConfig& topology, std::uint64_t epoch) {
+  const auto schedule = EpochSchedule::create(topology.period_ms, topology.deadline_ms);
+  if (!schedule) return schedule.error();
+  const double rate = 1000.0 / topology.period_ms;
+  return sim::sceneTime(scene, scanNumberAt(*schedule, rate, epoch), rate);
 }
 
 std::vector<double> endToEndMs(const RunResult& run) {
@@ -157,6 +157,8 @@ Expected<SceneScores> scoreSceneRuns(const sim::Scene& scene, const SceneRun& ma
   if (!views) return views.error();
 
   SceneScores out;
+  out.madc_breakdown = emptyBreakdown(scene);
+  out.baseline_breakdown = emptyBreakdown(scene);
   std::vector<RandScores> vs_baseline;
   std::vector<RandScores> ext_vs_baseline;
   std::vector<RandScores> madc_truth;
@@ -174,7 +176,13 @@ Expected<SceneScores> scoreSceneRuns(const sim::Scene& scene, const SceneRun& ma
     const auto truth = scoreAgainstTruth(madcPointObjects(g, view), view);
     if (!truth) return truth.error();
     madc_truth.push_back(truth->points);
-    add(out.madc_objects, truth->objects);
+    addObjectMatch(out.madc_objects, truth->objects);
+    // Every true object where it is at the frame's instant (the view's truth is of that instant).
+    const auto time_s = sceneTimeOfEpoch(scene, madc.topology, e);
+    if (!time_s) return time_s.error();
+    const auto madc_breakdown = breakDownObjects(scene, *time_s, truth->outcomes);
+    if (!madc_breakdown) return madc_breakdown.error();
+    addBreakdown(out.madc_breakdown, *madc_breakdown);
     true_objects.push_back(static_cast<double>(truth->objects.objects_true));
     objects.push_back(static_cast<double>(g.map.objects.size()));
     madc_bytes.push_back(static_cast<double>(view.madc_bytes));
@@ -196,7 +204,10 @@ Expected<SceneScores> scoreSceneRuns(const sim::Scene& scene, const SceneRun& ma
     vs_baseline.push_back(a.clusters);
     ext_vs_baseline.push_back(a.points);
     baseline_truth.push_back(base_truth->points);
-    add(out.baseline_objects, base_truth->objects);
+    addObjectMatch(out.baseline_objects, base_truth->objects);
+    const auto base_breakdown = breakDownObjects(scene, *time_s, base_truth->outcomes);
+    if (!base_breakdown) return base_breakdown.error();
+    addBreakdown(out.baseline_breakdown, *base_breakdown);
     ++out.frames_vs_baseline;
   }
   out.madc_vs_baseline = meanScores(vs_baseline);
@@ -231,6 +242,19 @@ Expected<std::pair<std::uint64_t, EdgeView>> lastCompleteView(const SceneRun& ru
     return std::pair{it->first, std::move(views->at(it->first))};
   }
   return Error{ErrorCode::kInternal, "no complete epoch"};
+}
+
+Expected<std::vector<Eigen::Vector2d>> missedObjectCentres(const sim::Scene& scene, const SceneRun& madc, std::uint64_t epoch,
+                                                           const EdgeView& view) {
+  const auto global = madc.result.epochs.find(epoch);
+  if (global == madc.result.epochs.end()) {
+    return Error{ErrorCode::kNotFound, "the root published no global map for epoch " + std::to_string(epoch)};
+  }
+  const auto truth = scoreAgainstTruth(madcPointObjects(global->second, view), view);
+  if (!truth) return truth.error();
+  const auto time_s = sceneTimeOfEpoch(scene, madc.topology, epoch);
+  if (!time_s) return time_s.error();
+  return missedCentres(scene, *time_s, truth->outcomes);
 }
 
 bool tracksScene(const sim::Scene& scene) { return !scene.cameras.empty() && !movingObjects(scene).empty(); }

@@ -19,6 +19,7 @@
 #include "common/sim/scene.hpp"
 #include "common/tracking/tracker_config.hpp"
 #include "harness/cluster_run.hpp"
+#include "harness/object_breakdown.hpp"
 #include "harness/report_text.hpp"
 #include "harness/track_scoring.hpp"
 #include "harness/tracking_eval.hpp"
@@ -66,6 +67,8 @@ struct SceneScores {
   RandScores baseline_vs_truth;        // mean over the paired frames
   ObjectMatch madc_objects;            // summed over frames
   ObjectMatch baseline_objects;        // summed over the paired frames
+  ObjectBreakdown madc_breakdown;      // madc_objects by range band and kind (every band and kind of the scene)
+  ObjectBreakdown baseline_breakdown;  // baseline_objects so
   double madc_bytes_per_frame = 0.0;   // what the edges ship per frame (the services' wire sizes)
   double baseline_bytes_per_frame = 0.0;
   double raw_bytes_per_frame = 0.0;    // the raw scans in the same wire format (the paper's baseline)
@@ -87,6 +90,11 @@ Expected<SceneScores> scoreSceneRuns(const sim::Scene& scene, const SceneRun& ma
 
 // The views of the last complete MAD-C epoch (for pictures): its number and the edges' view.
 Expected<std::pair<std::uint64_t, EdgeView>> lastCompleteView(const SceneRun& run);
+
+// Where the true objects MAD-C missed in `epoch` (matchEachObject of its global map against the
+// truth of `view`, that epoch's edges' view) were at the epoch's instant: their centres on the ground.
+Expected<std::vector<Eigen::Vector2d>> missedObjectCentres(const sim::Scene& scene, const SceneRun& madc, std::uint64_t epoch,
+                                                           const EdgeView& view);
 
 // The median time from a frame's sensor time to its global map, over the complete epochs.
 double endToEndP50Ms(const SceneRun& run);

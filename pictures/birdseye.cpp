@@ -158,6 +158,24 @@ void drawTrackTrail(cv::Mat& image, const std::vector<Eigen::Vector2d>& px, cons
   cv::polylines(image, line, false, bgr(colour), std::max(1, static_cast<int>(std::lround(2.0 * unit))), cv::LINE_AA, kShift);
 }
 
+// A missed true object: a ring with a cross through it in kBirdseyeMissedColour on a white halo,
+// larger than a track's diamond so that neither hides the other.
+void drawMissedMarker(cv::Mat& image, const Eigen::Vector2d& px, double radius_px, double unit) {
+  const int line = std::max(2, static_cast<int>(std::lround(2.0 * unit)));
+  const int halo = line + std::max(2, static_cast<int>(std::lround(2.0 * unit)));
+  const double arm = radius_px / std::sqrt(2.0);
+  const std::array<std::pair<Eigen::Vector2d, Eigen::Vector2d>, 2> cross = {{{{-arm, -arm}, {arm, arm}}, {{-arm, arm}, {arm, -arm}}}};
+  const cv::Point c = fixedPoint(px);
+  const int r = fixedLength(radius_px);
+  const cv::Scalar white(255, 255, 255);
+  cv::circle(image, c, r, white, halo, cv::LINE_AA, kShift);
+  for (const auto& [a, b] : cross) cv::line(image, fixedPoint(px + a), fixedPoint(px + b), white, halo, cv::LINE_AA, kShift);
+  cv::circle(image, c, r, bgr(kBirdseyeMissedColour), line, cv::LINE_AA, kShift);
+  for (const auto& [a, b] : cross) {
+    cv::line(image, fixedPoint(px + a), fixedPoint(px + b), bgr(kBirdseyeMissedColour), line, cv::LINE_AA, kShift);
+  }
+}
+
 struct Counts {
   std::size_t points = 0;
   std::size_t points_in_view = 0;
@@ -166,6 +184,7 @@ struct Counts {
   std::size_t tracks_in_view = 0;
   std::size_t tracks_lost = 0;
   std::size_t tracks_unlabelled = 0;  // in view, but every place for its label was taken
+  std::size_t missed_in_view = 0;
 };
 
 // The map itself, into `plot` (a view of the picture clipped to the map's square).
@@ -236,6 +255,16 @@ Counts drawMap(cv::Mat& plot, const Projection& proj, const BirdseyeScene& scene
   const int outline_px = std::max(1, static_cast<int>(std::lround(2.0 * unit)));
   for (std::size_t o = 0; o < ellipses.size(); ++o) {
     if (!ellipses[o].empty()) cv::polylines(plot, ellipses[o], true, bgr(colours[o]), outline_px, cv::LINE_AA, kShift);
+  }
+  // Missed true objects over the objects and the truth, under the tracks.
+  if (scene.missed) {
+    for (const auto& centre : *scene.missed) {
+      if (!centre.allFinite()) continue;
+      const Eigen::Vector2d at = local.pixel(centre);
+      if (at.x() < 0 || at.y() < 0 || at.x() >= plot.cols || at.y() >= plot.rows) continue;
+      ++counts.missed_in_view;
+      drawMissedMarker(plot, at, 10.0 * unit, unit);
+    }
   }
   // Tracks over the map: trails, then markers, then their ids and labels.
   const double marker = 7.0 * unit;
@@ -453,6 +482,14 @@ void drawLegend(cv::Mat& image, const BirdseyeScene& scene, const BirdseyeLayout
                                            fixedPoint(c + Eigen::Vector2d(r.width * 0.4, r.height * 0.25)),
                                            fixedPoint(c + Eigen::Vector2d(-r.width * 0.25, r.height * 0.4))};
       cv::polylines(image, poly, true, bgr(kBirdseyeTruthColour), 1, cv::LINE_AA, kShift);
+    });
+  }
+  if (scene.missed) {
+    const std::size_t missed = scene.missed->size();
+    std::string detail = missed == 0 ? std::string("none: every true object found") : plural(missed, "true object");
+    if (counts.missed_in_view < missed) detail += "; " + withThousands(missed - counts.missed_in_view) + " out of view";
+    entry("missed: a true object no cluster found, at its centre", detail, [&](const cv::Rect& r) {
+      drawMissedMarker(image, centreOf(r), std::min(r.height * 0.35, 10.0 * unit), unit);
     });
   }
   if (!scene.tracks.empty()) {

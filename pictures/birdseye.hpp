@@ -1,14 +1,15 @@
 #pragma once
 // Bird's-eye pictures of a global map a person can read: LiDAR points, every global object's
 // ellipsoids as ellipses in the object's colour, sensors with their range, true object outlines
-// when known, tracks with their ids, labels and trails when given, a metre grid, a scale bar, a
-// legend and a title. A pure drawing unit: no sockets.
+// when known, the true objects that were missed when scored, tracks with their ids, labels and
+// trails when given, a metre grid, a scale bar, a legend and a title. A pure drawing unit: no sockets.
 //
 // The picture: a title band on top, then the square map (x right, y up, in the common frame) with
 // its grid labelled in metres on the left and bottom edges, and the legend in a panel on its right,
 // so no text lies on the data except the sensors' names.
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -57,6 +58,10 @@ struct BirdseyeScene {
   // Drawn over everything but the sensors; a track's "#id label" goes on a side of its marker where
   // it covers no other track's (confirmed tracks first), and is left out where there is none.
   std::vector<BirdseyeTrack> tracks;
+  // The centres of the true objects the clustering missed (e.g. from matchEachObject), common
+  // frame: each drawn as a ring with a cross in kBirdseyeMissedColour over the map, with a legend
+  // entry "missed". None: not scored (no mark, no entry); empty: scored, none missed (the entry says so).
+  std::optional<std::vector<Eigen::Vector2d>> missed;
 };
 
 struct Rgb {
@@ -71,6 +76,8 @@ inline constexpr Rgb kBirdseyeBackground{255, 255, 255};
 inline constexpr Rgb kBirdseyePointColour{150, 150, 150};
 inline constexpr Rgb kBirdseyeSensorColour{0, 0, 0};
 inline constexpr Rgb kBirdseyeTruthColour{70, 70, 70};
+// A pure red, apart from the palette's brick red (214, 39, 40) by 39 and 40 in green and blue.
+inline constexpr Rgb kBirdseyeMissedColour{255, 0, 0};
 inline constexpr Rgb kBirdseyePalette[] = {{31, 119, 180}, {255, 127, 14}, {44, 160, 44},  {214, 39, 40}, {148, 103, 189},
                                            {140, 86, 75},  {227, 119, 194}, {188, 189, 34}, {23, 190, 207}};
 

@@ -10,7 +10,7 @@ namespace fogmap::pictures {
 
 Status drawSceneBirdseye(const std::filesystem::path& png, const GlobalMapMessage& global, const harness::EdgeView& view,
                          const sim::Scene& scene, const TopologyConfig& topology, const std::string& what,
-                         std::vector<BirdseyeTrack> tracks) {
+                         std::vector<BirdseyeTrack> tracks, std::optional<std::vector<Eigen::Vector2d>> missed) {
   const auto schedule = EpochSchedule::create(topology.period_ms, topology.deadline_ms);
   if (!schedule) return schedule.error();
   const double rate = 1000.0 / topology.period_ms;
@@ -18,7 +18,8 @@ Status drawSceneBirdseye(const std::filesystem::path& png, const GlobalMapMessag
   BirdseyeScene picture;
   picture.title = what + ", epoch " + std::to_string(global.header.epoch) + ": " +
                   std::to_string(global.map.objects.size()) + " objects, " + std::to_string(scene.objects.size()) +
-                  " in the scene" + (tracks.empty() ? "" : ", " + std::to_string(tracks.size()) + " tracks");
+                  " in the scene" + (missed ? ", " + std::to_string(missed->size()) + " missed" : "") +
+                  (tracks.empty() ? "" : ", " + std::to_string(tracks.size()) + " tracks");
   picture.half_extent_m = scene.extent_m;
   for (const auto& [node, points] : view.points) picture.points.emplace_back(points);
   picture.objects = global.map.objects;
@@ -31,6 +32,7 @@ Status drawSceneBirdseye(const std::filesystem::path& png, const GlobalMapMessag
     picture.truth.push_back({object.id, object.label, sim::footprint(object, time_s)});
   }
   picture.tracks = std::move(tracks);
+  picture.missed = std::move(missed);
   return drawBirdseye(png, picture);
 }
 

@@ -4,6 +4,7 @@
 // tracks a tracker held then. Pictures of what the harness ran: part of fogmap::run_pictures.
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -21,10 +22,12 @@ namespace fogmap::pictures {
 
 // `what` starts the title ("MAD-C global map"); the epoch and the object count follow. The frame's
 // instant comes from the epoch (sim::sceneTime of its scan number). `tracks` (may be empty) are
-// drawn over the map.
+// drawn over the map; `missed`, when given, marks the centres of the true objects the map missed
+// (harness::missedObjectCentres) and counts them in the title.
 Status drawSceneBirdseye(const std::filesystem::path& png, const GlobalMapMessage& global, const harness::EdgeView& view,
                          const sim::Scene& scene, const TopologyConfig& topology, const std::string& what,
-                         std::vector<BirdseyeTrack> tracks = {});
+                         std::vector<BirdseyeTrack> tracks = {},
+                         std::optional<std::vector<Eigen::Vector2d>> missed = std::nullopt);
 
 // The tracks of lists[index] a picture shows (confirmed and lost ones, isHypothesis), each with its
 // positions in up to `trail` lists before it as its trail. Empty when index is out of range.

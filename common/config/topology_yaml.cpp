@@ -29,8 +29,10 @@ std::string toYaml(const TopologyConfig& t) {
       << YAML::Value << a.max_condition << YAML::Key << "max_subscribers" << YAML::Value << a.max_subscribers
       << YAML::EndMap;
   out << YAML::Key << "madc" << YAML::Value << YAML::BeginMap << YAML::Key << "eps_m" << YAML::Value << t.madc.clustering.eps_m
-      << YAML::Key << "min_points" << YAML::Value << t.madc.clustering.min_points << YAML::Key << "alpha" << YAML::Value
-      << t.madc.alpha << YAML::Key << "threads" << YAML::Value << t.madc.clustering.threads << YAML::EndMap;
+      << YAML::Key << "min_points" << YAML::Value << t.madc.clustering.min_points;
+  if (t.madc.fragment_min_points) out << YAML::Key << "fragment_min_points" << YAML::Value << *t.madc.fragment_min_points;
+  out << YAML::Key << "alpha" << YAML::Value << t.madc.alpha << YAML::Key << "threads" << YAML::Value
+      << t.madc.clustering.threads << YAML::EndMap;
   out << YAML::Key << "preprocess" << YAML::Value << YAML::BeginMap;
   auto list3 = [&](const Eigen::Vector3d& v) {
     out << YAML::Flow << YAML::BeginSeq << v.x() << v.y() << v.z() << YAML::EndSeq;

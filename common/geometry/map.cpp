@@ -43,6 +43,21 @@ std::size_t Map::ellipsoidCount() const {
   return n;
 }
 
+std::uint64_t MapObject::pointCount() const {
+  std::uint64_t n = 0;
+  for (const auto& e : ellipsoids) n += e.point_count;
+  return n;
+}
+
+Map withoutFragments(const Map& merged, std::uint64_t min_points) {
+  Map out;
+  out.objects.reserve(merged.objects.size());
+  for (const auto& object : merged.objects) {
+    if (object.pointCount() >= min_points) out.objects.push_back(object);
+  }
+  return out;
+}
+
 Map mapFromGroups(std::span<const Ellipsoid> ellipsoids, std::span<const std::size_t> object_of) {
   std::vector<std::size_t> order(ellipsoids.size());
   std::iota(order.begin(), order.end(), 0);
@@ -209,7 +224,7 @@ MergeResult mergeAll(std::span<const Map> maps) {
   return mergeMaps(pointers);
 }
 
-Map mergeSpecification(std::span<const Ellipsoid> ellipsoids) {
+Map mergeSpecification(std::span<const Ellipsoid> ellipsoids, std::uint64_t min_points) {
   std::vector<Ellipsoid> unique(ellipsoids.begin(), ellipsoids.end());
   std::sort(unique.begin(), unique.end(), [](const Ellipsoid& a, const Ellipsoid& b) { return a.id < b.id; });
   unique.erase(std::unique(unique.begin(), unique.end(), [](const Ellipsoid& a, const Ellipsoid& b) { return a.id == b.id; }),
@@ -222,7 +237,8 @@ Map mergeSpecification(std::span<const Ellipsoid> ellipsoids) {
   }
   std::vector<std::size_t> object_of(unique.size());
   for (std::size_t i = 0; i < unique.size(); ++i) object_of[i] = sets.find(i);
-  return mapFromGroups(unique, object_of);
+  Map components = mapFromGroups(unique, object_of);
+  return min_points == 0 ? components : withoutFragments(components, min_points);
 }
 
 }  // namespace fogmap

@@ -30,6 +30,8 @@ struct MapObject {
   std::vector<Ellipsoid> ellipsoids;  // sorted by id
   Box box;                            // union of the ellipsoids' delimiting boxes
   bool operator==(const MapObject&) const = default;
+  // The object's points over all its sensors: the sum of its ellipsoids' point counts.
+  std::uint64_t pointCount() const;
 };
 
 // Canonical form: ellipsoids of an object sorted by id, objects sorted by their first id, no
@@ -64,9 +66,17 @@ MergeResult merge(const Map& working, const Map& child);
 MergeResult mergeAll(std::span<const Map> maps);
 MergeResult mergeMaps(std::span<const Map* const> maps);
 
+// Fragments (docs/design.md, "Fragments"): an edge ships every local cluster, also
+// those below min_points, and min_points applies to a global object's points over all its sensors.
+// The published map is the merged map without the objects below min_points: a pure function of
+// the merged map, so MERGE stays commutative, associative and idempotent and the published map
+// does not depend on the order of arrivals. Intermediate aggregators keep every fragment.
+Map withoutFragments(const Map& merged, std::uint64_t min_points);
+
 // The specification, for tests and small inputs: connected components of the graph of all
 // (deduplicated) ellipsoids with an edge between intersecting ellipsoids of different nodes,
-// found by testing all pairs.
-Map mergeSpecification(std::span<const Ellipsoid> ellipsoids);
+// found by testing all pairs; with min_points, without the components of fewer points over all
+// their ellipsoids (the published map: lone fragments are not objects).
+Map mergeSpecification(std::span<const Ellipsoid> ellipsoids, std::uint64_t min_points = 0);
 
 }  // namespace fogmap

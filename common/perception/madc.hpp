@@ -1,7 +1,9 @@
 #pragma once
 // MAD-C Algorithm 1 (GENLOCALMAP): cluster one pre-processed scan and distil every cluster into
 // a bounding ellipsoid with a globally unique id.
+#include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <span>
 
 #include "common/geometry/cloud.hpp"
@@ -14,6 +16,13 @@ namespace fogmap {
 struct MadcParams {
   ClusteringParams clustering;  // eps 0.35 m, 10 points
   double alpha = 1.5;           // confidence step
+  // An edge ships every local cluster of at least this many points: those below
+  // clustering.min_points are fragments, and min_points applies to a global object's points over
+  // all its sensors, at the root (withoutFragments, common/geometry/map.hpp). Unset: min_points,
+  // no fragments (the edges drop their small clusters, as the MAD-C paper does). Fragments cost
+  // bytes: the default stays off until the compact wire carries them (docs/design.md).
+  std::optional<std::size_t> fragment_min_points;
+  std::size_t edgeMinPoints() const { return fragment_min_points.value_or(clustering.min_points); }
   // The aura is eps / 2 so that "two clusters closer than eps" becomes "two ellipsoids meet".
   EllipsoidParams ellipsoidParams() const { return {alpha, clustering.eps_m / 2.0}; }
 };

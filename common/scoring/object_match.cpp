@@ -6,8 +6,9 @@
 
 namespace fogmap {
 
-Expected<ObjectMatch> matchObjects(std::span<const std::int64_t> truth, std::span<const std::int64_t> clusters,
-                                   const ObjectMatchParams& params) {
+Expected<std::vector<ObjectOutcome>> matchEachObject(std::span<const std::int64_t> truth,
+                                                     std::span<const std::int64_t> clusters,
+                                                     const ObjectMatchParams& params) {
   if (truth.size() != clusters.size()) {
     return invalidArgument("matchObjects: " + std::to_string(truth.size()) + " true labels but " +
                            std::to_string(clusters.size()) + " cluster labels");
@@ -31,10 +32,9 @@ Expected<ObjectMatch> matchObjects(std::span<const std::int64_t> truth, std::spa
       if (holds(object, points)) ++objects_held_by[cluster];
     }
   }
-  ObjectMatch out;
+  std::vector<ObjectOutcome> out;
   for (const auto& [object, size] : size_of) {
     if (size < params.min_points) continue;
-    ++out.objects_true;
     const auto it = overlap.find(object);
     std::size_t holding = 0;
     std::int64_t best = -1;
@@ -51,12 +51,28 @@ Expected<ObjectMatch> matchObjects(std::span<const std::int64_t> truth, std::spa
     const bool found = best >= 0 && static_cast<double>(best_points) >= params.found * static_cast<double>(size);
     const bool split = holding >= 2;
     const bool merged = found && objects_held_by[best] >= 2;
-    if (!found) ++out.missed;
-    if (split) ++out.split;
-    if (merged) ++out.merged;
-    if (found && !split && !merged) ++out.found_whole;
+    out.push_back({object, size, found && !split && !merged, split, merged, !found});
   }
   return out;
+}
+
+ObjectMatch countOutcomes(std::span<const ObjectOutcome> outcomes) {
+  ObjectMatch out;
+  out.objects_true = outcomes.size();
+  for (const auto& o : outcomes) {
+    if (o.found_whole) ++out.found_whole;
+    if (o.split) ++out.split;
+    if (o.merged) ++out.merged;
+    if (o.missed) ++out.missed;
+  }
+  return out;
+}
+
+Expected<ObjectMatch> matchObjects(std::span<const std::int64_t> truth, std::span<const std::int64_t> clusters,
+                                   const ObjectMatchParams& params) {
+  auto outcomes = matchEachObject(truth, clusters, params);
+  if (!outcomes) return outcomes.error();
+  return countOutcomes(*outcomes);
 }
 
 }  // namespace fogmap

@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <vector>
 
 #include "common/base/status.hpp"
 
@@ -24,10 +25,30 @@ struct ObjectMatch {
   std::size_t missed = 0;         // no cluster holds the `found` share of it
 };
 
+// What became of one counted true object (ObjectMatch's definitions, for that object alone).
+struct ObjectOutcome {
+  std::int64_t true_object = 0;
+  std::size_t points = 0;    // its points (at least min_points)
+  bool found_whole = false;  // neither split, nor merged, nor missed
+  bool split = false;
+  bool merged = false;
+  bool missed = false;
+};
+
 // `truth`: the true object of every point (negative: not an object, e.g. ground); `clusters`: the
 // cluster of every point (negative: noise). A true object can be both split and merged; found whole
 // is neither split, nor merged, nor missed. Errors when the lengths differ.
 Expected<ObjectMatch> matchObjects(std::span<const std::int64_t> truth, std::span<const std::int64_t> clusters,
                                    const ObjectMatchParams& params = {});
+
+// The same judgement per true object: one outcome for every true object with at least min_points
+// points, in increasing true_object order; matchObjects is countOutcomes of it. Errors when the
+// lengths differ.
+Expected<std::vector<ObjectOutcome>> matchEachObject(std::span<const std::int64_t> truth,
+                                                     std::span<const std::int64_t> clusters,
+                                                     const ObjectMatchParams& params = {});
+
+// The counts of `outcomes`: objects_true is their number, the others how many are so.
+ObjectMatch countOutcomes(std::span<const ObjectOutcome> outcomes);
 
 }  // namespace fogmap

@@ -119,6 +119,10 @@ Metrics::Metrics(const std::string& bind_address, const std::string& service, co
   refused_ = &counterFamily(r, "fogmap_refused_uploads_total",
                             "Uploads refused by an admission rule, by reason (clock_skew, forged_node, ...).", c);
   dropped_epochs_ = &counter(r, "fogmap_dropped_epochs_total", "Epochs dropped without being emitted.", c);
+  fragments_unpublished_ = &counter(r, "fogmap_fragments_unpublished_total",
+                                    "Root: merged objects left out of the published map for having fewer than "
+                                    "min_points points over all their sensors (lone fragments).",
+                                    c);
   caught_up_epochs_ = &counter(r, "fogmap_caught_up_epochs_total",
                                "Root: epochs published late because the emitter did not poll in time (a stall).", c);
   longest_poll_gap_ = &gauge(r, "fogmap_emitter_longest_poll_gap_seconds",
@@ -243,6 +247,7 @@ void Metrics::refused(const std::string& reason, std::uint64_t n) {
   refused_->Add({{"reason", reason}}).Increment(static_cast<double>(n));
 }
 void Metrics::droppedEpochs(std::uint64_t n) { dropped_epochs_->Increment(static_cast<double>(n)); }
+void Metrics::fragmentsUnpublished(std::uint64_t n) { fragments_unpublished_->Increment(static_cast<double>(n)); }
 void Metrics::caughtUpEpochs(std::uint64_t n) { caught_up_epochs_->Increment(static_cast<double>(n)); }
 void Metrics::longestPollGapSeconds(double s) { longest_poll_gap_->Set(s); }
 void Metrics::subscriberDrops(std::uint64_t n) { subscriber_drops_->Increment(static_cast<double>(n)); }

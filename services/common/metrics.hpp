@@ -54,6 +54,7 @@ class Metrics {
   void refused(const std::string& reason, std::uint64_t n = 1);
   // Epochs evicted or abandoned without being emitted (beyond the pending bound).
   void droppedEpochs(std::uint64_t n = 1);
+  void fragmentsUnpublished(std::uint64_t n);
   // Root: epochs published late because it did not poll in time (a stall of its own), and the
   // longest time between two polls of its emitter.
   void caughtUpEpochs(std::uint64_t n = 1);
@@ -122,6 +123,7 @@ class Metrics {
   prometheus::Counter* frames_;
   prometheus::Family<prometheus::Counter>* refused_;
   prometheus::Counter* dropped_epochs_;
+  prometheus::Counter* fragments_unpublished_;
   prometheus::Counter* caught_up_epochs_;
   prometheus::Gauge* longest_poll_gap_;
   prometheus::Counter* subscriber_drops_;

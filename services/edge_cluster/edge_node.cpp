@@ -61,6 +61,9 @@ EdgeConfig edgeConfigFor(const TopologyConfig& topology, const NodeConfig& node)
   config.node = node.id;
   config.mode = topology.mode;
   config.madc = topology.madc;
+  // The edge keeps its fragments (clusters below min_points): the root applies min_points to each
+  // global object's points over all its sensors.
+  config.madc.clustering.min_points = topology.madc.edgeMinPoints();
   config.preprocess = topology.preprocess;
   if (node.sensor) config.preprocess.sensor_to_common = sensorToCommon(*node.sensor);
   config.ship_raw = topology.baseline_ships_raw;

@@ -124,6 +124,9 @@ struct AggregatorCounters {
   std::uint64_t revisions = 0;       // emissions of an epoch after its first
   std::uint64_t late_emits = 0;      // emissions flagged late (revisions and stale epochs)
   std::uint64_t dropped_epochs = 0;  // open epochs evicted beyond max_pending_epochs
+  // Root: objects of merged maps left out of the published map for having fewer than min_points
+  // points over all their sensors (lone fragments), over all emissions.
+  std::uint64_t fragments_unpublished = 0;
   // Root: epochs nobody reported that it opened more than a period after their deadline, because
   // it did not poll in time (a stall of its own: SIGSTOP, a starved process); published late.
   std::uint64_t caught_up = 0;

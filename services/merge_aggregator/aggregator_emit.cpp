@@ -182,7 +182,10 @@ EpochOutput MergeAggregator::emit(std::uint64_t epoch_id, Epoch& epoch, bool com
     return out;
   }
 
-  global.map = epoch.working;
+  // Edges ship their fragments too; what is published are the objects with min_points points
+  // over all their sensors (withoutFragments, common/geometry/map.hpp).
+  global.map = withoutFragments(epoch.working, config_.madc.clustering.min_points);
+  counters_.fragments_unpublished += epoch.working.objects.size() - global.map.objects.size();
   global.header = headerFor(epoch_id, epoch, epoch.contributing);
   if (config_.mode == Mode::kExt) {
     std::map<EllipsoidId, std::int32_t> object_of;

@@ -25,6 +25,7 @@ void Emitter::exportCounters(const AggregatorCounters& now) {
     metrics_->mapsIn(now.accepted - exported_.accepted);
     metrics_->lateMaps(now.late - exported_.late);
     metrics_->droppedEpochs(now.dropped_epochs - exported_.dropped_epochs);
+    metrics_->fragmentsUnpublished(now.fragments_unpublished - exported_.fragments_unpublished);
     metrics_->caughtUpEpochs(now.caught_up - exported_.caught_up);
     metrics_->longestPollGapSeconds(static_cast<double>(now.longest_poll_gap_ns) * 1e-9);
     metrics_->lateEmits(now.late_emits - exported_.late_emits);

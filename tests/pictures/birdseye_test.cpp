@@ -246,6 +246,64 @@ TEST(Birdseye, TrackLabelsDoNotCoverEachOther) {
   EXPECT_EQ(inColour(left, birdseyeTrackColour(3)), 0);
 }
 
+// How many pixels of `r` are within `tolerance` of `colour` in every channel.
+int pixelsNear(const cv::Mat& image, cv::Rect r, Rgb colour, int tolerance) {
+  cv::Mat mask;
+  cv::inRange(image(r), cv::Scalar(colour.b, colour.g, colour.r) - cv::Scalar::all(tolerance),
+              cv::Scalar(colour.b, colour.g, colour.r) + cv::Scalar::all(tolerance), mask);
+  return cv::countNonZero(mask);
+}
+
+TEST(Birdseye, MissedObjectsAreMarkedAtTheirCentresAndNowhereElse) {
+  const ScratchDir scratch("missed");
+  const fs::path dir = test_support::outputDir("FOGMAP_BIRDSEYE_DIR", scratch);
+  KnownScene k;
+  // One missed object in an empty place, one on the crate's outline (marks go over the truth).
+  const Eigen::Vector2d empty_place(-2, -12);
+  const Eigen::Vector2d on_crate(12, 11);
+  k.scene.missed = std::vector<Eigen::Vector2d>{empty_place, on_crate};
+  const fs::path png = dir / "known-scene-with-missed-objects.png";
+  ASSERT_TRUE(drawBirdseye(png, k.scene, 1000).ok());
+  const cv::Mat image = cv::imread(png.string(), cv::IMREAD_COLOR);
+  ASSERT_FALSE(image.empty());
+  const BirdseyeLayout layout = birdseyeLayout(k.scene, 1000);
+  const cv::Rect map(layout.plot_left_px, layout.plot_top_px, layout.plot_size_px, layout.plot_size_px);
+  const cv::Rect legend(layout.legend_left_px, layout.legend_top_px, layout.legend_width_px, layout.legend_height_px);
+  constexpr int kTolerance = 30;  // the palette's red (214, 39, 40) is further than this from the mark's
+  const auto around = [&](const Eigen::Vector2d& xy) {
+    const cv::Point at = pixelOf(layout, k.scene, xy);
+    return cv::Rect(at.x - 16, at.y - 16, 33, 33);
+  };
+  for (const Eigen::Vector2d& xy : {empty_place, on_crate}) {
+    const cv::Point at = pixelOf(layout, k.scene, xy);
+    EXPECT_TRUE(colourAt(image, at, kBirdseyeMissedColour, kTolerance)) << "the cross through " << xy.transpose();
+    EXPECT_GT(pixelsNear(image, around(xy), kBirdseyeMissedColour, kTolerance), 80) << "the ring and cross at " << xy.transpose();
+  }
+  // The ring (10 px across at this size) is hollow between the cross's arms: right of the centre is white.
+  EXPECT_TRUE(colourAt(image, pixelOf(layout, k.scene, empty_place) + cv::Point(6, 0), kBirdseyeBackground, 0));
+  // Nothing of the mark's colour on the map but the two marks.
+  EXPECT_EQ(pixelsNear(image, map, kBirdseyeMissedColour, kTolerance),
+            pixelsNear(image, around(empty_place), kBirdseyeMissedColour, kTolerance) +
+                pixelsNear(image, around(on_crate), kBirdseyeMissedColour, kTolerance));
+  EXPECT_GT(pixelsNear(image, legend, kBirdseyeMissedColour, kTolerance), 20) << "the legend's \"missed\" entry";
+
+  // Scored with nothing missed: no mark on the map, the legend's entry still there (saying none).
+  k.scene.missed = std::vector<Eigen::Vector2d>{};
+  ASSERT_TRUE(drawBirdseye(dir / "none-missed.png", k.scene, 1000).ok());
+  const cv::Mat none = cv::imread((dir / "none-missed.png").string(), cv::IMREAD_COLOR);
+  ASSERT_FALSE(none.empty());
+  EXPECT_EQ(pixelsNear(none, map, kBirdseyeMissedColour, kTolerance), 0);
+  EXPECT_TRUE(colourAt(none, pixelOf(layout, k.scene, empty_place), kBirdseyeBackground, 0));
+  EXPECT_GT(pixelsNear(none, legend, kBirdseyeMissedColour, kTolerance), 20);
+  // Not scored: neither mark nor entry.
+  k.scene.missed.reset();
+  ASSERT_TRUE(drawBirdseye(dir / "not-scored.png", k.scene, 1000).ok());
+  const cv::Mat unscored = cv::imread((dir / "not-scored.png").string(), cv::IMREAD_COLOR);
+  ASSERT_FALSE(unscored.empty());
+  EXPECT_EQ(pixelsNear(unscored, map, kBirdseyeMissedColour, kTolerance), 0);
+  EXPECT_EQ(pixelsNear(unscored, legend, kBirdseyeMissedColour, kTolerance), 0);
+}
+
 TEST(Birdseye, AnUnwritablePathIsAnErrorThatNamesIt) {
   const KnownScene k;
   const fs::path png = "/nonexistent-birdseye-dir/deeper/map.png";

@@ -19,6 +19,7 @@
 #include "harness/cluster_run.hpp"
 #include "harness/epoch_latency.hpp"
 #include "harness/launcher.hpp"
+#include "harness/object_breakdown.hpp"
 #include "harness/report_text.hpp"
 #include "harness/scene_run.hpp"
 #include "harness/track_scoring.hpp"
@@ -46,8 +47,12 @@ using harness::installStopHandlers;
 using harness::jsonNumber;
 using harness::jsonText;
 using harness::lastCompleteView;
+using harness::kindReport;
+using harness::missedObjectCentres;
 using harness::movingObjects;
+using harness::objectBreakdownText;
 using harness::percentile;
+using harness::rangeBandReport;
 using harness::recomputeEdges;
 using harness::runCluster;
 using harness::runScene;
@@ -168,6 +173,7 @@ int runSceneDemo(const Args& args) {
   std::printf("                                 %zu: found whole %zu, split %zu, merged %zu, missed %zu (baseline)\n",
               s.baseline_objects.objects_true, s.baseline_objects.found_whole, s.baseline_objects.split,
               s.baseline_objects.merged, s.baseline_objects.missed);
+  std::fputs(objectBreakdownText(s.madc_breakdown, s.baseline_breakdown).c_str(), stdout);
   std::printf("  times: local clustering %.2f ms per scan, MERGE %.3f ms per epoch; baseline central clustering %.2f ms\n",
               s.clustering_ms, s.merge_ms, s.baseline_clustering_ms);
   std::printf("  end-to-end p50: MAD-C %.1f ms   baseline %.1f ms\n", s.madc_e2e_p50_ms, s.baseline_e2e_p50_ms);
@@ -175,10 +181,15 @@ int runSceneDemo(const Args& args) {
   const std::filesystem::path png = args.get("png", (dir / "global_map.png").string());
   if (auto last = lastCompleteView(*madc)) {
     const GlobalMapMessage& g = madc->result.epochs.at(last->first);
-    if (Status drawn = drawSceneBirdseye(png, g, last->second, *scene, madc->topology, "MAD-C global map"); !drawn) {
+    auto missed = missedObjectCentres(*scene, *madc, last->first, last->second);
+    if (!missed) return fail(missed.error(), "fogctl demo");
+    const std::size_t missed_count = missed->size();
+    if (Status drawn = drawSceneBirdseye(png, g, last->second, *scene, madc->topology, "MAD-C global map", {}, std::move(*missed));
+        !drawn) {
       return fail(drawn.error(), "fogctl demo");
     }
-    std::printf("  bird's-eye view of epoch %lu: %s\n", static_cast<unsigned long>(last->first), png.c_str());
+    std::printf("  bird's-eye view of epoch %lu (%zu true objects missed, marked): %s\n", static_cast<unsigned long>(last->first),
+                missed_count, png.c_str());
   }
   std::optional<Json> tracking_report;
   if (tracks) {
@@ -227,6 +238,11 @@ int runSceneDemo(const Args& args) {
   j["objects_merged"] = s.madc_objects.merged;
   j["objects_missed"] = s.madc_objects.missed;
   j["baseline_objects_found_whole"] = s.baseline_objects.found_whole;
+  j["baseline_objects_split"] = s.baseline_objects.split;
+  j["baseline_objects_merged"] = s.baseline_objects.merged;
+  j["baseline_objects_missed"] = s.baseline_objects.missed;
+  j["by_range_band"] = rangeBandReport(s.madc_breakdown, s.baseline_breakdown);
+  j["by_kind"] = kindReport(s.madc_breakdown, s.baseline_breakdown);
   j["clustering_ms"] = jsonNumber(s.clustering_ms);
   j["merge_ms"] = jsonNumber(s.merge_ms);
   j["baseline_clustering_ms"] = jsonNumber(s.baseline_clustering_ms);
@@ -421,13 +437,15 @@ Command demoCommand() {
           "  --scene FILE   a simulated scene (fogctl scene): one edge per LiDAR of the scene, MAD-C-ext and the\n"
           "                 baseline over its first --frames frames (replayed in a loop, so both see the same\n"
           "                 frames), both also scored against the scene's truth (Rand index, ARI, objects found\n"
-          "                 whole, split, merged, missed). When something in the scene moves and it has cameras,\n"
-          "                 then also the cluster of fogctl topology --scene FILE --tracker: the tracker and a\n"
-          "                 detection service per camera replaying the truth (--miss-rate of it missed, 2 px box\n"
-          "                 jitter, 50 ms latency); after 30 track lists, --track-frames of them within one cycle\n"
-          "                 of the scene are scored against the truth (CLEAR MOT, IDF1, localization error, sensor\n"
-          "                 time to published tracks: the report's \"tracking\" object), and --tracks-png (default\n"
-          "                 tracks.png under --state) shows the last with the tracks, their ids, labels and trails\n",
+          "                 whole, split, merged, missed, also by range to the nearest LiDAR and by kind; the PNG\n"
+          "                 marks the true objects MAD-C missed). When something in the scene moves and it has\n"
+          "                 cameras, then also the cluster of fogctl topology --scene FILE --tracker: the tracker\n"
+          "                 and a detection service per camera replaying the truth (--miss-rate of it missed, 2 px\n"
+          "                 box jitter, 50 ms latency); after 30 track lists, --track-frames of them within one\n"
+          "                 cycle of the scene are scored against the truth (CLEAR MOT, IDF1, localization error,\n"
+          "                 sensor time to published tracks: the report's \"tracking\" object), and --tracks-png\n"
+          "                 (default tracks.png under --state) shows the last with the tracks, their ids, labels\n"
+          "                 and trails\n",
           runDemo};
 }
 

@@ -37,6 +37,7 @@ void expectSameTopology(const TopologyConfig& a, const TopologyConfig& b) {
   EXPECT_DOUBLE_EQ(a.madc.clustering.eps_m, b.madc.clustering.eps_m);
   EXPECT_EQ(a.madc.clustering.min_points, b.madc.clustering.min_points);
   EXPECT_EQ(a.madc.clustering.threads, b.madc.clustering.threads);
+  EXPECT_EQ(a.madc.fragment_min_points, b.madc.fragment_min_points);
   EXPECT_DOUBLE_EQ(a.madc.alpha, b.madc.alpha);
   ASSERT_EQ(a.preprocess.crop.has_value(), b.preprocess.crop.has_value());
   if (a.preprocess.crop) {
@@ -120,6 +121,7 @@ void customize(TopologyConfig& t) {
   t.madc.clustering.eps_m = 0.55;
   t.madc.clustering.min_points = 7;
   t.madc.clustering.threads = 4;
+  t.madc.fragment_min_points = 3;
   t.madc.alpha = 2.25;
   t.preprocess.voxel_leaf_m = 0.125;
   t.preprocess.ground->distance_threshold_m = 0.3;
@@ -296,6 +298,10 @@ TEST(Topology, OutOfRangeValuesNameTheirField) {
     expectRejected("name: t\nmadc: {eps_m: " + std::string(v) + "}\nnodes:\n" + kNodes, "madc.eps_m");
   }
   expectRejected(topologyYaml("", "  min_points: 0\n"), "madc.min_points");
+  // Fragments: at least 1 point and at most min_points (the default 10 here).
+  for (const char* v : {"0", "11", "-1"}) {
+    expectRejected(topologyYaml("", std::string("  fragment_min_points: ") + v + "\n"), "madc.fragment_min_points");
+  }
   for (const char* v : {"0", "10", "-1"}) expectRejected(topologyYaml("", std::string("  alpha: ") + v + "\n"), "madc.alpha");
   for (const char* v : {"0", "257", "1000", "-1"}) {
     expectRejected(topologyYaml("", std::string("  threads: ") + v + "\n"), "madc.threads");

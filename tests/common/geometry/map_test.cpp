@@ -131,6 +131,55 @@ TEST(Merge, SameNodeEllipsoidsAreNeverJoinedDirectly) {
   EXPECT_EQ(merge(m, localMap({c})).map.objects.size(), 1U);
 }
 
+// Fragments: a merged object is published when its ellipsoids hold min_points points together,
+// whatever each holds alone; the filter commutes with the order of the merges.
+TEST(Merge, FragmentsJoinedAcrossNodesArePublishedLoneOnesAreNot) {
+  Ellipsoid a;
+  a.id = {1, 1, 0};
+  a.center = {0, 0, 0};
+  a.point_count = 4;  // a fragment at node 1
+  Ellipsoid b = a;
+  b.id = {2, 1, 0};
+  b.center = {0.5, 0, 0};  // overlaps a: 4 + 6 = 10 points together
+  b.point_count = 6;
+  Ellipsoid lone = a;
+  lone.id = {3, 1, 0};
+  lone.center = {10, 0, 0};
+  lone.point_count = 9;
+  Ellipsoid whole = a;
+  whole.id = {3, 1, 1};
+  whole.center = {-10, 0, 0};
+  whole.point_count = 10;
+  const Map merged = mergeAll(std::vector<Map>{localMap({a}), localMap({b}), localMap({lone, whole})}).map;
+  ASSERT_EQ(merged.objects.size(), 3U);
+  const Map published = withoutFragments(merged, 10);
+  ASSERT_EQ(published.objects.size(), 2U);
+  EXPECT_EQ(published.objects[0].pointCount(), 10U);
+  EXPECT_EQ(published.objects[0].ellipsoids.size(), 2U);
+  EXPECT_EQ(published.objects[1].ellipsoids[0].id, whole.id);
+  EXPECT_EQ(published, mergeSpecification(std::vector<Ellipsoid>{lone, b, whole, a}, 10));
+  EXPECT_EQ(withoutFragments(merged, 1), merged);
+}
+
+// On random scenes whose ellipsoids carry 1 to 15 points, filtering any merge order's result
+// equals the all-pairs specification with min_points.
+TEST(Merge, WithoutFragmentsOfAnyMergeOrderEqualsTheSpecification) {
+  std::mt19937_64 rng(8080);
+  for (int trial = 0; trial < 20; ++trial) {
+    std::vector<Map> maps = randomLocalMaps(rng, 5, 12, 12.0);
+    std::uniform_int_distribution<std::uint64_t> points(1, 15);
+    for (Map& m : maps) {
+      for (auto& o : m.objects) o.ellipsoids[0].point_count = points(rng);
+    }
+    const Map spec = mergeSpecification(allEllipsoids(maps), 10);
+    std::shuffle(maps.begin(), maps.end(), rng);
+    Map folded = maps[0];
+    for (std::size_t i = 1; i < maps.size(); ++i) folded = merge(folded, maps[i]).map;
+    EXPECT_EQ(withoutFragments(folded, 10), spec) << "trial " << trial;
+    EXPECT_EQ(withoutFragments(mergeAll(maps).map, 10), spec) << "trial " << trial;
+  }
+}
+
 Ellipsoid sphere(std::uint32_t node, const Eigen::Vector3d& center, double radius) {
   Ellipsoid e;
   e.id = {node, 1, 0};

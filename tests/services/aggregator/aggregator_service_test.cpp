@@ -874,10 +874,17 @@ TEST(AggregatorService, GeofencesAreSetAndQueriedOverGrpc) {
   near.id = {1, E(8), 0};
   near.center = {0.0, 0.0, 0.0};
   near.shape = Eigen::Matrix3d::Identity() * 0.25;
+  near.point_count = 12;
   Ellipsoid far = near;
   far.id = {1, E(8), 1};
   far.center = {20.0, 0.0, 0.0};
-  map.map = localMap({near, far});
+  // A lone fragment inside the zone (fewer than min_points points, joined to nothing): not an
+  // object of the published map, so no intrusion.
+  Ellipsoid fragment = near;
+  fragment.id = {1, E(8), 2};
+  fragment.center = {1.5, 1.5, 0.0};
+  fragment.point_count = 3;
+  map.map = localMap({near, far, fragment});
   ASSERT_TRUE(child.writeMap(1, map));
   ASSERT_TRUE(child.answered(1));
   ASSERT_EQ(server.emitter().pollOnce(), 1U);

@@ -1,7 +1,9 @@
 // Order independence of collect-merge-emit: over a star and trees of 2, 4 and 8 leaf aggregators,
 // 1,000 seeded delivery schedules each (a random order, 10 % of uploads delivered twice, 10 %
 // held back and delivered last) give the same global map, byte for byte on the wire, and it is
-// the specification's (all-pairs connected components), not whatever MERGE happens to compute.
+// the specification's (all-pairs connected components without the objects below min_points), not
+// whatever MERGE happens to compute. The edges' maps hold fragments (clusters below min_points):
+// some join others into objects, some stay alone and are not published.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -30,6 +32,7 @@ std::vector<Map> scene(std::uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> pos(-6.0, 6.0);
   std::uniform_real_distribution<double> axis(0.2, 1.2);
+  std::uniform_int_distribution<std::uint64_t> points(1, 16);  // below 10: a fragment
   std::vector<Map> maps;
   for (std::uint32_t node = 1; node <= kEdges; ++node) {
     std::vector<Ellipsoid> ellipsoids;
@@ -38,7 +41,7 @@ std::vector<Map> scene(std::uint64_t seed) {
       e.id = {node, kEpoch, k};
       e.center = {pos(rng), pos(rng), 1.0};
       e.shape = Eigen::Vector3d(axis(rng), axis(rng), axis(rng)).cwiseAbs2().asDiagonal();
-      e.point_count = 10;
+      e.point_count = points(rng);
       ellipsoids.push_back(e);
     }
     maps.push_back(localMap(std::move(ellipsoids)));
@@ -164,8 +167,17 @@ TEST(OrderIndependence, EveryScheduleOverStarAndTreesGivesTheSpecificationsMap) 
     for (const Map& map : maps) {
       for (const auto& object : map.objects) all.insert(all.end(), object.ellipsoids.begin(), object.ellipsoids.end());
     }
-    const Map specification = mergeSpecification(all);
-    ASSERT_LT(specification.objects.size(), all.size()) << "the scene must join objects across nodes";
+    const Map merged = mergeSpecification(all);
+    ASSERT_LT(merged.objects.size(), all.size()) << "the scene must join objects across nodes";
+    const std::uint64_t min_points = MadcParams{}.clustering.min_points;  // the root's
+    const Map specification = mergeSpecification(all, min_points);
+    ASSERT_LT(specification.objects.size(), merged.objects.size()) << "some fragments must stay alone";
+    const auto joined_fragment = [&](const MapObject& o) {
+      return o.ellipsoids.size() > 1 &&
+             std::any_of(o.ellipsoids.begin(), o.ellipsoids.end(), [&](const Ellipsoid& e) { return e.point_count < min_points; });
+    };
+    ASSERT_TRUE(std::any_of(specification.objects.begin(), specification.objects.end(), joined_fragment))
+        << "some fragments must be published as parts of objects";
     std::string reference;
     for (const std::uint32_t leaves : {0U, 2U, 4U, 8U}) {
       for (int s = 0; s < kSchedules / 4; ++s) {

@@ -1,0 +1,428 @@
+#include "common/perception/sensor_clustering.hpp"
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <numbers>
+#include <sstream>
+#include <string>
+#include <utility>
+
+#include "common/geometry/map.hpp"
+
+namespace fogmap {
+namespace {
+
+constexpr double kDegToRad = std::numbers::pi / 180.0;
+// The range image is sorted as 64-bit words: cell (ring x bins + bin) above, point index below.
+constexpr int kIndexBits = 32;
+constexpr std::uint64_t kIndexMask = 0xFFFFFFFFU;
+constexpr double kMaxBins = 16777216.0;        // 2^24 azimuth bins per ring
+constexpr double kMaxCells = 4294967295.0;     // rings x bins below 2^32
+// Cells of the sine of the elevation, [-1, 1], in the ring lookup: far finer than any real ring
+// spacing (1/3 degree is 0.005 in sine at 25 degrees), so a lookup is one comparison.
+constexpr int kSineCells = 4096;
+// The fast atan2 is within 4.1e-8 rad of the true angle (its polynomial's error, measured on a
+// dense grid of [0, 1]); it decides a bin alone only where the bin's edges are further than this.
+constexpr double kFastAtanError = 1e-6;
+// Next to an edge, the side of the edge decides, from the edge's direction (errors below 1e-13
+// rad: the formula's roundings, the table's recurrence), where the point is further from the edge
+// than this angle. Simulated rays lie on the edges, up to the rounding of float coordinates
+// (1e-8 to 1e-7 rad): only a point within this of the edge needs std::atan2.
+constexpr double kEdgeTolerance = 1e-12;
+// The table of edge directions: for at most this many bins (every real sensor), from std::sin
+// and std::cos every kEdgeRestart edges, by rotation by one step in between.
+constexpr int kMaxEdgeTable = 65536;
+constexpr int kEdgeRestart = 64;
+
+// Shortest readable form for error messages ("0.2", "1e-07"), unlike std::to_string's "%f".
+std::string str(double value) {
+  std::ostringstream out;
+  out << value;
+  return out.str();
+}
+
+double azimuthBinCount(double step_deg) { return std::ceil(360.0 / step_deg - 1e-9); }
+
+// The cell of sine s: floor((s + 1) kSineCells / 2) within [0, kSineCells). Truncation is the
+// floor here: below 0 it gives 0, as the clamp would.
+int sineCell(double s) {
+  const int c = static_cast<int>((s + 1.0) * (kSineCells / 2));
+  return std::clamp(c, 0, kSineCells - 1);
+}
+
+// atan(r) for r in [0, 1] as r P(r^2): a least-squares fit at Chebyshev nodes, error 4.1e-8.
+double atanUnit(double r) {
+  constexpr double c[] = {0.9999994368431484,  -0.33330106677688937, 0.1994850898576519,  -0.13915802260683555,
+                          0.09656256470427399, -0.05606317672859198, 0.021946611032241853, -0.004073309464366758};
+  const double u = r * r;
+  double p = c[7];
+  for (int k = 6; k >= 0; --k) p = p * u + c[k];
+  return r * p;
+}
+
+// LSD radix sort of 64-bit words by their bits [shift, shift + key_bits), in passes of at most
+// 11 bits, every histogram counted in one read.
+void radixSort(std::vector<std::uint64_t>& words, int shift, int key_bits) {
+  constexpr int kMaxDigitBits = 11;
+  const int passes = (key_bits + kMaxDigitBits - 1) / kMaxDigitBits;
+  const int digit_bits = (key_bits + passes - 1) / passes;
+  const std::size_t buckets = std::size_t{1} << digit_bits;
+  const std::uint64_t digit_mask = buckets - 1;
+  std::vector<std::uint32_t> offsets(buckets * static_cast<std::size_t>(passes), 0U);
+  for (const auto w : words) {
+    for (int p = 0; p < passes; ++p) {
+      ++offsets[static_cast<std::size_t>(p) * buckets + ((w >> (shift + p * digit_bits)) & digit_mask)];
+    }
+  }
+  std::vector<std::uint64_t> tmp(words.size());
+  for (int p = 0; p < passes; ++p) {
+    std::uint32_t* offset = &offsets[static_cast<std::size_t>(p) * buckets];
+    std::uint32_t sum = 0;
+    for (std::size_t d = 0; d < buckets; ++d) {
+      const auto count = offset[d];
+      offset[d] = sum;
+      sum += count;
+    }
+    const int digit_shift = shift + p * digit_bits;
+    for (const auto w : words) tmp[offset[(w >> digit_shift) & digit_mask]++] = w;
+    words.swap(tmp);
+  }
+}
+
+// The points that have a beam, sorted by (ring, azimuth bin): their words (cell << 32 | input
+// index), their components under rule (a), where each ring's run starts. Ranges and coordinates
+// are looked up by input index, only for pairs on two components, which are few.
+struct RangeImage {
+  std::vector<std::uint64_t> words;
+  std::unique_ptr<std::int32_t[]> component;
+  std::vector<std::uint32_t> ring_begin;  // per ring, plus the end
+  int bins = 1;
+  int binAt(std::size_t k, int ring) const {
+    return static_cast<int>((words[k] >> kIndexBits) - static_cast<std::uint64_t>(ring) * static_cast<std::uint64_t>(bins));
+  }
+  std::size_t indexAt(std::size_t k) const { return static_cast<std::size_t>(words[k] & kIndexMask); }
+};
+
+// Rule (b) between the runs of ring r and ring r + 1, each sorted by bin. The window [b - w, b + w]
+// of the upper ring moves forward with the lower point's bin b, so its ends are cursors that only
+// advance; near the seam the window wraps around into [b - w + bins, bins) or [0, b + w - bins],
+// with cursors of their own (with 2w + 1 < bins the pieces never overlap; otherwise every pair of
+// the two rings is in the window). `rangeOf(i)` is BeamGeometry::index(points[i]).range_m.
+template <typename RangeOf>
+void linkAdjacentRings(const RangeImage& image, int r, std::span<const Point> points, RangeOf&& rangeOf, int window,
+                       double eps, double gap_link, DisjointSets& sets) {
+  const std::size_t a_begin = image.ring_begin[static_cast<std::size_t>(r)];
+  const std::size_t a_end = image.ring_begin[static_cast<std::size_t>(r) + 1];
+  const std::size_t b_begin = a_end;
+  const std::size_t b_end = image.ring_begin[static_cast<std::size_t>(r) + 2];
+  const int bins = image.bins;
+  const std::int32_t* component = image.component.get();
+  // The last two components joined: along a ring the same two surfaces meet again and again.
+  std::int32_t joined_i = -1;
+  std::int32_t joined_j = -1;
+  auto tryLink = [&](std::size_t i, std::size_t j) {
+    const auto ci = component[i];
+    const auto cj = component[j];
+    if (ci == joined_i && cj == joined_j) return;
+    const std::size_t pi = image.indexAt(i);
+    const std::size_t pj = image.indexAt(j);
+    const double ri = rangeOf(pi);
+    const double rj = rangeOf(pj);
+    if (!(std::abs(ri - rj) < eps)) return;
+    const double bound = std::max(eps, gap_link * std::min(ri, rj));
+    const double dx = static_cast<double>(points[pi].x) - static_cast<double>(points[pj].x);
+    const double dy = static_cast<double>(points[pi].y) - static_cast<double>(points[pj].y);
+    const double dz = static_cast<double>(points[pi].z) - static_cast<double>(points[pj].z);
+    if (dx * dx + dy * dy + dz * dz < bound * bound) {
+      sets.unite(static_cast<std::size_t>(ci), static_cast<std::size_t>(cj));
+      joined_i = ci;
+      joined_j = cj;
+    }
+  };
+  // Points [first, last) of the upper ring against point i: those of i's component under rule (a),
+  // most of them, need nothing.
+  auto scan = [&](std::size_t i, std::size_t first, std::size_t last) {
+    const auto ci = component[i];
+    for (auto j = first; j < last; ++j) {
+      if (component[j] != ci) [[unlikely]] tryLink(i, j);
+    }
+  };
+  if (2 * static_cast<std::int64_t>(window) + 1 >= bins) {
+    for (auto i = a_begin; i < a_end; ++i) scan(i, b_begin, b_end);
+    return;
+  }
+  auto advance = [&](std::size_t& k, int min_bin) {
+    while (k < b_end && image.binAt(k, r + 1) < min_bin) ++k;
+  };
+  std::size_t lo = b_begin, hi = b_begin, wrap_lo = b_begin, wrap_hi = b_begin;
+  for (auto i = a_begin; i < a_end; ++i) {
+    const int b = image.binAt(i, r);
+    advance(lo, b - window);
+    advance(hi, b + window + 1);
+    scan(i, lo, hi);
+    if (b - window < 0) {
+      advance(wrap_lo, b - window + bins);
+      scan(i, wrap_lo, b_end);
+    }
+    if (b + window >= bins) {
+      advance(wrap_hi, b + window - bins + 1);
+      scan(i, b_begin, wrap_hi);
+    }
+  }
+}
+
+}  // namespace
+
+Status validateSensorClusteringParams(const SensorClusteringParams& params) {
+  const double eps = params.clustering.eps_m;
+  if (!std::isfinite(eps) || !(eps > 0.0)) {
+    return invalidArgument("clustering.eps_m must be positive and finite, got " + str(eps));
+  }
+  const auto& elevations = params.beams.elevations_deg;
+  if (elevations.size() < 2) {
+    return invalidArgument("beams.elevations_deg needs at least 2 rings, got " + std::to_string(elevations.size()));
+  }
+  for (std::size_t k = 0; k < elevations.size(); ++k) {
+    const double e = elevations[k];
+    if (!std::isfinite(e) || e < -90.0 || e > 90.0) {
+      return invalidArgument("beams.elevations_deg[" + std::to_string(k) + "] must be finite and within [-90, 90] degrees, got " +
+                             str(e));
+    }
+  }
+  // Distinct in radians, as the rings are told apart (two degree values one ulp apart may not be).
+  std::vector<double> sorted_rad(elevations.size());
+  std::transform(elevations.begin(), elevations.end(), sorted_rad.begin(), [](double e) { return e * kDegToRad; });
+  std::sort(sorted_rad.begin(), sorted_rad.end());
+  if (const auto dup = std::adjacent_find(sorted_rad.begin(), sorted_rad.end()); dup != sorted_rad.end()) {
+    return invalidArgument("beams.elevations_deg holds the elevation " + str(*dup / kDegToRad) +
+                           " degrees twice: every ring needs its own");
+  }
+  const double step = params.beams.azimuth_step_deg;
+  if (!std::isfinite(step) || !(step > 0.0)) {
+    return invalidArgument("beams.azimuth_step_deg must be positive and finite, got " + str(step));
+  }
+  const double bins = azimuthBinCount(step);
+  if (bins > kMaxBins || bins * static_cast<double>(elevations.size()) > kMaxCells) {
+    return invalidArgument("beams.azimuth_step_deg " + str(step) + " is too small: " + str(bins) + " azimuth bins x " +
+                           std::to_string(elevations.size()) + " rings exceed the range image's 2^24 bins per ring or 2^32 cells");
+  }
+  if (!std::isfinite(params.ring_gap_slack) || params.ring_gap_slack < 1.0) {
+    return invalidArgument("ring_gap_slack must be at least 1 and finite, got " + str(params.ring_gap_slack));
+  }
+  if (params.azimuth_window < 0) {
+    return invalidArgument("azimuth_window must be at least 0, got " + std::to_string(params.azimuth_window));
+  }
+  const Eigen::Matrix3d rotation = params.sensor_pose.linear();
+  if (!params.sensor_pose.matrix().allFinite() ||
+      !((rotation.transpose() * rotation - Eigen::Matrix3d::Identity()).norm() < 1e-6) || !(rotation.determinant() > 0.0)) {
+    return invalidArgument("sensor_pose must be finite and rigid (a rotation and a translation)");
+  }
+  return {};
+}
+
+Expected<BeamGeometry> BeamGeometry::make(const SensorClusteringParams& params) {
+  if (Status valid = validateSensorClusteringParams(params); !valid) return valid.error();
+  BeamGeometry g;
+  for (const double e : params.beams.elevations_deg) g.elevations_rad_.push_back(e * kDegToRad);
+  std::sort(g.elevations_rad_.begin(), g.elevations_rad_.end());
+  for (std::size_t k = 0; k + 1 < g.elevations_rad_.size(); ++k) {
+    g.sin_midpoints_.push_back(std::sin(0.5 * (g.elevations_rad_[k] + g.elevations_rad_[k + 1])));
+  }
+  // Cell c holds the sines from -1 + 2c / kSineCells on; rings whose upper midpoint lies below
+  // that (with a margin far above the rounding of sineCell) are below every sine of the cell.
+  g.ring_below_.resize(kSineCells);
+  std::size_t below = 0;
+  for (int c = 0; c < kSineCells; ++c) {
+    const double lowest = -1.0 + 2.0 * c / kSineCells - 1e-12;
+    while (below < g.sin_midpoints_.size() && g.sin_midpoints_[below] < lowest) ++below;
+    g.ring_below_[static_cast<std::size_t>(c)] = static_cast<std::int32_t>(below);
+  }
+  // The top ring's sentinel: no sine is above it.
+  g.sin_midpoints_.push_back(std::numeric_limits<double>::infinity());
+  g.to_sensor_ = params.sensor_pose.inverse();
+  g.step_rad_ = params.beams.azimuth_step_deg * kDegToRad;
+  g.bins_per_rad_ = 1.0 / g.step_rad_;
+  g.closing_bin_ = 2.0 * std::numbers::pi * g.bins_per_rad_;
+  g.fast_margin_ = kFastAtanError * g.bins_per_rad_ + 1e-6;
+  g.bins_ = static_cast<int>(azimuthBinCount(params.beams.azimuth_step_deg));
+  if (g.bins_ <= kMaxEdgeTable) {
+    const auto edges = static_cast<std::size_t>(g.bins_);
+    g.edge_cos_.resize(edges);
+    g.edge_sin_.resize(edges);
+    const double step_cos = std::cos(g.step_rad_);
+    const double step_sin = std::sin(g.step_rad_);
+    for (std::size_t k = 0; k < edges; ++k) {
+      if (k % kEdgeRestart == 0) {
+        const double edge = -std::numbers::pi + static_cast<double>(k) * g.step_rad_;
+        g.edge_cos_[k] = std::cos(edge);
+        g.edge_sin_[k] = std::sin(edge);
+      } else {
+        g.edge_cos_[k] = g.edge_cos_[k - 1] * step_cos - g.edge_sin_[k - 1] * step_sin;
+        g.edge_sin_[k] = g.edge_sin_[k - 1] * step_cos + g.edge_cos_[k - 1] * step_sin;
+      }
+    }
+  }
+  return g;
+}
+
+int BeamGeometry::exactAzimuthBin(double x, double y) const {
+  // atan2 gives (-pi, pi]: its pi is the direction of -pi, where the bins start.
+  const double azimuth = std::atan2(y, x);
+  const double from_back = azimuth == std::numbers::pi ? 0.0 : azimuth + std::numbers::pi;
+  const int bin = static_cast<int>(std::max(0.0, std::floor(from_back / step_rad_)));
+  return bin >= bins_ ? bin - bins_ : bin;
+}
+
+inline BeamGeometry::SensorPoint BeamGeometry::toSensor(const Point& point) const {
+  const Eigen::Vector3d s = to_sensor_ * Eigen::Vector3d(point.x, point.y, point.z);
+  return {s.x(), s.y(), s.z(), s.norm()};
+}
+
+inline int BeamGeometry::ringOfSine(double sine) const {
+  int ring = ring_below_[static_cast<std::size_t>(sineCell(sine))];
+  ring += sin_midpoints_[static_cast<std::size_t>(ring)] < sine ? 1 : 0;
+  while (sin_midpoints_[static_cast<std::size_t>(ring)] < sine) ++ring;  // rings closer than a cell
+  return ring;
+}
+
+inline double BeamGeometry::fastBinCoordinate(double x, double y) const {
+  const double ax = std::abs(x);
+  const double ay = std::abs(y);
+  double a = atanUnit(std::min(ax, ay) / std::max(ax, ay));
+  a = ay > ax ? 0.5 * std::numbers::pi - a : a;
+  a = x < 0.0 ? std::numbers::pi - a : a;
+  a = y < 0.0 ? -a : a;
+  return (a + std::numbers::pi) * bins_per_rad_;
+}
+
+// The fast coordinate's bin wherever no bin edge is within fast_margin_ of it (nor the closing
+// angle pi): the true angle is in the same bin, and that is the exact formula's bin. Next to edge
+// k (the table's margin is under a quarter bin), the sign of the cross product of the edge's
+// direction and the point's: k beyond the edge, k - 1 before it, as the formula's floor, whose
+// roundings move its edge by under 1e-14 rad. The others take the formula.
+inline int BeamGeometry::azimuthBin(double fast_coordinate, double x, double y) const {
+  const double t = fast_coordinate;
+  if (t >= 0.0 && t < closing_bin_ - fast_margin_) {  // false for NaN
+    const double floor_t = static_cast<double>(static_cast<int>(t));
+    if (t - floor_t > fast_margin_ && floor_t + 1.0 - t > fast_margin_) return static_cast<int>(floor_t);
+    const int k = static_cast<int>(floor_t) + (t - floor_t > 0.5 ? 1 : 0);
+    if (!edge_cos_.empty() && k < bins_) {  // k = bins_ only where rounding puts 2 pi past the last bin
+      const double side = y * edge_cos_[static_cast<std::size_t>(k)] - x * edge_sin_[static_cast<std::size_t>(k)];
+      // One branch, taken alike for points on either side (simulated rays fall on both at random).
+      const int bin = k - (side < 0.0 ? 1 : 0);
+      if (std::abs(side) > kEdgeTolerance * (std::abs(x) + std::abs(y)) && bin >= 0) return bin;
+    }
+  }
+  return exactAzimuthBin(x, y);
+}
+
+BeamIndex BeamGeometry::index(const Point& point) const {
+  BeamIndex out;
+  if (!isFinitePoint(point)) return out;
+  const SensorPoint s = toSensor(point);
+  out.range_m = s.range;
+  if (!(s.range > 0.0)) return out;
+  out.ring = ringOfSine(s.z / s.range);
+  out.azimuth_bin = azimuthBin(fastBinCoordinate(s.x, s.y), s.x, s.y);
+  return out;
+}
+
+Expected<Clustering> sensorAwareClusters(std::span<const Point> points, const SensorClusteringParams& params) {
+  const auto geometry = BeamGeometry::make(params);
+  if (!geometry) return geometry.error();
+  const std::size_t n = points.size();
+  if (n == 0) return Clustering{};
+  if (n > std::numeric_limits<std::uint32_t>::max()) {
+    return resourceExhausted("sensor-aware clustering takes at most 2^32 - 1 points, got " + std::to_string(n));
+  }
+
+  // Rule (a): the exact Euclidean components, every finite point in one (min 1, no max).
+  ClusteringParams exact = params.clustering;
+  exact.min_points = 1;
+  exact.max_points = std::numeric_limits<std::size_t>::max();
+  const Clustering linked = euclideanClusters(points, exact);
+  const auto components = static_cast<std::size_t>(linked.cluster_count);
+
+  // The range image: each point with a beam as a word (cell << 32 | index), sorted by cell.
+  const int rings = geometry->rings();
+  const int bins = geometry->azimuthBins();
+  std::vector<std::uint64_t> words;
+  words.reserve(n);
+  std::vector<std::uint32_t> ring_count(static_cast<std::size_t>(rings), 0);
+  // index() in two passes over blocks of points: first the long chains of arithmetic (transform,
+  // square root, divisions, polynomial) without a branch, so that those of consecutive points
+  // overlap; then the lookups and decisions.
+  constexpr std::size_t kBlock = 256;
+  std::array<BeamGeometry::SensorPoint, kBlock> sensor;
+  std::array<double, kBlock> fast_coordinate;
+  for (std::size_t first = 0; first < n; first += kBlock) {
+    const std::size_t count = std::min(kBlock, n - first);
+    for (std::size_t k = 0; k < count; ++k) {
+      sensor[k] = geometry->toSensor(points[first + k]);
+      fast_coordinate[k] = geometry->fastBinCoordinate(sensor[k].x, sensor[k].y);
+    }
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t i = first + k;
+      const auto& s = sensor[k];
+      if (linked.labels[i] < 0 || !(s.range > 0.0)) continue;  // non-finite, or no beam
+      const int ring = geometry->ringOfSine(s.z / s.range);
+      const int bin = geometry->azimuthBin(fast_coordinate[k], s.x, s.y);
+      ++ring_count[static_cast<std::size_t>(ring)];
+      const auto cell = static_cast<std::uint64_t>(ring) * static_cast<std::uint64_t>(bins) + static_cast<std::uint64_t>(bin);
+      words.push_back((cell << kIndexBits) | i);
+    }
+  }
+  const auto cells = static_cast<std::uint64_t>(rings) * static_cast<std::uint64_t>(bins);
+  radixSort(words, kIndexBits, std::bit_width(cells - 1));
+
+  RangeImage image;
+  image.bins = bins;
+  image.ring_begin.assign(1, 0);
+  for (const auto count : ring_count) image.ring_begin.push_back(image.ring_begin.back() + count);
+  image.component = std::make_unique_for_overwrite<std::int32_t[]>(words.size());
+  for (std::size_t k = 0; k < words.size(); ++k) image.component[k] = linked.labels[words[k] & kIndexMask];
+  image.words = std::move(words);
+
+  // Rule (b) over every pair of adjacent rings, on the components of rule (a). Ranges are needed
+  // only for points on two components: computed again then rather than kept for all.
+  auto rangeOf = [&](std::size_t i) { return geometry->toSensor(points[i]).range; };
+  DisjointSets sets(components);
+  const double eps = params.clustering.eps_m;
+  for (int r = 0; r + 1 < rings; ++r) {
+    const double gap_link = params.ring_gap_slack * (geometry->elevationRad(r + 1) - geometry->elevationRad(r));
+    linkAdjacentRings(image, r, points, rangeOf, params.azimuth_window, eps, gap_link, sets);
+  }
+
+  // Sizes of the joined components, then canonical labels in the order of each cluster's first point.
+  std::vector<std::uint32_t> component_size(components, 0);
+  for (const auto l : linked.labels) {
+    if (l >= 0) ++component_size[static_cast<std::size_t>(l)];
+  }
+  std::vector<std::uint32_t> root_of(components);
+  std::vector<std::uint32_t> joined_size(components, 0);
+  for (std::size_t c = 0; c < components; ++c) {
+    root_of[c] = static_cast<std::uint32_t>(sets.find(c));
+    joined_size[root_of[c]] += component_size[c];
+  }
+  std::vector<std::int32_t> label_of_root(components, -2);  // -2: not yet decided
+  Clustering out;
+  out.labels.assign(n, -1);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto l = linked.labels[i];
+    if (l < 0) continue;
+    const auto root = root_of[static_cast<std::size_t>(l)];
+    auto& label = label_of_root[root];
+    if (label == -2) {
+      const auto size = joined_size[root];
+      label = (size >= params.clustering.min_points && size <= params.clustering.max_points) ? out.cluster_count++ : -1;
+    }
+    out.labels[i] = label;
+  }
+  return out;
+}
+
+}  // namespace fogmap

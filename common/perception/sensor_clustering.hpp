@@ -1,0 +1,115 @@
+#pragma once
+// Sensor-aware Euclidean clustering, in the manner of range-image methods (Bogoslavskyi and
+// Stachniss 2016; Zermas et al. 2017): the exact Euclidean links of euclideanClusters, plus
+// vertical links between adjacent rings of the LiDAR. With eps 0.35 m a VLP-16 (2 degrees between
+// rings) puts its rings 0.5 to 0.9 m apart at 15 to 25 m, so a person is several ring slices
+// for the exact mode; the ring links make it one object again.
+//
+// The linking rule (the specification; BeamGeometry::index gives ring, azimuth bin and range):
+// points p and q are connected when
+//   (a) |p - q| < eps, strictly and exactly as euclideanClusters decides it (in float, as PCL), or
+//   (b) both have a beam, their rings are adjacent in ascending elevation (|ring_p - ring_q| == 1),
+//       their azimuth bins differ by at most azimuth_window (cyclically, over azimuthBins()),
+//       |range_p - range_q| < eps (depth continuity: an object seen behind another stays apart),
+//       and |p - q| < max(eps, (ring_gap_slack * gap_rad) * min(range_p, range_q)), where gap_rad
+//       is elevationRad(upper ring) - elevationRad(lower ring). Rule (b) is evaluated in double:
+//       the coordinates of p and q as given (the points' frame), |p - q|^2 as (dx^2 + dy^2) + dz^2
+//       against the square of the bound.
+// Clusters are the connected components; components with fewer than min_points or more than
+// max_points points are noise (-1); labels are canonical (as canonicalize). Non-finite points
+// connect to nothing and are noise, as in euclideanClusters. A point at the sensor's origin
+// (range 0) has no beam and is linked by rule (a) only; rule (b) could give it nothing more (its
+// bound would be eps).
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "common/base/status.hpp"
+#include "common/geometry/cloud.hpp"
+#include "common/perception/clustering.hpp"
+
+namespace fogmap {
+
+// The sensor's geometry as clustering needs it.
+struct BeamTable {
+  std::vector<double> elevations_deg;  // one per ring, any order; up is positive, within [-90, 90]
+  double azimuth_step_deg = 0.2;       // horizontal angle between consecutive rays of a ring
+};
+
+struct SensorClusteringParams {
+  ClusteringParams clustering;  // eps_m, min_points, max_points; threads for the Euclidean links (a)
+  BeamTable beams;
+  Eigen::Isometry3d sensor_pose = Eigen::Isometry3d::Identity();  // sensor frame -> the points' frame
+  double ring_gap_slack = 1.5;  // a vertical link may span slack x the ring gap at that range
+  int azimuth_window = 2;       // azimuth bins either side searched on the adjacent ring
+};
+
+// Errors (invalid argument, naming the field) for: eps_m not positive and finite; fewer than 2
+// elevations, one not finite or outside [-90, 90] degrees, two equal; an azimuth step not positive
+// and finite, or so small that the range image would exceed 2^24 bins per ring or 2^32 cells; a
+// slack below 1 or not finite; a negative window; a sensor pose that is not finite and rigid.
+Status validateSensorClusteringParams(const SensorClusteringParams& params);
+
+// Where a point falls in the sensor's range image.
+struct BeamIndex {
+  static constexpr int kNoBeam = -1;
+  int ring = kNoBeam;    // index into the elevations sorted ascending; kNoBeam: non-finite or range 0
+  int azimuth_bin = -1;  // in [0, azimuthBins())
+  double range_m = 0.0;  // distance from the sensor's origin
+};
+
+// A validated beam table and sensor pose, prepared to index points.
+class BeamGeometry {
+ public:
+  static Expected<BeamGeometry> make(const SensorClusteringParams& params);
+
+  // The point in the sensor frame (sensor_pose.inverse() applied, in double): range = its norm;
+  // ring = the elevation nearest to asin(z / range), decided in sine space against the sines of
+  // the midpoints between consecutive sorted elevations (a point exactly on one goes to the lower
+  // ring); azimuth bin = floor((atan2(y, x) + pi) / step_rad), where the closing angle pi (the
+  // same direction as -pi) and any rounding past the last bin wrap to bin 0.
+  BeamIndex index(const Point& point) const;
+
+  int rings() const { return static_cast<int>(elevations_rad_.size()); }
+  // ceil(360 / azimuth_step_deg), taking a quotient within 1e-9 of a whole number as that number.
+  int azimuthBins() const { return bins_; }
+  // Elevation of `ring` (sorted ascending), radians.
+  double elevationRad(int ring) const { return elevations_rad_[static_cast<std::size_t>(ring)]; }
+
+ private:
+  friend Expected<Clustering> sensorAwareClusters(std::span<const Point> points, const SensorClusteringParams& params);
+  BeamGeometry() = default;
+  // The steps of index(), which the clustering takes for blocks of points: the same functions,
+  // the same numbers.
+  struct SensorPoint {
+    double x, y, z, range;
+  };
+  SensorPoint toSensor(const Point& point) const;
+  int ringOfSine(double sine) const;  // sine = z / range
+  // (angle + pi) / step_rad from a fast atan2 (NaN where x = y = 0).
+  double fastBinCoordinate(double x, double y) const;
+  // The bin of that coordinate where no bin edge is near it; next to an edge, the side of the
+  // edge the point is on; where it is all but on the edge, the formula with std::atan2.
+  int azimuthBin(double fast_coordinate, double x, double y) const;
+  int exactAzimuthBin(double x, double y) const;
+
+  std::vector<double> elevations_rad_;    // ascending
+  std::vector<double> sin_midpoints_;     // sin((e_k + e_k+1) / 2), ascending, then +infinity
+  std::vector<std::int32_t> ring_below_;  // per cell of sine space: rings certainly below its sines
+  Eigen::Isometry3d to_sensor_ = Eigen::Isometry3d::Identity();
+  double step_rad_ = 0.0;
+  double bins_per_rad_ = 0.0;   // 1 / step_rad_
+  double fast_margin_ = 0.0;    // bins: how far the fast atan2 may be off, rounding included
+  double closing_bin_ = 0.0;    // 2 pi / step_rad_: where the angle pi (the closing one) falls
+  std::vector<double> edge_cos_, edge_sin_;  // direction of each bin's lower edge (up to 2^16 bins)
+  int bins_ = 1;
+};
+
+// Sensor-aware clusters by the rule above: the exact links of euclideanClusters (run with the
+// given threads), then the vertical links of a range image sorted by (ring, azimuth bin) on one
+// thread. Errors when validateSensorClusteringParams refuses the parameters.
+Expected<Clustering> sensorAwareClusters(std::span<const Point> points, const SensorClusteringParams& params);
+
+}  // namespace fogmap
