@@ -1,4 +1,5 @@
 #include "common/perception/sensor_clustering.hpp"
+#include "common/perception/radix_sort.hpp"
 
 #include <algorithm>
 #include <array>
@@ -64,35 +65,6 @@ double atanUnit(double r) {
   return r * p;
 }
 
-// LSD radix sort of 64-bit words by their bits [shift, shift + key_bits), in passes of at most
-// 11 bits, every histogram counted in one read.
-void radixSort(std::vector<std::uint64_t>& words, int shift, int key_bits) {
-  constexpr int kMaxDigitBits = 11;
-  const int passes = (key_bits + kMaxDigitBits - 1) / kMaxDigitBits;
-  const int digit_bits = (key_bits + passes - 1) / passes;
-  const std::size_t buckets = std::size_t{1} << digit_bits;
-  const std::uint64_t digit_mask = buckets - 1;
-  std::vector<std::uint32_t> offsets(buckets * static_cast<std::size_t>(passes), 0U);
-  for (const auto w : words) {
-    for (int p = 0; p < passes; ++p) {
-      ++offsets[static_cast<std::size_t>(p) * buckets + ((w >> (shift + p * digit_bits)) & digit_mask)];
-    }
-  }
-  std::vector<std::uint64_t> tmp(words.size());
-  for (int p = 0; p < passes; ++p) {
-    std::uint32_t* offset = &offsets[static_cast<std::size_t>(p) * buckets];
-    std::uint32_t sum = 0;
-    for (std::size_t d = 0; d < buckets; ++d) {
-      const auto count = offset[d];
-      offset[d] = sum;
-      sum += count;
-    }
-    const int digit_shift = shift + p * digit_bits;
-    for (const auto w : words) tmp[offset[(w >> digit_shift) & digit_mask]++] = w;
-    words.swap(tmp);
-  }
-}
-
 // The points that have a beam, sorted by (ring, azimuth bin): their words (cell << 32 | input
 // index), their components under rule (a), where each ring's run starts. Ranges and coordinates
 // are looked up by input index, only for pairs on two components, which are few.
@@ -111,9 +83,8 @@ struct RangeImage {
 // of the upper ring moves forward with the lower point's bin b, so its ends are cursors that only
 // advance; near the seam the window wraps around into [b - w + bins, bins) or [0, b + w - bins],
 // with cursors of their own (with 2w + 1 < bins the pieces never overlap; otherwise every pair of
-// the two rings is in the window). `rangeOf(i)` is BeamGeometry::index(points[i]).range_m.
-template <typename RangeOf>
-void linkAdjacentRings(const RangeImage& image, int r, std::span<const Point> points, RangeOf&& rangeOf, int window,
+// the two rings is in the window). `range_of` holds the range of every point with a beam.
+void linkAdjacentRings(const RangeImage& image, int r, std::span<const Point> points, const double* range_of, int window,
                        double eps, double gap_link, DisjointSets& sets) {
   const std::size_t a_begin = image.ring_begin[static_cast<std::size_t>(r)];
   const std::size_t a_end = image.ring_begin[static_cast<std::size_t>(r) + 1];
@@ -130,8 +101,8 @@ void linkAdjacentRings(const RangeImage& image, int r, std::span<const Point> po
     if (ci == joined_i && cj == joined_j) return;
     const std::size_t pi = image.indexAt(i);
     const std::size_t pj = image.indexAt(j);
-    const double ri = rangeOf(pi);
-    const double rj = rangeOf(pj);
+    const double ri = range_of[pi];
+    const double rj = range_of[pj];
     if (!(std::abs(ri - rj) < eps)) return;
     const double bound = std::max(eps, gap_link * std::min(ri, rj));
     const double dx = static_cast<double>(points[pi].x) - static_cast<double>(points[pj].x);
@@ -350,6 +321,7 @@ Expected<Clustering> sensorAwareClusters(std::span<const Point> points, const Se
   // The range image: each point with a beam as a word (cell << 32 | index), sorted by cell.
   const int rings = geometry->rings();
   const int bins = geometry->azimuthBins();
+  const auto range_of = std::make_unique_for_overwrite<double[]>(n);
   std::vector<std::uint64_t> words;
   words.reserve(n);
   std::vector<std::uint32_t> ring_count(static_cast<std::size_t>(rings), 0);
@@ -371,6 +343,7 @@ Expected<Clustering> sensorAwareClusters(std::span<const Point> points, const Se
       if (linked.labels[i] < 0 || !(s.range > 0.0)) continue;  // non-finite, or no beam
       const int ring = geometry->ringOfSine(s.z / s.range);
       const int bin = geometry->azimuthBin(fast_coordinate[k], s.x, s.y);
+      range_of[i] = s.range;
       ++ring_count[static_cast<std::size_t>(ring)];
       const auto cell = static_cast<std::uint64_t>(ring) * static_cast<std::uint64_t>(bins) + static_cast<std::uint64_t>(bin);
       words.push_back((cell << kIndexBits) | i);
@@ -387,14 +360,12 @@ Expected<Clustering> sensorAwareClusters(std::span<const Point> points, const Se
   for (std::size_t k = 0; k < words.size(); ++k) image.component[k] = linked.labels[words[k] & kIndexMask];
   image.words = std::move(words);
 
-  // Rule (b) over every pair of adjacent rings, on the components of rule (a). Ranges are needed
-  // only for points on two components: computed again then rather than kept for all.
-  auto rangeOf = [&](std::size_t i) { return geometry->toSensor(points[i]).range; };
+  // Rule (b) over every pair of adjacent rings, on the components of rule (a).
   DisjointSets sets(components);
   const double eps = params.clustering.eps_m;
   for (int r = 0; r + 1 < rings; ++r) {
     const double gap_link = params.ring_gap_slack * (geometry->elevationRad(r + 1) - geometry->elevationRad(r));
-    linkAdjacentRings(image, r, points, rangeOf, params.azimuth_window, eps, gap_link, sets);
+    linkAdjacentRings(image, r, points, range_of.get(), params.azimuth_window, eps, gap_link, sets);
   }
 
   // Sizes of the joined components, then canonical labels in the order of each cluster's first point.

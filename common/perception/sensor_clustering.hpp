@@ -69,7 +69,9 @@ class BeamGeometry {
   // ring = the elevation nearest to asin(z / range), decided in sine space against the sines of
   // the midpoints between consecutive sorted elevations (a point exactly on one goes to the lower
   // ring); azimuth bin = floor((atan2(y, x) + pi) / step_rad), where the closing angle pi (the
-  // same direction as -pi) and any rounding past the last bin wrap to bin 0.
+  // same direction as -pi) and any rounding past the last bin wrap to bin 0. Rays fired at
+  // k x step from +x (as the simulator fires them) lie on bin edges: rounding puts each on one
+  // side, so one ray may fall one bin apart on two rings; an azimuth_window of 1 or more absorbs it.
   BeamIndex index(const Point& point) const;
 
   int rings() const { return static_cast<int>(elevations_rad_.size()); }
