@@ -15,7 +15,7 @@
 #include "common/perception/preprocess.hpp"
 #include "common/perception/sensor_clustering.hpp"
 #include "common/sim/generators.hpp"
-#include "common/sim/lidar_models.hpp"
+#include "common/perception/lidar_models.hpp"
 #include "common/sim/raycaster.hpp"
 
 namespace fogmap {
@@ -75,7 +75,7 @@ const LidarFrame& lidarFrame(const std::string& name) {
   if (const auto it = cache.find(name); it != cache.end()) return it->second;
   LidarFrame frame;
   Cloud cloud;
-  const auto model = sim::lidarModel(name.starts_with("vlp16") ? "VLP-16" : "HDL-64E");
+  const auto model = lidarModel(name.starts_with("vlp16") ? "VLP-16" : "HDL-64E");
   if (name == "kitti") {
     cloud = scan(kRawScan, false);
   } else {
@@ -83,7 +83,7 @@ const LidarFrame& lidarFrame(const std::string& name) {
     scene.lidars.front().model = model->name;
     const auto raycaster = sim::SceneRaycaster::build(scene, 0.0);
     if (const auto f = raycaster->scan(scene.lidars.front(), scene.seed, 0, 1)) {
-      frame.params.sensor_pose = f->sensor_pose;
+      frame.params.links.sensor_pose = f->sensor_pose;
       cloud = transformCloud(f->points, f->sensor_pose);
     }
   }
@@ -93,7 +93,7 @@ const LidarFrame& lidarFrame(const std::string& name) {
     auto g = removeGround(cloud, GroundParams{});
     frame.points = g ? std::move(g->non_ground) : Cloud{};
   }
-  frame.params.beams = {model->elevations_deg, 360.0 / model->azimuth_steps};
+  frame.params.links.beams = {model->elevations_deg, 360.0 / model->azimuth_steps};
   return cache.emplace(name, std::move(frame)).first->second;
 }
 

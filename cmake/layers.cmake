@@ -20,7 +20,7 @@ set(FOGMAP_MAY_USE_common/scoring common/base)
 # The topology: every role's configuration (the camera's, the tracker's, pre-processing's).
 set(FOGMAP_MAY_USE_common/config common/base common/camera common/geometry common/io common/perception common/tracking)
 set(FOGMAP_MAY_USE_common/certs common/base common/config)
-set(FOGMAP_MAY_USE_common/sim common/base common/camera common/config common/geometry common/tracking)
+set(FOGMAP_MAY_USE_common/sim common/base common/camera common/config common/geometry common/perception common/tracking)
 set(FOGMAP_COMMON common/base common/geometry common/perception common/io common/camera common/tracking
   common/config common/scoring common/certs common/sim)
 

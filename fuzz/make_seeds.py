@@ -3,6 +3,7 @@
 change them). Files named found_* are reproducers of findings, copied in by hand, and kept. Real
 points are cut from data/kitti_raw_seq_a/0000000000.bin (see corpus/README.md).
 Usage: fuzz/make_seeds.py  (from anywhere; plain Python 3, no packages)."""
+import math
 import pathlib
 import shutil
 import struct
@@ -221,9 +222,45 @@ def map_object(*ellipsoids):
     return b"".join(field_bytes(1, e) for e in ellipsoids)
 
 
-def map_upload(sequence, hdr, objects):
-    body = field_bytes(1, hdr) + b"".join(field_bytes(2, o) for o in objects)
+def map_upload(sequence, hdr, objects, blocks=(), packed_objects=0):
+    """A Map upload: `objects` listed (those with exact ellipsoids), `packed_objects` objects after them
+    whose ellipsoids are all records."""
+    body = field_bytes(1, hdr) + b"".join(field_bytes(2, o) for o in objects) + b"".join(
+        field_bytes(3, b) for b in blocks) + (field_varint(4, packed_objects) if packed_objects else b"")
     return field_varint(1, sequence) + field_bytes(2, body)
+
+
+def zigzag(v):
+    return v << 1 if v >= 0 else ((-v) << 1) - 1
+
+
+def record(offset_cm, semi_axes_mm, point_count, index, rotation=(1.0, 0.0, 0.0, 0.0), word=None):
+    """One 22-byte compact ellipsoid record (common/geometry/compact_ellipsoid.hpp): the centre in cm
+    from the block's origin, semi-axes in mm (ascending), the rotation as a unit quaternion (w, x, y, z)
+    in "smallest three" form, or `word`, the 48-bit orientation word as is."""
+    if word is None:
+        c = list(rotation)
+        dropped = max(range(4), key=lambda i: abs(c[i]))
+        if c[dropped] < 0:
+            c = [-v for v in c]
+        step = math.sqrt(2) / 2 / 16383
+        word = dropped << 45
+        kept = [v for i, v in enumerate(c) if i != dropped]
+        for slot, v in enumerate(kept):
+            word |= min(max(round(v / step) + 16383, 0), 32766) << (15 * slot)
+    return (struct.pack("<3h3H", *offset_cm, *semi_axes_mm) + word.to_bytes(6, "little") +
+            struct.pack("<HH", point_count, index))
+
+
+def block(node, origin_cm, records, frame=None, object_of=(), steps=None):
+    """An EllipsoidBlock: the records of one (node, frame) around origin_cm; object_of (the object of
+    each record) goes on the wire as steps from the previous record's (sint32, zigzag), or `steps` as
+    given; both empty makes each record an object of its own."""
+    if steps is None:
+        steps = [o - p for o, p in zip(object_of, [0] + list(object_of[:-1]))]
+    return (field_varint(1, node) + (field_varint(2, frame) if frame is not None else b"") +
+            b"".join(field_varint(3 + i, zigzag(v)) for i, v in enumerate(origin_cm)) +
+            field_bytes(6, b"".join(records)) + packed_varints(7, [zigzag(v) for v in steps]))
 
 
 def chunk_upload(sequence, hdr, points, chunk=0, chunk_count=1, first_point=0, total_points=None, labels=None):
@@ -557,6 +594,76 @@ nodes:
           "tls: {ca: ca.crt, geofence_clients: [operator]}\n")
 
 
+def compact_upload_seeds():
+    """Maps whose ellipsoids travel as compact records in blocks (protos/fogmap/v1 EllipsoidBlock)."""
+    t = "fuzz_upload"
+    next_epoch = EPOCH + 1
+    yaw_30 = (math.cos(math.radians(15)), 0.0, 0.0, math.sin(math.radians(15)))
+    # Node 1's clusters around (10.0, -2.6, 0.2) (e1 of upload_seeds) and (34.5, -8.0, 0.3).
+    r1 = record((0, 0, 0), (500, 500, 500), 20, 0)
+    r1b = record((2450, -540, 10), (300, 700, 1000), 55, 1, yaw_30)
+    r2 = record((0, 0, 0), (400, 500, 600), 20, 0)                         # node 2 at (10.3, -2.5, 0.2)
+    r3 = record((0, 0, 0), (450, 500, 550), 20, 0)                         # node 3 at (10.6, -2.6, 0.25)
+    r4 = record((0, 0, 0), (1000, 2000, 2000), 20, 0, (0.5, 0.5, 0.5, 0.5))  # node 4 at (-20.0, 5.0, 0.0)
+    e1 = ellipsoid(1, 0, (10.0, -2.6, 0.2))
+    # Local maps as one block without objects, an intermediate's map listing the object of each record.
+    write(t, "packed_maps_star_and_subtree", stream_input(
+        MADC,
+        (0, 0, False, map_upload(1, header(1, next_epoch), [], [block(1, (1000, -260, 20), [r1, r1b])])),
+        (1, 0, False, map_upload(1, header(2, next_epoch), [], [block(2, (1030, -250, 20), [r2])])),
+        (2, 0, False, map_upload(1, header(101, next_epoch, contributing=(3, 4)), [],
+                                 [block(3, (1060, -260, 25), [r3], frame=next_epoch, object_of=[0]),
+                                  block(4, (-2000, 500, 0), [r4], frame=next_epoch, object_of=[0])],
+                                 packed_objects=1)),
+        (0, 12, False, map_upload(2, header(1, next_epoch + 1), [], [block(1, (1000, -260, 20), [r1])]))))
+    write(t, "packed_intermediate_relays_records", stream_input(
+        MADC | INTERMEDIATE,
+        (0, 0, False, map_upload(7, header(3), [], [block(3, (1060, -260, 25), [r3])])),
+        (1, 0, False, map_upload(9, header(4), [], [block(4, (-2000, 500, 0), [r4, record((-150, 80, 3), (300, 310, 320), 9, 1)])])),
+        (1, 25, True, map_upload(10, header(4, EPOCH + 3), [], [block(4, (-2000, 500, 0), [r4])]))))
+    # An object with an exact ellipsoid (an 80 m semi-axis does not fit a record) and a record.
+    long_axis = ellipsoid(1, 2, (12.0, -2.6, 0.2), (6400.0, 0.0, 0.0, 0.25, 0.0, 0.25))
+    write(t, "packed_and_exact_in_one_object", stream_input(
+        MADC, (0, 0, False, map_upload(1, header(1), [map_object(long_axis)],
+                                       [block(1, (1000, -260, 20), [r1], object_of=[0]),
+                                        block(1, (3450, -800, 30), [record((0, 0, 0), (300, 700, 1000), 55, 1)])]))))
+    write(t, "packed_ellipsoid_conflict_across_uploads", stream_input(
+        MADC,
+        (0, 0, False, map_upload(1, header(1, next_epoch), [], [block(1, (1000, -260, 20), [r1])])),
+        (0, 0, False, map_upload(2, header(1, next_epoch), [], [block(1, (1000, -260, 20), [r1])])),   # same again
+        (0, 0, False, map_upload(3, header(1, next_epoch), [map_object(e1)], [])),                      # as exact
+        (0, 0, False, map_upload(4, header(1, next_epoch), [], [block(1, (1001, -260, 20), [r1])]))))  # moved 1 cm
+    write(t, "packed_65_records", stream_input(MADC, (0, 0, False, map_upload(1, header(1), [], [
+        block(1, (0, 0, 0), [record((100 * k, 0, 0), (10, 10, 10), 3, k) for k in range(65)])]))))
+    write(t, "packed_origin_at_int32_limits", stream_input(MADC, (0, 0, False, map_upload(1, header(1), [], [
+        block(1, (2 ** 31 - 1, -2 ** 31, 0), [record((32767, -32767, 0), (500, 500, 500), 20, 0)]),
+        block(1, (0, 0, 0), [record((-32768, 32767, -32768), (1, 1, 65535), 65535, 1)])]))))
+    # Malformed blocks and records: refused naming the block and record.
+    write(t, "block_records_not_multiple_of_22", stream_input(MADC, (0, 0, False, map_upload(1, header(1), [], [
+        block(1, (1000, -260, 20), [r1, b"\x01"])]))))
+    write(t, "block_object_of_out_of_range", stream_input(MADC, (0, 0, False, map_upload(1, header(1), [], [
+        block(1, (1000, -260, 20), [r1, r1b], steps=[0, 2 ** 31 - 1])], packed_objects=1))))
+    write(t, "block_object_step_below_zero", stream_input(MADC, (0, 0, False, map_upload(1, header(1), [], [
+        block(1, (1000, -260, 20), [r1, r1b], steps=[1, -2])], packed_objects=2))))
+    write(t, "packed_objects_above_records", stream_input(MADC, (0, 0, False, map_upload(1, header(1), [], [
+        block(1, (1000, -260, 20), [r1, r1b], object_of=[0, 1])], packed_objects=2 ** 32 - 1))))
+    write(t, "block_object_of_length_mismatch", stream_input(MADC, (0, 0, False, map_upload(1, header(1), [], [
+        block(1, (1000, -260, 20), [r1, r1b], object_of=[0])], packed_objects=1))))
+    write(t, "block_object_left_empty", stream_input(MADC, (0, 0, False, map_upload(1, header(1), [
+        map_object()], [block(1, (1000, -260, 20), [r1, r1b], object_of=[1, 1])], packed_objects=1))))
+    write(t, "record_zero_semi_axis", stream_input(MADC, (0, 0, False, map_upload(1, header(1), [], [
+        block(1, (1000, -260, 20), [r1, record((0, 0, 0), (0, 500, 500), 20, 1)])]))))
+    write(t, "record_reserved_orientation_bit", stream_input(MADC, (0, 0, False, map_upload(1, header(1), [], [
+        block(1, (1000, -260, 20), [record((0, 0, 0), (500, 500, 500), 20, 0, word=(1 << 47) | (16383 * 0x40008001))])]))))
+    write(t, "record_quaternion_norm_above_1", stream_input(MADC, (0, 0, False, map_upload(1, header(1), [], [
+        block(1, (1000, -260, 20), [record((0, 0, 0), (500, 500, 500), 20, 0, word=(3 << 45) | (2 ** 45 - 1)),
+                                    record((5, 5, 5), (500, 600, 700), 20, 1, word=(1 << 45) | (32766 * 0x40008001))])]))))
+    write(t, "duplicate_id_exact_and_record", stream_input(MADC, (0, 0, False, map_upload(1, header(1), [
+        map_object(e1)], [block(1, (1000, -260, 20), [r1])]))))
+    write(t, "duplicate_record_in_two_blocks", stream_input(MADC, (0, 0, False, map_upload(1, header(1), [], [
+        block(1, (1000, -260, 20), [r1]), block(1, (0, 0, 0), [record((1000, -260, 20), (500, 500, 500), 20, 0)])]))))
+
+
 def main():
     for target in ("fuzz_kitti", "fuzz_nuscenes", "fuzz_pcd", "fuzz_upload", "fuzz_topology"):
         directory = CORPUS / target
@@ -568,6 +675,7 @@ def main():
     float_record_seeds("fuzz_nuscenes", nuscenes, 20)
     pcd_seeds()
     upload_seeds()
+    compact_upload_seeds()
     topology_seeds()
     assert all(p.stat().st_size <= 8192 for p in CORPUS.rglob("*") if p.is_file()), "seeds stay small"
 

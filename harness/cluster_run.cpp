@@ -147,6 +147,7 @@ Expected<RunResult> runCluster(const std::filesystem::path& dir, const TopologyC
       if (options.complete_frames > 0 && completeEpochs(collection.result).size() >= options.complete_frames) {
         break;
       }
+      if (options.enough && options.enough(collection.result)) break;
     }
     if (!edges_done) {
       bool any_edge = false;
@@ -286,6 +287,10 @@ Expected<std::map<std::uint64_t, EdgeView>> recomputeEdges(const TopologyConfig&
       v1::Upload upload;
       *upload.mutable_map() = toProto(*output->map);
       view.madc_bytes += upload.ByteSizeLong();
+      view.madc_ellipsoids += output->map->map.ellipsoidCount();
+      v1::Upload exact;
+      *exact.mutable_map() = toProto(*output->map, EllipsoidWire::kExact);
+      view.madc_exact_bytes += exact.ByteSizeLong();
       // What the parent receives: the map after its trip through the wire format.
       auto received = fromProto(upload.map());
       if (!received) return received.error();

@@ -36,6 +36,8 @@ std::vector<std::uint64_t> completeEpochs(const RunResult& run);
 struct RunOptions {
   std::uint64_t frames = 20;          // epochs to wait for
   std::uint64_t complete_frames = 0;  // if > 0: also stop once this many epochs had every sensor
+  // If set: also stop once it says the epochs so far suffice (called under the collector's lock).
+  std::function<bool(const RunResult&)> enough;
   std::chrono::milliseconds timeout{60000};
   bool point_labels = false;          // ask the root for per-point labels
   // With TLS, the client certificate the subscriber presents: <cert_dir>/<identity>.crt and .key.
@@ -61,7 +63,9 @@ struct EdgeView {
   std::vector<Map> local_maps;  // as the parent decodes them
   // Simulated sensors only: the true object of every point (-1: none, e.g. ground).
   std::map<std::uint32_t, std::vector<std::int64_t>> truth;
-  std::size_t madc_bytes = 0;
+  std::size_t madc_bytes = 0;          // the local maps' uploads, on the compact wire
+  std::size_t madc_ellipsoids = 0;     // in those local maps
+  std::size_t madc_exact_bytes = 0;    // the same uploads with every ellipsoid exact (EllipsoidWire::kExact)
   std::size_t baseline_bytes = 0;  // the pre-processed points (what fogmap's baseline ships)
   std::size_t raw_bytes = 0;       // the scans before pre-processing, in the same wire format
 };

@@ -49,7 +49,10 @@ Expected<bool> Oracle::matches(const GlobalMapMessage& global) {
       if (!local) return local.error();
       for (const MapObject& o : (*local)->objects) all.insert(all.end(), o.ellipsoids.begin(), o.ellipsoids.end());
     }
-    cached = expected_.emplace(key, mergeSpecification(all)).first;
+    // As the root publishes it: through the global map's wire.
+    auto published = throughGlobalWire(mergeSpecification(all));
+    if (!published) return published.error();
+    cached = expected_.emplace(key, std::move(*published)).first;
   }
   return withoutFrames(global.map) == cached->second;
 }

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <fstream>
 #include <numeric>
+#include <set>
 #include <sstream>
 #include <unistd.h>
 
@@ -96,6 +97,7 @@ Expected<SceneRun> runScene(const std::filesystem::path& dir, const std::filesys
   layout.fanout = options.fanout;
   layout.base_port = options.base_port;
   layout.rate_hz = options.rate_hz;
+  layout.mapping = options.mapping;
   TopologyConfig topology = sim::sceneTopology(scene, scene_file, layout);
   topology.mode = options.mode;
   topology.baseline_ships_raw = options.mode == Mode::kBaseline && options.baseline_raw;
@@ -117,7 +119,16 @@ Expected<SceneRun> runScene(const std::filesystem::path& dir, const std::filesys
   }
   RunOptions run;
   run.frames = 100000;
-  run.complete_frames = options.frames;
+  // A complete epoch of every frame of the scene's cycle (of `frames` frames when the scene was
+  // cycled so): a busy machine that leaves some epochs incomplete does not leave a frame unscored,
+  // so MAD-C and the baseline runs pair frame for frame.
+  const auto schedule = EpochSchedule::create(topology.period_ms, topology.deadline_ms);
+  if (!schedule) return schedule.error();
+  run.enough = [&scene, schedule = *schedule, rate = options.rate_hz, frames = options.frames](const RunResult& result) {
+    std::set<std::uint64_t> seen;
+    for (const std::uint64_t e : completeEpochs(result)) seen.insert(sim::cycleFrame(scene, scanNumberAt(schedule, rate, e), rate));
+    return seen.size() >= frames;
+  };
   run.point_labels = options.mode == Mode::kBaseline;
   run.timeout = std::chrono::seconds(40) +
                 std::chrono::milliseconds(static_cast<long>(4.0 * topology.period_ms * static_cast<double>(options.frames)));
@@ -170,6 +181,9 @@ Expected<SceneScores> scoreSceneRuns(const sim::Scene& scene, const SceneRun& ma
   std::vector<double> true_objects;
   std::vector<double> pairs_tested;
   std::vector<double> pairs_all;
+  double map_bytes = 0.0;
+  double exact_map_bytes = 0.0;
+  double ellipsoids = 0.0;
   for (const auto e : epochs) {
     const GlobalMapMessage& g = madc.result.epochs.at(e);
     const EdgeView& view = views->at(e);
@@ -186,6 +200,9 @@ Expected<SceneScores> scoreSceneRuns(const sim::Scene& scene, const SceneRun& ma
     true_objects.push_back(static_cast<double>(truth->objects.objects_true));
     objects.push_back(static_cast<double>(g.map.objects.size()));
     madc_bytes.push_back(static_cast<double>(view.madc_bytes));
+    map_bytes += static_cast<double>(view.madc_bytes);
+    exact_map_bytes += static_cast<double>(view.madc_exact_bytes);
+    ellipsoids += static_cast<double>(view.madc_ellipsoids);
     baseline_bytes.push_back(static_cast<double>(view.baseline_bytes));
     raw_bytes.push_back(static_cast<double>(view.raw_bytes));
     // Table 1: the MERGE of the maps the edges shipped, as the root merged them (the same partition).
@@ -217,6 +234,8 @@ Expected<SceneScores> scoreSceneRuns(const sim::Scene& scene, const SceneRun& ma
   out.madc_bytes_per_frame = mean(madc_bytes);
   out.baseline_bytes_per_frame = mean(baseline_bytes);
   out.raw_bytes_per_frame = mean(raw_bytes);
+  out.madc_bytes_per_ellipsoid = map_bytes / std::max(1.0, ellipsoids);
+  out.exact_bytes_per_ellipsoid = exact_map_bytes / std::max(1.0, ellipsoids);
   out.global_objects = mean(objects);
   out.true_objects = mean(true_objects);
   out.pairs_tested_per_epoch = mean(pairs_tested);
@@ -316,6 +335,7 @@ Expected<SceneTrackingRun> runSceneTracking(const std::filesystem::path& dir, co
   layout.tracking.association = options.association;
   layout.tracker_input = options.input;
   layout.displacement = options.displacement;
+  layout.mapping = options.mapping;
   TopologyConfig topology = sim::sceneTopology(scene, scene_file, layout);
   topology.name = std::string("tracking-") + tracking::associationName(options.association) + "-" +
                   trackerInputName(options.input) + "-" + std::to_string(scene.lidars.size()) + "lidars";

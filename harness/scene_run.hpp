@@ -17,6 +17,7 @@
 #include "common/scoring/object_match.hpp"
 #include "common/scoring/rand_index.hpp"
 #include "common/sim/scene.hpp"
+#include "common/sim/scene_topology.hpp"
 #include "common/tracking/tracker_config.hpp"
 #include "harness/cluster_run.hpp"
 #include "harness/object_breakdown.hpp"
@@ -37,6 +38,7 @@ struct SceneRunOptions {
   std::uint64_t frames = 5;  // complete epochs to collect
   std::optional<double> link_mbit;  // every edge behind a shaped link of this rate (ShapedLinks)
   bool baseline_raw = false;        // baseline: the edges ship whole scans, the root pre-processes
+  sim::SceneMapping mapping;        // the edges' clustering and fragments (MAD-C modes)
 };
 
 // One cluster run on a scene: the topology it ran (as written) and what the root published.
@@ -72,6 +74,8 @@ struct SceneScores {
   double madc_bytes_per_frame = 0.0;   // what the edges ship per frame (the services' wire sizes)
   double baseline_bytes_per_frame = 0.0;
   double raw_bytes_per_frame = 0.0;    // the raw scans in the same wire format (the paper's baseline)
+  double madc_bytes_per_ellipsoid = 0.0;   // the edges' map uploads over their ellipsoids, all frames
+  double exact_bytes_per_ellipsoid = 0.0;  // the same with every ellipsoid exact (float32, no records)
   double global_objects = 0.0;         // MAD-C's global objects per frame
   double true_objects = 0.0;           // true objects with points per frame
   // From the services' metrics.
@@ -118,6 +122,7 @@ struct SceneTrackingOptions {
   std::size_t warmup_lists = 30;
   std::size_t scored_lists = 100;
   double match_distance_m = 1.0;  // the CLEAR MOT gate
+  sim::SceneMapping mapping;      // the edges' clustering and fragments
 };
 
 // A tracking run: the topology it ran, what the root published and the services' metrics, and

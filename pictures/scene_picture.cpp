@@ -2,7 +2,7 @@
 
 #include "common/base/epochs.hpp"
 #include "common/sim/footprint.hpp"
-#include "common/sim/lidar_models.hpp"
+#include "common/perception/lidar_models.hpp"
 #include "pictures/birdseye.hpp"
 #include "services/edge_cluster/edge_runner.hpp"
 
@@ -24,7 +24,7 @@ Status drawSceneBirdseye(const std::filesystem::path& png, const GlobalMapMessag
   for (const auto& [node, points] : view.points) picture.points.emplace_back(points);
   picture.objects = global.map.objects;
   for (const auto& lidar : scene.lidars) {
-    const auto model = sim::lidarModel(lidar.model);
+    const auto model = lidarModel(lidar.model);
     const double range = lidar.max_range_m.value_or(model ? model->max_range_m : 0.0);
     picture.sensors.push_back({lidar.name, lidar.pose, range});
   }

@@ -107,6 +107,23 @@ const char* serviceName(Role role) {
   return "unknown";
 }
 
+const char* clusteringModeName(ClusteringMode mode) {
+  switch (mode) {
+    case ClusteringMode::kExact:
+      return "exact";
+    case ClusteringMode::kSensor:
+      return "sensor";
+  }
+  return "unknown";
+}
+
+Expected<ClusteringMode> parseClusteringMode(const std::string& name) {
+  if (name == "exact") return ClusteringMode::kExact;
+  if (name == "sensor") return ClusteringMode::kSensor;
+  return invalidArgument("must be exact (PCL's Euclidean partition) or sensor (with ring links from the LiDAR "
+                         "model's beam table), got '" + name + "'");
+}
+
 const char* roleName(Role role) {
   switch (role) {
     case Role::kEdge:

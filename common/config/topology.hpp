@@ -35,6 +35,14 @@ const char* roleName(Role role);
 // The `source` of a simulated LiDAR (a directory named so is written ./sim).
 inline constexpr const char* kSimSource = "sim";
 
+// How an edge clusters its scans: kExact, PCL's Euclidean partition (euclideanClusters, the default);
+// kSensor, the exact links plus ring links from its LiDAR model's beam table (sensorAwareClusters),
+// which keeps an object a sparse LiDAR sees as one cluster.
+enum class ClusteringMode { kExact, kSensor };
+// "exact" or "sensor", as the topology file writes it.
+const char* clusteringModeName(ClusteringMode mode);
+Expected<ClusteringMode> parseClusteringMode(const std::string& name);
+
 struct SensorConfig {
   std::filesystem::path source;         // a directory of scans (replayed in name order), one file, or "sim"
   // source sim: LiDAR `lidar` of the scene file `scene` (common/sim), cast at the scene time of
@@ -48,6 +56,8 @@ struct SensorConfig {
   // The scan's frame -> common frame. With a split, the points of a view are in the sector's frame
   // and the edge applies pose * sectorPose(split).
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  ClusteringMode clustering = ClusteringMode::kExact;
+  std::string model;  // the LiDAR model (lidarModel): its beam table; required with clustering sensor
 
   // True for a simulated LiDAR (source: sim).
   bool simulated() const { return source == kSimSource; }

@@ -3,10 +3,14 @@
 #include <algorithm>
 #include <utility>
 
+#include "common/perception/lidar_models.hpp"
+
 namespace fogmap::topology_detail {
 
 Expected<SensorConfig> parseSensor(const YAML::Node& node, const std::string& where, const std::filesystem::path& base_dir) {
-  if (const Status st = checkSection(node, where, {"source", "scene", "lidar", "rate_hz", "loop", "frames", "split", "pose"});
+  if (const Status st = checkSection(node, where,
+                                     {"source", "scene", "lidar", "rate_hz", "loop", "frames", "split", "pose", "clustering",
+                                      "model"});
       !st) {
     return st.error();
   }
@@ -67,6 +71,27 @@ Expected<SensorConfig> parseSensor(const YAML::Node& node, const std::string& wh
   const auto pose = parsePose(node["pose"], where + ".pose");
   if (!pose) return pose.error();
   s.pose = *pose;
+  const auto clustering = scalar<std::string>(node, "clustering", where, clusteringModeName(s.clustering));
+  if (!clustering) return clustering.error();
+  const auto mode = parseClusteringMode(*clustering);
+  if (!mode) return bad(where + ".clustering", mode.error().message);
+  s.clustering = *mode;
+  const auto model = scalar<std::string>(node, "model", where, "");
+  if (!model) return model.error();
+  if (s.clustering == ClusteringMode::kSensor && model->empty()) {
+    std::string known;
+    for (const auto& n : lidarModelNames()) known += (known.empty() ? "" : ", ") + n;
+    return bad(where + ".model", "is required with clustering: sensor (the LiDAR model whose beam table links the rings: " +
+                                     known + ")");
+  }
+  if (!model->empty()) {
+    if (s.clustering != ClusteringMode::kSensor) {
+      return bad(where + ".model", "goes with clustering: sensor only (clustering is " +
+                                       std::string(clusteringModeName(s.clustering)) + ")");
+    }
+    if (const auto known = lidarModel(*model); !known) return bad(where + ".model", known.error().message);
+  }
+  s.model = *model;
   return s;
 }
 

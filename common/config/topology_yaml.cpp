@@ -96,6 +96,10 @@ std::string toYaml(const TopologyConfig& t) {
         list3(rpyDegrees(s.pose.rotation()));
         out << YAML::EndMap;
       }
+      if (s.clustering != ClusteringMode::kExact) {
+        out << YAML::Key << "clustering" << YAML::Value << clusteringModeName(s.clustering);
+        out << YAML::Key << "model" << YAML::Value << s.model;
+      }
       out << YAML::EndMap;
     }
     if (n.displacement) {

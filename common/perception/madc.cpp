@@ -1,11 +1,19 @@
 #include "common/perception/madc.hpp"
 
+#include <utility>
+
 namespace fogmap {
 
-LocalMapResult genLocalMap(std::span<const Point> points, std::uint32_t node, std::uint64_t frame,
-                           const MadcParams& params) {
+Expected<LocalMapResult> genLocalMap(std::span<const Point> points, std::uint32_t node, std::uint64_t frame,
+                                     const MadcParams& params) {
   LocalMapResult result;
-  result.clustering = euclideanClusters(points, params.clustering);
+  if (params.sensor_links) {
+    auto clustering = sensorAwareClusters(points, SensorClusteringParams{params.clustering, *params.sensor_links});
+    if (!clustering) return clustering.error();
+    result.clustering = std::move(*clustering);
+  } else {
+    result.clustering = euclideanClusters(points, params.clustering);
+  }
   const auto summaries = summarizeClusters(points, result.clustering);
   std::vector<Ellipsoid> ellipsoids;
   ellipsoids.reserve(summaries.size());

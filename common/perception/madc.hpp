@@ -9,12 +9,18 @@
 #include "common/geometry/cloud.hpp"
 #include "common/geometry/ellipsoid.hpp"
 #include "common/geometry/map.hpp"
+#include "common/base/status.hpp"
 #include "common/perception/clustering.hpp"
+#include "common/perception/sensor_clustering.hpp"
 
 namespace fogmap {
 
 struct MadcParams {
   ClusteringParams clustering;  // eps 0.35 m, 10 points
+  // Unset: the exact mode (euclideanClusters, PCL's partition). Set: the sensor-aware mode
+  // (sensorAwareClusters: the exact links plus ring links from the sensor's beam table), which keeps
+  // an object a sparse LiDAR sees as one cluster where its rings lie further apart than eps.
+  std::optional<SensorLinks> sensor_links;
   double alpha = 1.5;           // confidence step
   // An edge ships every local cluster of at least this many points: those below
   // clustering.min_points are fragments, and min_points applies to a global object's points over
@@ -32,7 +38,8 @@ struct LocalMapResult {
   Clustering clustering;  // per-point labels, for MAD-C-ext and accuracy checks
 };
 
-LocalMapResult genLocalMap(std::span<const Point> points, std::uint32_t node, std::uint64_t frame,
-                           const MadcParams& params);
+// Errors only in the sensor-aware mode, when validateSensorClusteringParams refuses its parameters.
+Expected<LocalMapResult> genLocalMap(std::span<const Point> points, std::uint32_t node, std::uint64_t frame,
+                                     const MadcParams& params);
 
 }  // namespace fogmap

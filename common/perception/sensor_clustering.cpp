@@ -153,7 +153,7 @@ Status validateSensorClusteringParams(const SensorClusteringParams& params) {
   if (!std::isfinite(eps) || !(eps > 0.0)) {
     return invalidArgument("clustering.eps_m must be positive and finite, got " + str(eps));
   }
-  const auto& elevations = params.beams.elevations_deg;
+  const auto& elevations = params.links.beams.elevations_deg;
   if (elevations.size() < 2) {
     return invalidArgument("beams.elevations_deg needs at least 2 rings, got " + std::to_string(elevations.size()));
   }
@@ -172,7 +172,7 @@ Status validateSensorClusteringParams(const SensorClusteringParams& params) {
     return invalidArgument("beams.elevations_deg holds the elevation " + str(*dup / kDegToRad) +
                            " degrees twice: every ring needs its own");
   }
-  const double step = params.beams.azimuth_step_deg;
+  const double step = params.links.beams.azimuth_step_deg;
   if (!std::isfinite(step) || !(step > 0.0)) {
     return invalidArgument("beams.azimuth_step_deg must be positive and finite, got " + str(step));
   }
@@ -181,14 +181,14 @@ Status validateSensorClusteringParams(const SensorClusteringParams& params) {
     return invalidArgument("beams.azimuth_step_deg " + str(step) + " is too small: " + str(bins) + " azimuth bins x " +
                            std::to_string(elevations.size()) + " rings exceed the range image's 2^24 bins per ring or 2^32 cells");
   }
-  if (!std::isfinite(params.ring_gap_slack) || params.ring_gap_slack < 1.0) {
-    return invalidArgument("ring_gap_slack must be at least 1 and finite, got " + str(params.ring_gap_slack));
+  if (!std::isfinite(params.links.ring_gap_slack) || params.links.ring_gap_slack < 1.0) {
+    return invalidArgument("ring_gap_slack must be at least 1 and finite, got " + str(params.links.ring_gap_slack));
   }
-  if (params.azimuth_window < 0) {
-    return invalidArgument("azimuth_window must be at least 0, got " + std::to_string(params.azimuth_window));
+  if (params.links.azimuth_window < 0) {
+    return invalidArgument("azimuth_window must be at least 0, got " + std::to_string(params.links.azimuth_window));
   }
-  const Eigen::Matrix3d rotation = params.sensor_pose.linear();
-  if (!params.sensor_pose.matrix().allFinite() ||
+  const Eigen::Matrix3d rotation = params.links.sensor_pose.linear();
+  if (!params.links.sensor_pose.matrix().allFinite() ||
       !((rotation.transpose() * rotation - Eigen::Matrix3d::Identity()).norm() < 1e-6) || !(rotation.determinant() > 0.0)) {
     return invalidArgument("sensor_pose must be finite and rigid (a rotation and a translation)");
   }
@@ -198,7 +198,7 @@ Status validateSensorClusteringParams(const SensorClusteringParams& params) {
 Expected<BeamGeometry> BeamGeometry::make(const SensorClusteringParams& params) {
   if (Status valid = validateSensorClusteringParams(params); !valid) return valid.error();
   BeamGeometry g;
-  for (const double e : params.beams.elevations_deg) g.elevations_rad_.push_back(e * kDegToRad);
+  for (const double e : params.links.beams.elevations_deg) g.elevations_rad_.push_back(e * kDegToRad);
   std::sort(g.elevations_rad_.begin(), g.elevations_rad_.end());
   for (std::size_t k = 0; k + 1 < g.elevations_rad_.size(); ++k) {
     g.sin_midpoints_.push_back(std::sin(0.5 * (g.elevations_rad_[k] + g.elevations_rad_[k + 1])));
@@ -214,12 +214,12 @@ Expected<BeamGeometry> BeamGeometry::make(const SensorClusteringParams& params) 
   }
   // The top ring's sentinel: no sine is above it.
   g.sin_midpoints_.push_back(std::numeric_limits<double>::infinity());
-  g.to_sensor_ = params.sensor_pose.inverse();
-  g.step_rad_ = params.beams.azimuth_step_deg * kDegToRad;
+  g.to_sensor_ = params.links.sensor_pose.inverse();
+  g.step_rad_ = params.links.beams.azimuth_step_deg * kDegToRad;
   g.bins_per_rad_ = 1.0 / g.step_rad_;
   g.closing_bin_ = 2.0 * std::numbers::pi * g.bins_per_rad_;
   g.fast_margin_ = kFastAtanError * g.bins_per_rad_ + 1e-6;
-  g.bins_ = static_cast<int>(azimuthBinCount(params.beams.azimuth_step_deg));
+  g.bins_ = static_cast<int>(azimuthBinCount(params.links.beams.azimuth_step_deg));
   if (g.bins_ <= kMaxEdgeTable) {
     const auto edges = static_cast<std::size_t>(g.bins_);
     g.edge_cos_.resize(edges);
@@ -364,8 +364,8 @@ Expected<Clustering> sensorAwareClusters(std::span<const Point> points, const Se
   DisjointSets sets(components);
   const double eps = params.clustering.eps_m;
   for (int r = 0; r + 1 < rings; ++r) {
-    const double gap_link = params.ring_gap_slack * (geometry->elevationRad(r + 1) - geometry->elevationRad(r));
-    linkAdjacentRings(image, r, points, range_of.get(), params.azimuth_window, eps, gap_link, sets);
+    const double gap_link = params.links.ring_gap_slack * (geometry->elevationRad(r + 1) - geometry->elevationRad(r));
+    linkAdjacentRings(image, r, points, range_of.get(), params.links.azimuth_window, eps, gap_link, sets);
   }
 
   // Sizes of the joined components, then canonical labels in the order of each cluster's first point.

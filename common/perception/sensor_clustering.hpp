@@ -38,12 +38,18 @@ struct BeamTable {
   double azimuth_step_deg = 0.2;       // horizontal angle between consecutive rays of a ring
 };
 
-struct SensorClusteringParams {
-  ClusteringParams clustering;  // eps_m, min_points, max_points; threads for the Euclidean links (a)
+// What the sensor-aware mode adds to the exact links: the sensor's geometry and the reach of the
+// ring links (rule b).
+struct SensorLinks {
   BeamTable beams;
   Eigen::Isometry3d sensor_pose = Eigen::Isometry3d::Identity();  // sensor frame -> the points' frame
   double ring_gap_slack = 1.5;  // a vertical link may span slack x the ring gap at that range
   int azimuth_window = 2;       // azimuth bins either side searched on the adjacent ring
+};
+
+struct SensorClusteringParams {
+  ClusteringParams clustering;  // eps_m, min_points, max_points; threads for the Euclidean links (a)
+  SensorLinks links;
 };
 
 // Errors (invalid argument, naming the field) for: eps_m not positive and finite; fewer than 2

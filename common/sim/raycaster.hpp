@@ -12,7 +12,7 @@
 
 #include "common/base/status.hpp"
 #include "common/geometry/cloud.hpp"
-#include "common/sim/lidar_models.hpp"
+#include "common/perception/lidar_models.hpp"
 #include "common/sim/scene.hpp"
 
 namespace fogmap::sim {

@@ -8,7 +8,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "common/config/yaml_fields.hpp"
-#include "common/sim/lidar_models.hpp"
+#include "common/perception/lidar_models.hpp"
 
 namespace fogmap::sim {
 namespace {

@@ -97,6 +97,8 @@ TopologyConfig sceneTopology(const Scene& scene, const std::filesystem::path& sc
     s.lidar = lidar.name;
     s.rate_hz = options.rate_hz;
     s.pose = lidar.pose;
+    s.clustering = options.mapping.clustering;
+    if (s.clustering == ClusteringMode::kSensor) s.model = lidar.model;
     n.sensor = s;
   }
   if (options.tracker) {
@@ -130,6 +132,7 @@ TopologyConfig sceneTopology(const Scene& scene, const std::filesystem::path& sc
       t.nodes.push_back(detectionNode(static_cast<int>(k + 1), name, tracker.name, options.base_port, std::move(c)));
     }
   }
+  t.madc.fragment_min_points = options.mapping.fragment_min_points;
   return t;  // edges are leaves: renaming them leaves every parent link as it was
 }
 

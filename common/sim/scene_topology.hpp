@@ -2,7 +2,9 @@
 // A topology from a scene (fogctl topology --scene): one edge per LiDAR of the scene, each a
 // simulated sensor (`sensor: {source: sim, scene, lidar}`) at the LiDAR's mounting pose, under one
 // sink (star) or a balanced tree of aggregators, as makeStarTopology and makeTreeTopology lay them out.
+#include <cstddef>
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include "common/config/camera_node.hpp"
@@ -14,11 +16,19 @@
 
 namespace fogmap::sim {
 
+// How a scene's edges make their maps: their clustering (kSensor gives each edge its scene LiDAR's
+// model for the ring links) and madc.fragment_min_points.
+struct SceneMapping {
+  ClusteringMode clustering = ClusteringMode::kExact;
+  std::optional<std::size_t> fragment_min_points;
+};
+
 struct SceneTopologyOptions {
   bool tree = false;       // a balanced tree of aggregators instead of a star
   int fanout = 2;          // a tree's aggregators have at most this many children
   int base_port = 50000;   // ports as makeStarTopology / makeTreeTopology number them
   double rate_hz = 10.0;   // every simulated LiDAR's scan rate
+  SceneMapping mapping;
   // A tracker (named "tracker") and one detection node per camera of the scene (named
   // cameraNodeFor(camera)), each replaying the scene's objects as its detections with `truth`;
   // the tracker reads the root's global maps, or with tracker_input centroids every edge streams it

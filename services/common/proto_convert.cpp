@@ -6,8 +6,10 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <map>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -16,6 +18,7 @@
 #include <google/protobuf/io/coded_stream.h>
 
 #include "common/config/topology.hpp"
+#include "common/geometry/compact_ellipsoid.hpp"
 
 
 namespace fogmap {
@@ -102,12 +105,94 @@ void toProto(const Ellipsoid& e, std::uint64_t epoch, v1::Ellipsoid* out) {
   out->set_point_count(e.point_count);
 }
 
-void toProto(const Map& map, std::uint64_t epoch, google::protobuf::RepeatedPtrField<v1::MapObject>* out) {
-  out->Reserve(static_cast<int>(map.objects.size()));
-  for (const auto& object : map.objects) {
-    v1::MapObject* o = out->Add();
-    o->mutable_ellipsoids()->Reserve(static_cast<int>(object.ellipsoids.size()));
-    for (const auto& e : object.ellipsoids) toProto(e, epoch, o->add_ellipsoids());
+using WireObjects = google::protobuf::RepeatedPtrField<v1::MapObject>;
+using WireBlocks = google::protobuf::RepeatedPtrField<v1::EllipsoidBlock>;
+
+// The records of one (node, frame), before they go on the wire.
+struct PackedBlock {
+  std::uint32_t node = 0;
+  std::uint64_t frame = 0;
+  CompactOrigin origin;
+  std::string records;
+  std::vector<std::size_t> object_of;  // the map object of each record
+  bool own_objects = true;             // every record is the only ellipsoid of its object
+};
+
+// Packs every ellipsoid that fits into the block of its (node, frame), whose origin is the first
+// packed centre in canonical order (rounded to cm, which a decoded map's centre already is, so the
+// origin survives a decode and re-encode); the others go exactly in their objects. A block whose records are
+// all objects of their own leaves object_step out, and those objects are not listed in `objects`;
+// nor are the objects whose ellipsoids are all records (`packed_objects` counts them).
+void toProto(const Map& map, std::uint64_t epoch, EllipsoidWire wire, WireObjects* objects, WireBlocks* blocks,
+             std::uint32_t* packed_objects) {
+  std::vector<PackedBlock> packed;
+  std::map<std::pair<std::uint32_t, std::uint64_t>, std::size_t> block_of;
+  std::vector<std::vector<const Ellipsoid*>> exact(map.objects.size());
+  std::vector<std::size_t> lone_block(map.objects.size(), SIZE_MAX);  // a one-ellipsoid object's block
+  for (std::size_t o = 0; o < map.objects.size(); ++o) {
+    const auto& ellipsoids = map.objects[o].ellipsoids;
+    const bool lone = ellipsoids.size() == 1;
+    for (const Ellipsoid& e : ellipsoids) {
+      if (wire == EllipsoidWire::kExact) {
+        exact[o].push_back(&e);
+        continue;
+      }
+      const auto key = std::make_pair(e.id.node, e.id.frame);
+      auto it = block_of.find(key);
+      if (it == block_of.end()) {
+        PackedBlock fresh{e.id.node, e.id.frame, compactOriginNear(e.center), {}, {}, true};
+        if (!fitsCompact(e, fresh.origin)) {
+          exact[o].push_back(&e);
+          continue;
+        }
+        it = block_of.emplace(key, packed.size()).first;
+        packed.push_back(std::move(fresh));
+      }
+      PackedBlock& block = packed[it->second];
+      if (!appendCompact(e, block.origin, block.records)) {
+        exact[o].push_back(&e);
+        continue;
+      }
+      block.object_of.push_back(o);
+      block.own_objects = block.own_objects && lone;
+      if (lone) lone_block[o] = it->second;
+    }
+  }
+
+  // Objects with exact ellipsoids are listed first; objects with records only follow, unlisted.
+  std::vector<std::uint32_t> wire_index(map.objects.size(), 0);
+  std::vector<std::size_t> unlisted;
+  for (std::size_t o = 0; o < map.objects.size(); ++o) {
+    if (exact[o].empty()) {
+      if (lone_block[o] == SIZE_MAX || !packed[lone_block[o]].own_objects) unlisted.push_back(o);
+      continue;
+    }
+    wire_index[o] = static_cast<std::uint32_t>(objects->size());
+    v1::MapObject* object = objects->Add();
+    object->mutable_ellipsoids()->Reserve(static_cast<int>(exact[o].size()));
+    for (const Ellipsoid* e : exact[o]) toProto(*e, epoch, object->add_ellipsoids());
+  }
+  for (std::size_t k = 0; k < unlisted.size(); ++k) {
+    wire_index[unlisted[k]] = static_cast<std::uint32_t>(static_cast<std::size_t>(objects->size()) + k);
+  }
+  *packed_objects = static_cast<std::uint32_t>(unlisted.size());
+  blocks->Reserve(static_cast<int>(packed.size()));
+  for (PackedBlock& block : packed) {
+    v1::EllipsoidBlock* out = blocks->Add();
+    out->set_node(block.node);
+    if (block.frame != epoch) out->set_frame(block.frame);
+    out->set_origin_x_cm(block.origin.x_cm);
+    out->set_origin_y_cm(block.origin.y_cm);
+    out->set_origin_z_cm(block.origin.z_cm);
+    out->set_records(std::move(block.records));
+    if (block.own_objects) continue;
+    out->mutable_object_step()->Reserve(static_cast<int>(block.object_of.size()));
+    std::int64_t previous = 0;
+    for (const std::size_t o : block.object_of) {
+      const std::int64_t index = wire_index[o];
+      out->add_object_step(static_cast<std::int32_t>(index - previous));
+      previous = index;
+    }
   }
 }
 
@@ -138,6 +223,7 @@ std::string ellipsoidLabel(const std::string& where, int object, int ellipsoid) 
   return where + ": object " + std::to_string(object) + " ellipsoid " + std::to_string(ellipsoid);
 }
 
+
 Expected<Ellipsoid> fromProto(const v1::Ellipsoid& e, std::uint64_t epoch, const std::string& label) {
   if (!e.has_id()) return invalidArgument(label + ": missing id");
   if (e.center_size() != 3) {
@@ -165,34 +251,111 @@ Expected<Ellipsoid> fromProto(const v1::Ellipsoid& e, std::uint64_t epoch, const
   return out;
 }
 
-Expected<Map> fromProto(const google::protobuf::RepeatedPtrField<v1::MapObject>& objects, std::uint64_t epoch,
-                        const std::string& where) {
+// Where an ellipsoid was in the message: exact (object, ellipsoid) or packed (block, record).
+struct WirePlace {
+  bool packed = false;
+  int group = 0;          // the object, or the block
+  std::size_t item = 0;   // the ellipsoid, or the record
+  std::string text() const {
+    return packed ? "blocks[" + std::to_string(group) + "] record " + std::to_string(item)
+                  : "object " + std::to_string(group) + " ellipsoid " + std::to_string(item);
+  }
+};
+
+std::string recordLabel(const std::string& where, int block, std::size_t record) {
+  return where + ": " + WirePlace{true, block, record}.text();
+}
+
+// The objects of a Map or GlobalMap: exact ellipsoids in `objects`, records in `blocks` attached to
+// the object their object_step names (listed, or one of the `packed_objects` numbered after them),
+// or objects of their own (numbered after both).
+Expected<Map> fromProto(const WireObjects& objects, const WireBlocks& blocks, std::uint32_t packed_objects,
+                        std::uint64_t epoch, const std::string& where) {
   std::vector<Ellipsoid> ellipsoids;
   std::vector<std::size_t> object_of;
+  std::vector<WirePlace> places;
+  // Every object has an ellipsoid: more unlisted objects than records is malformed (and checked
+  // before anything is sized by it).
+  std::size_t records_in_blocks = 0;
+  for (int b = 0; b < blocks.size(); ++b) {
+    const std::size_t bytes = blocks[b].records().size();
+    if (bytes % kCompactEllipsoidBytes != 0) {
+      return invalidArgument(where + ": blocks[" + std::to_string(b) + "]: records has " + std::to_string(bytes) +
+                             " bytes, not a multiple of " + std::to_string(kCompactEllipsoidBytes) +
+                             " (one compact ellipsoid each)");
+    }
+    records_in_blocks += bytes / kCompactEllipsoidBytes;
+  }
+  if (packed_objects > records_in_blocks) {
+    return invalidArgument(where + ": packed_objects " + std::to_string(packed_objects) + " exceeds the " +
+                           std::to_string(records_in_blocks) + " records of its blocks (each needs one)");
+  }
+  const std::size_t listed = static_cast<std::size_t>(objects.size()) + packed_objects;
+  std::vector<std::size_t> members(listed, 0);
   for (int o = 0; o < objects.size(); ++o) {
     const v1::MapObject& object = objects[o];
-    if (object.ellipsoids_size() == 0) {
-      return invalidArgument(where + ": object " + std::to_string(o) + " has no ellipsoids");
-    }
     for (int k = 0; k < object.ellipsoids_size(); ++k) {
       auto e = fromProto(object.ellipsoids(k), epoch, ellipsoidLabel(where, o, k));
       if (!e) return e.error();
       ellipsoids.push_back(std::move(e).value());
       object_of.push_back(static_cast<std::size_t>(o));
+      places.push_back({false, o, static_cast<std::size_t>(k)});
+      ++members[static_cast<std::size_t>(o)];
     }
+  }
+  std::size_t own_object = listed;  // the next object of its own
+  for (int b = 0; b < blocks.size(); ++b) {
+    const v1::EllipsoidBlock& block = blocks[b];
+    const std::string_view records = block.records();
+    const std::string label = where + ": blocks[" + std::to_string(b) + "]";
+    const std::size_t count = records.size() / kCompactEllipsoidBytes;
+    const auto listed_objects = static_cast<std::size_t>(block.object_step_size());
+    if (listed_objects != 0 && listed_objects != count) {
+      return invalidArgument(label + ": object_step has " + std::to_string(listed_objects) + " entries for " +
+                             std::to_string(count) +
+                             " records (one per record, or none when each is an object of its own)");
+    }
+    std::int64_t step_sum = 0;
+    const CompactOrigin origin{block.origin_x_cm(), block.origin_y_cm(), block.origin_z_cm()};
+    const std::uint64_t frame = block.has_frame() ? block.frame() : epoch;
+    for (std::size_t r = 0; r < count; ++r) {
+      std::size_t object = own_object;
+      if (listed_objects == 0) {
+        ++own_object;
+      } else {
+        step_sum += block.object_step(static_cast<int>(r));  // int32 steps, < 2^32 records: no overflow
+        if (step_sum < 0 || static_cast<std::uint64_t>(step_sum) >= listed) {
+          return invalidArgument(recordLabel(where, b, r) + ": object_step names object " + std::to_string(step_sum) +
+                                 ", out of range (the message has " + std::to_string(listed) +
+                                 " objects: listed and packed_objects)");
+        }
+        object = static_cast<std::size_t>(step_sum);
+        ++members[object];
+      }
+      auto e = decodeCompact(records.substr(r * kCompactEllipsoidBytes, kCompactEllipsoidBytes), origin, block.node(),
+                             frame);
+      if (!e) return invalidArgument(recordLabel(where, b, r) + ": " + e.error().message);
+      ellipsoids.push_back(std::move(e).value());
+      object_of.push_back(object);
+      places.push_back({true, b, r});
+    }
+  }
+  for (std::size_t o = 0; o < listed; ++o) {
+    if (members[o] == 0) return invalidArgument(where + ": object " + std::to_string(o) + " has no ellipsoids");
   }
   // Canonical maps have unique ids; a duplicate would be merged with itself downstream.
   std::vector<std::size_t> order(ellipsoids.size());
   for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-  std::sort(order.begin(), order.end(),
-            [&](std::size_t a, std::size_t b) { return ellipsoids[a].id < ellipsoids[b].id; });
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return ellipsoids[a].id < ellipsoids[b].id || (ellipsoids[a].id == ellipsoids[b].id && a < b);
+  });
   for (std::size_t i = 1; i < order.size(); ++i) {
     if (ellipsoids[order[i - 1]].id == ellipsoids[order[i]].id) {
-      const auto [first, second] = std::minmax(object_of[order[i - 1]], object_of[order[i]]);
-      return invalidArgument(where + ": duplicate ellipsoid id " + toString(ellipsoids[order[i]].id) +
-                             " (objects " + std::to_string(first) + " and " + std::to_string(second) + ")");
+      return invalidArgument(where + ": duplicate ellipsoid id " + toString(ellipsoids[order[i]].id) + " (" +
+                             places[order[i - 1]].text() + " and " + places[order[i]].text() + ")");
     }
   }
+  // Every listed object has an ellipsoid, so there are at most as many objects as ellipsoids.
   return mapFromGroups(ellipsoids, object_of);
 }
 
@@ -205,11 +368,21 @@ std::optional<Mode> modeFromName(const std::string& name) {
 
 }  // namespace
 
-v1::Map toProto(const MapMessage& message) {
+v1::Map toProto(const MapMessage& message, EllipsoidWire wire) {
   v1::Map out;
   toProto(message.header, out.mutable_header());
-  toProto(message.map, message.header.epoch, out.mutable_objects());
+  std::uint32_t packed_objects = 0;
+  toProto(message.map, message.header.epoch, wire, out.mutable_objects(), out.mutable_blocks(), &packed_objects);
+  out.set_packed_objects(packed_objects);
   return out;
+}
+
+Expected<Map> throughGlobalWire(const Map& map) {
+  GlobalMapMessage message;
+  message.map = map;
+  auto decoded = fromProto(toProto(message));
+  if (!decoded) return decoded.error();
+  return std::move(decoded->map);
 }
 
 v1::PointChunk toProto(const PointChunk& chunk) {
@@ -231,10 +404,12 @@ v1::PointChunk toProto(const PointChunk& chunk) {
   return out;
 }
 
-v1::GlobalMap toProto(const GlobalMapMessage& message) {
+v1::GlobalMap toProto(const GlobalMapMessage& message, EllipsoidWire wire) {
   v1::GlobalMap out;
   toProto(message.header, out.mutable_header());
-  toProto(message.map, message.header.epoch, out.mutable_objects());
+  std::uint32_t packed_objects = 0;
+  toProto(message.map, message.header.epoch, wire, out.mutable_objects(), out.mutable_blocks(), &packed_objects);
+  out.set_packed_objects(packed_objects);
   out.set_mode(modeName(message.mode));
   out.set_published_time_ns(message.published_time_ns);
   out.set_merge_seconds(message.merge_seconds);
@@ -262,7 +437,7 @@ v1::Geofence toProto(const Geofence& fence) {
 }
 
 Expected<MapMessage> fromProto(const v1::Map& message) {
-  auto map = fromProto(message.objects(), message.header().epoch(), "Map");
+  auto map = fromProto(message.objects(), message.blocks(), message.packed_objects(), message.header().epoch(), "Map");
   if (!map) return map.error();
   return MapMessage{fromProto(message.header()), std::move(map).value()};
 }
@@ -319,7 +494,8 @@ Expected<GlobalMapMessage> fromProto(const v1::GlobalMap& message) {
   }
   out.mode = *mode;
   if (!std::isfinite(message.merge_seconds())) return invalidArgument("GlobalMap: merge_seconds is not finite");
-  auto map = fromProto(message.objects(), message.header().epoch(), "GlobalMap");
+  auto map = fromProto(message.objects(), message.blocks(), message.packed_objects(), message.header().epoch(),
+                       "GlobalMap");
   if (!map) return map.error();
   out.header = fromProto(message.header());
   out.map = std::move(map).value();

@@ -10,19 +10,46 @@
 
 namespace fogmap {
 
-// Ellipsoid geometry and points travel as little-endian float32: a double value is rounded once,
-// so fromProto(toProto(x)) == x for x whose geometry is float-representable (every map that came
-// off the wire) and the second round trip is always exact. Point intensity is not transmitted.
-// An ellipsoid id's frame is left out when it equals the header epoch.
-v1::Map toProto(const MapMessage& message);
+// How a map's ellipsoids travel: kCompact as below; kExact every one as v1::Ellipsoid (about 55
+// bytes), which a decoder accepts as well (the demo compares the two; tests forge wire faults on it).
+enum class EllipsoidWire { kCompact, kExact };
+
+// Maps and global maps: every ellipsoid that fits (fitsCompact) travels as a 22-byte compact record
+// in the EllipsoidBlock of its (node, frame), whose origin is the block's first centre in canonical
+// order, rounded to cm; an ellipsoid that does not fit (a semi-axis above 65.535 m or below 0.5 mm,
+// more than 65,535 points or a local index above 65,535, a centre more than 327.67 m per axis from
+// its block's origin) travels exactly, as v1::Ellipsoid with float32 geometry, in its object.
+// Objects on the wire: `objects` lists the objects with exact ellipsoids; the objects whose
+// ellipsoids are all records follow them unlisted (`packed_objects` counts them); a block names the
+// object of each record as steps from the previous record's (object_step), or names nothing when each
+// of its records is an object of its own, numbered after both (an edge's local map is one block per
+// frame and no objects).
+// Round trip: fromProto(toProto(x)) has x's header, ids, point counts and grouping into objects
+// exactly; a packed ellipsoid's geometry within the codec's bound (centre within 0.5 cm per axis,
+// semi-axes within 0.5 mm, surface within compactSurfaceErrorBound(largest semi-axis), about
+// 9.2 mm + 0.15 mm per metre), an exact one's rounded once to float32. Re-encoding: for
+// w = toProto(x), toProto(fromProto(w)) == w as bytes when every packed ellipsoid of x has three
+// distinct semi-axes in mm, a rotation not within a quantisation step of a tie between two
+// quaternion components, and no value within float rounding of a fit limit. Otherwise the codec
+// may write a decoded ellipsoid anew, its geometry again within the bound of the decoded one: a
+// sphere, needle or disc (the rotation about an equal pair of axes is free), an axis-aligned
+// ellipsoid whose extents are not ascending in x, y, z (an exact tie), and about 2 in 100,000
+// random rotations (near ties). An id's frame is left out (of a block or an exact id) when it
+// equals the header epoch.
+// Points travel as little-endian float32 (intensity is not transmitted).
+v1::Map toProto(const MapMessage& message, EllipsoidWire wire = EllipsoidWire::kCompact);
 v1::PointChunk toProto(const PointChunk& chunk);
-v1::GlobalMap toProto(const GlobalMapMessage& message);
+v1::GlobalMap toProto(const GlobalMapMessage& message, EllipsoidWire wire = EllipsoidWire::kCompact);
 v1::Geofence toProto(const Geofence& fence);
 v1::Containment toProto(Containment containment);
 v1::DetectionFrame toProto(const tracking::DetectionFrame& frame);
 v1::Track toProto(const tracking::Track& track);
 // Centroid geometry travels as float32, as ellipsoids do.
 v1::CentroidFrame toProto(const tracking::CentroidFrame& frame);
+
+// A map after a trip through a GlobalMap's wire, as a subscriber decodes it (ellipsoids within the
+// compact codec's bound): what an oracle compares a published global map with.
+Expected<Map> throughGlobalWire(const Map& map);
 
 // The serialised size of the uploads (v1::Upload, as ParentLink counts them) that would carry
 // `points` pre-processed points of a frame with `header` in baseline mode, cut into chunks of at
@@ -41,12 +68,16 @@ v1::Ack refusedAck(std::uint64_t sequence, const Refused& refused);
 v1::Ack refusedAck(std::uint64_t sequence, const Error& error);
 
 // Every fromProto returns kInvalidArgument with the offending field (and object / ellipsoid /
-// point index) in the message. Rejects: missing ellipsoid ids or centres, shapes that are not 6
-// finite values of a symmetric positive definite matrix, non-finite centres or points, empty
-// objects, duplicate ellipsoid ids, xyz size not a multiple of 12, labels not 4 bytes per point,
-// chunk_count 0, chunk index >= chunk count, points beyond total_points, unknown modes, geofences
-// that validateGeofence rejects. Boxes do not travel: the map is rebuilt in canonical
-// form with boxes computed from the ellipsoids. Header node lists come back sorted.
+// "blocks[b] record r" / point index) in the message. Rejects: missing ellipsoid ids or centres,
+// shapes that are not 6 finite values of a symmetric positive definite matrix, non-finite centres
+// or points, block records not a multiple of 22 bytes, packed_objects above the number of records, a
+// block's object_step neither empty nor one entry per record, steps that name an object outside
+// `objects` and `packed_objects`, records decodeCompact
+// refuses (a semi-axis of 0 mm, a bad orientation), objects with no ellipsoid (exact or packed),
+// duplicate ellipsoid ids (across exact and packed ones), xyz size not a multiple of 12, labels
+// not 4 bytes per point, chunk_count 0, chunk index >= chunk count, points beyond total_points,
+// unknown modes, geofences that validateGeofence rejects. Boxes do not travel: the map is rebuilt
+// in canonical form with boxes computed from the ellipsoids. Header node lists come back sorted.
 Expected<MapMessage> fromProto(const v1::Map& message);
 Expected<PointChunk> fromProto(const v1::PointChunk& chunk);
 Expected<GlobalMapMessage> fromProto(const v1::GlobalMap& message);

@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "common/config/displacement_node.hpp"
+#include "common/perception/lidar_models.hpp"
 #include "common/perception/virtual_lidar.hpp"
 
 namespace fogmap {
@@ -66,6 +67,15 @@ EdgeConfig edgeConfigFor(const TopologyConfig& topology, const NodeConfig& node)
   config.madc.clustering.min_points = topology.madc.edgeMinPoints();
   config.preprocess = topology.preprocess;
   if (node.sensor) config.preprocess.sensor_to_common = sensorToCommon(*node.sensor);
+  if (node.sensor && node.sensor->clustering == ClusteringMode::kSensor) {
+    // The model was checked with the topology; were it unknown, the mode's checks refuse the empty
+    // beam table on the first frame, naming it.
+    const auto model = lidarModel(node.sensor->model);
+    SensorLinks links;
+    if (model) links.beams = {model->elevations_deg, 360.0 / model->azimuth_steps};
+    links.sensor_pose = sensorToCommon(*node.sensor);
+    config.madc.sensor_links = links;
+  }
   config.ship_raw = topology.baseline_ships_raw;
   // Half the limit leaves room for the header and protobuf framing whatever the limit is.
   const std::size_t by_limit = topology.max_message_bytes / 2 / kMaxBytesPerPoint;
@@ -149,12 +159,13 @@ Expected<EdgeOutput> EdgeNode::processFrame(const Cloud& scan_in_sensor_frame, s
   }
 
   const SteadyClock::time_point clustering_start = SteadyClock::now();
-  LocalMapResult local = genLocalMap(points, config_.node, frame, config_.madc);
+  auto local = genLocalMap(points, config_.node, frame, config_.madc);
+  if (!local) return local.error();
   output.clustering_seconds = secondsSince(clustering_start);
-  output.clusters = static_cast<std::size_t>(local.clustering.cluster_count);
-  output.map = MapMessage{header, std::move(local.map)};
+  output.clusters = static_cast<std::size_t>(local->clustering.cluster_count);
+  output.map = MapMessage{header, std::move(local->map)};
   if (config_.mode == Mode::kExt) {
-    output.chunks = chunkPoints(points, local.clustering.labels, header, config_.max_points_per_chunk);
+    output.chunks = chunkPoints(points, local->clustering.labels, header, config_.max_points_per_chunk);
   }
   return output;
 }

@@ -176,7 +176,7 @@ EdgeView twoBoxes() {
   NodeScene scene;
   scene.add(gridBox({0, 0, 0}), 0, 7);
   scene.add(gridBox({10, 0, 0}), 0, 9);
-  const auto local = genLocalMap(scene.points, 1, 0, MadcParams{});
+  const auto local = genLocalMap(scene.points, 1, 0, MadcParams{}).value();
   EXPECT_EQ(local.clustering.cluster_count, 2);
   scene.labels = local.clustering.labels;
   EdgeView view;

@@ -22,6 +22,7 @@
 #include "common/geometry/geofence.hpp"
 #include "common/geometry/map.hpp"
 #include "harness/cluster_run.hpp"
+#include "services/common/proto_convert.hpp"
 #include "tests/support/cluster_control.hpp"
 #include "tests/support/eventually.hpp"
 #include "tests/support/free_ports.hpp"
@@ -86,7 +87,10 @@ std::map<std::size_t, Map> runAndCheckAgainstInProcessMerge(const TopologyConfig
   std::map<std::size_t, Map> by_scan;
   for (const auto e : epochs) {
     const GlobalMapMessage& global = run->epochs.at(e);
-    const Map expected = mergeAll(views->at(e).local_maps).map;
+    auto published = throughGlobalWire(mergeAll(views->at(e).local_maps).map);
+    EXPECT_TRUE(published.ok()) << published.error().message;
+    if (!published.ok()) return {};
+    const Map& expected = *published;
     EXPECT_GT(expected.objects.size(), 20U);
     EXPECT_EQ(global.map, expected) << name << " epoch " << e << ": " << global.map.objects.size() << " objects, expected "
                                     << expected.objects.size();

@@ -64,7 +64,9 @@ Ellipsoid ball(std::uint32_t node, std::uint64_t epoch, std::uint32_t index, con
   return e;
 }
 
-v1::Upload mapUpload(std::uint32_t node, std::uint64_t epoch, std::vector<Ellipsoid> ellipsoids) {
+// `wire` kExact where an attack edits an ellipsoid's fields on the wire.
+v1::Upload mapUpload(std::uint32_t node, std::uint64_t epoch, std::vector<Ellipsoid> ellipsoids,
+                     EllipsoidWire wire = EllipsoidWire::kCompact) {
   MapMessage message;
   message.header.node = node;
   message.header.epoch = epoch;
@@ -72,7 +74,7 @@ v1::Upload mapUpload(std::uint32_t node, std::uint64_t epoch, std::vector<Ellips
   message.header.contributing_nodes = {node};
   message.map = localMap(std::move(ellipsoids));
   v1::Upload upload;
-  *upload.mutable_map() = toProto(message);
+  *upload.mutable_map() = toProto(message, wire);
   return upload;
 }
 
@@ -177,7 +179,7 @@ TEST(HostileClient, RootKeepsPublishingHonestDataAndCountsEveryAttack) {
     // 5. Oversized and absurd maps: 1,000,000 ellipsoids (~54 MB, under the transport limit),
     //    a centre at 1e30, a shape of condition 1e60.
     {
-      v1::Upload huge = mapUpload(1, next, {ball(1, next, 500, {0, 0, 0})});
+      v1::Upload huge = mapUpload(1, next, {ball(1, next, 500, {0, 0, 0})}, EllipsoidWire::kExact);
       v1::MapObject* object = huge.mutable_map()->mutable_objects(0);
       const v1::Ellipsoid one = object->ellipsoids(0);
       for (std::uint32_t k = 1; k < 1'000'000; ++k) {
@@ -194,10 +196,10 @@ TEST(HostileClient, RootKeepsPublishingHonestDataAndCountsEveryAttack) {
     expect_refused(mapUpload(1, soon, {needle}), "condition 1e60");
     //    Values that do not convert: a shape that is not positive definite, a NaN centre.
     {
-      v1::Upload indefinite = mapUpload(1, soon, {ball(1, soon, 500, {0, 0, 0})});
+      v1::Upload indefinite = mapUpload(1, soon, {ball(1, soon, 500, {0, 0, 0})}, EllipsoidWire::kExact);
       indefinite.mutable_map()->mutable_objects(0)->mutable_ellipsoids(0)->mutable_shape()->Set(0, -0.25F);
       expect_refused(std::move(indefinite), "shape not positive definite");
-      v1::Upload nan = mapUpload(1, soon, {ball(1, soon, 500, {0, 0, 0})});
+      v1::Upload nan = mapUpload(1, soon, {ball(1, soon, 500, {0, 0, 0})}, EllipsoidWire::kExact);
       nan.mutable_map()->mutable_objects(0)->mutable_ellipsoids(0)->mutable_center()->Set(
           2, std::numeric_limits<float>::quiet_NaN());
       expect_refused(std::move(nan), "NaN centre");

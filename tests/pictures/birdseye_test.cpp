@@ -21,7 +21,7 @@
 #include "common/perception/preprocess.hpp"
 #include "common/sim/footprint.hpp"
 #include "common/sim/generators.hpp"
-#include "common/sim/lidar_models.hpp"
+#include "common/perception/lidar_models.hpp"
 #include "common/sim/raycaster.hpp"
 #include "tests/support/scratch_dir.hpp"
 #include "pictures/birdseye.hpp"
@@ -382,9 +382,9 @@ SimulatedMap simulate(const sim::Scene& scene, double time_s) {
     for (std::size_t i = 0; i < in_common.size(); ++i) {
       if (frame->truth[i] != sim::kGroundId) objects.push_back(in_common[i]);
     }
-    locals.push_back(genLocalMap(objects, static_cast<std::uint32_t>(n + 1), 0, MadcParams{}).map);
+    locals.push_back(genLocalMap(objects, static_cast<std::uint32_t>(n + 1), 0, MadcParams{}).value().map);
     out.clouds.push_back(std::move(objects));
-    const auto model = sim::lidarModel(lidar.model);
+    const auto model = lidarModel(lidar.model);
     out.sensors.push_back({lidar.name, lidar.pose, lidar.max_range_m.value_or(model.ok() ? model->max_range_m : 0.0)});
   }
   out.global = mergeAll(locals).map;
@@ -462,7 +462,7 @@ TEST(Birdseye, ARealScanDrawsWithoutTruth) {
   config.ground = GroundParams{};
   const auto points = preprocess(loaded->points, config);
   ASSERT_TRUE(points.ok()) << points.error().message;
-  const Map map = genLocalMap(*points, 1, 0, MadcParams{}).map;
+  const Map map = genLocalMap(*points, 1, 0, MadcParams{}).value().map;
   ASSERT_FALSE(map.objects.empty());
   BirdseyeScene picture;
   picture.title = "KITTI raw scan 0000000000, ground removed: MAD-C local map, " + std::to_string(map.objects.size()) + " objects";

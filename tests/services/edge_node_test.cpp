@@ -13,6 +13,7 @@
 #include "common/config/displacement_node.hpp"
 #include "common/io/cloud_io.hpp"
 #include "common/perception/clustering.hpp"
+#include "common/perception/lidar_models.hpp"
 #include "common/perception/preprocess.hpp"
 #include "common/perception/virtual_lidar.hpp"
 #include "services/common/proto_convert.hpp"
@@ -426,6 +427,21 @@ TEST(EdgeNode, ConfigFromTheTopologyUsesItsModeSettingsAndTheNodePose) {
   EXPECT_FALSE(config.displacement.has_value());
   node.displacement = DisplacementNodeConfig{"tracker", tracking::DisplacementParams::outdoor()};
   EXPECT_EQ(edgeConfigFor(topology, node).displacement, tracking::DisplacementParams::outdoor());
+
+  // Exact clustering unless the sensor says otherwise; sensor-aware clustering takes the model's
+  // beam table and the sensor's pose in the common frame (the frame the edge clusters in).
+  EXPECT_FALSE(config.madc.sensor_links.has_value());
+  node.sensor->clustering = ClusteringMode::kSensor;
+  node.sensor->model = "VLP-16";
+  node.sensor->split = SectorSplit{4, 1, 10.0};
+  const EdgeConfig sensor_aware = edgeConfigFor(topology, node);
+  ASSERT_TRUE(sensor_aware.madc.sensor_links.has_value());
+  const auto vlp16 = lidarModel("VLP-16");
+  ASSERT_TRUE(vlp16.ok());
+  EXPECT_EQ(sensor_aware.madc.sensor_links->beams.elevations_deg, vlp16->elevations_deg);
+  EXPECT_DOUBLE_EQ(sensor_aware.madc.sensor_links->beams.azimuth_step_deg, 0.2);
+  EXPECT_TRUE(sensor_aware.madc.sensor_links->sensor_pose.isApprox(sensorToCommon(*node.sensor)));
+  EXPECT_TRUE(sensor_aware.madc.sensor_links->sensor_pose.isApprox(sensor_aware.preprocess.sensor_to_common));
 }
 
 }  // namespace

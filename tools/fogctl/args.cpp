@@ -196,4 +196,19 @@ Expected<Cloud> loadScan(const Args& args, bool keep_non_finite) {
   return std::move(ground->non_ground);
 }
 
+Expected<sim::SceneMapping> sceneMapping(const Args& args, const sim::SceneMapping& defaults) {
+  sim::SceneMapping mapping = defaults;
+  if (args.has("clustering")) {
+    const auto mode = parseClusteringMode(args.get("clustering"));
+    if (!mode) return invalidArgument("--clustering " + mode.error().message);
+    mapping.clustering = *mode;
+  }
+  if (args.has("fragment-min-points")) {
+    const auto n = args.getInt("fragment-min-points", 0);
+    if (!n || *n < 1 || *n > 1000) return invalidArgument("--fragment-min-points must be in [1, 1000]");
+    mapping.fragment_min_points = static_cast<std::size_t>(*n);
+  }
+  return mapping;
+}
+
 }  // namespace fogmap::cli

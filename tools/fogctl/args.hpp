@@ -14,6 +14,7 @@
 #include "common/config/topology.hpp"
 #include "common/geometry/cloud.hpp"
 #include "common/perception/clustering.hpp"
+#include "common/sim/scene_topology.hpp"
 
 namespace grpc {
 class ChannelCredentials;
@@ -68,6 +69,15 @@ Expected<RootConnection> rootConnection(const Args& args, const std::string& usa
 
 // --eps, --min-points and --threads, validated.
 Expected<ClusteringParams> clusteringParams(const Args& args);
+
+// --clustering exact|sensor and --fragment-min-points N (1 to 1000): how a scene's edges make their
+// maps (demo --scene, topology --scene), over `defaults`.
+Expected<sim::SceneMapping> sceneMapping(const Args& args, const sim::SceneMapping& defaults);
+inline constexpr const char* kSceneMappingUsage =
+    "  --clustering exact|sensor   how the edges cluster: exact (PCL's Euclidean partition) or sensor (with\n"
+    "                 ring links from each LiDAR model's beam table, so that a sparse LiDAR's rings join)\n"
+    "  --fragment-min-points N     edges ship their clusters of at least N points as fragments; min_points\n"
+    "                 then applies to a global object's points over all its sensors, at the root\n";
 
 // Reads --input within --max-scan-bytes (--remove-ground: the points above the ground); non-finite
 // points are kept in place (they cluster as noise) when `keep_non_finite`, so that the cloud lines

@@ -131,8 +131,12 @@ int runSceneDemo(const Args& args) {
     tracking_options.scored_lists = static_cast<std::size_t>(*track_frames);
     tracking_options.base_port = static_cast<int>(*base) + 800;
   }
+  const auto mapping = sceneMapping(args, sim::SceneMapping{});
+  if (!mapping) return fail(mapping.error(), "fogctl demo");
+  tracking_options.mapping = *mapping;
   installStopHandlers();
   SceneRunOptions options;
+  options.mapping = *mapping;
   options.alpha = *alpha;
   options.tree = shape == "tree";
   options.base_port = static_cast<int>(*base);
@@ -161,6 +165,8 @@ int runSceneDemo(const Args& args) {
   std::printf("  bytes per frame, edge uploads: MAD-C %.0f B   baseline %.0f B   ratio %.0fx   (raw scans %.0f B: %.0fx)\n",
               s.madc_bytes_per_frame, s.baseline_bytes_per_frame, ratio, s.raw_bytes_per_frame,
               s.raw_bytes_per_frame / std::max(1.0, s.madc_bytes_per_frame));
+  std::printf("  ellipsoids on the wire:        %.1f B each in the edges' map uploads (%.1f B were they sent as float32)\n",
+              s.madc_bytes_per_ellipsoid, s.exact_bytes_per_ellipsoid);
   std::printf("  MAD-C vs baseline:             Rand index %.4f   adjusted %.4f (local clusters); points %.4f / %.4f\n",
               s.madc_vs_baseline.rand_index, s.madc_vs_baseline.adjusted_rand_index, s.ext_vs_baseline.rand_index,
               s.ext_vs_baseline.adjusted_rand_index);
@@ -225,6 +231,8 @@ int runSceneDemo(const Args& args) {
   j["bytes_baseline_per_frame"] = jsonNumber(s.baseline_bytes_per_frame);
   j["bytes_ratio"] = jsonNumber(ratio);
   j["bytes_raw_per_frame"] = jsonNumber(s.raw_bytes_per_frame);
+  j["bytes_per_ellipsoid"] = jsonNumber(s.madc_bytes_per_ellipsoid);
+  j["bytes_per_ellipsoid_exact_wire"] = jsonNumber(s.exact_bytes_per_ellipsoid);
   j["rand_index_mean"] = jsonNumber(s.madc_vs_baseline.rand_index);
   j["ari_mean"] = jsonNumber(s.madc_vs_baseline.adjusted_rand_index);
   j["rand_index_points_mean"] = jsonNumber(s.ext_vs_baseline.rand_index);
@@ -260,7 +268,7 @@ int runDemo(int argc, char** argv) {
   const auto args =
       Args::parse(argc, argv, 2,
                   {"input", "scene", "nodes", "topology", "frames", "report", "png", "base-port", "state", "alpha", "miss-rate",
-                   "association", "tracker-input", "track-frames", "tracks-png"},
+                   "association", "tracker-input", "track-frames", "tracks-png", "clustering", "fragment-min-points"},
                   {});
   if (!args) return fail(args.error(), "fogctl demo");
   if (args->has("scene")) {
@@ -269,7 +277,8 @@ int runDemo(int argc, char** argv) {
     }
     return runSceneDemo(*args);
   }
-  for (const char* flag : {"miss-rate", "association", "tracker-input", "track-frames", "tracks-png"}) {
+  for (const char* flag :
+       {"miss-rate", "association", "tracker-input", "track-frames", "tracks-png", "clustering", "fragment-min-points"}) {
     if (args->has(flag)) return fail(invalidArgument(std::string("--") + flag + " goes with --scene"), "fogctl demo");
   }
   const std::filesystem::path input = args->has("input") ? std::filesystem::absolute(args->get("input")) : defaultInput();
@@ -343,6 +352,9 @@ int runDemo(int argc, char** argv) {
   std::vector<double> ri;
   std::vector<double> ari;
   std::vector<double> ri_points;
+  std::size_t map_bytes = 0;
+  std::size_t exact_map_bytes = 0;
+  std::size_t ellipsoids = 0;
   // Epochs without a sensor time (every node missing) have no end-to-end latency: counted apart.
   const EpochLatencies latencies = epochLatencies(madc->epochs);
   const std::vector<double>& e2e_ms = latencies.e2e_ms;
@@ -355,6 +367,9 @@ int runDemo(int argc, char** argv) {
     const GlobalMapMessage& b = *baseline_by_scan.at(e % n_scans);
     const EdgeView& view = views->at(e);
     const Accuracy a = accuracy(m, b, view);
+    map_bytes += view.madc_bytes;
+    exact_map_bytes += view.madc_exact_bytes;
+    ellipsoids += view.madc_ellipsoids;
     if (a.ok) {
       ri.push_back(a.clusters.rand_index);
       ari.push_back(a.clusters.adjusted_rand_index);
@@ -378,6 +393,11 @@ int runDemo(int argc, char** argv) {
               "no end-to-end latency), %zu compared with the baseline%s\n",
               madc->epochs.size(), incomplete, latencies.without_sensor_time, compared.size(), latencies.incomplete_list.c_str());
   std::printf("  bytes per frame, all links:  MAD-C %.0f B   baseline %.0f B   ratio %.0fx\n", madc_per_frame, baseline_per_frame, ratio);
+  const double per_ellipsoid = static_cast<double>(map_bytes) / static_cast<double>(std::max<std::size_t>(ellipsoids, 1));
+  const double exact_per_ellipsoid =
+      static_cast<double>(exact_map_bytes) / static_cast<double>(std::max<std::size_t>(ellipsoids, 1));
+  std::printf("  ellipsoids on the wire:      %.1f B each in the edges' map uploads (%.1f B were they sent as float32)\n",
+              per_ellipsoid, exact_per_ellipsoid);
   std::printf("  merge latency at the sink:   p50 %.3f ms   p99 %.3f ms\n", percentile(merge_ms, 0.5), percentile(merge_ms, 0.99));
   std::printf("  end-to-end latency:          p50 %.1f ms   p99 %.1f ms   (sensor timestamp to global map, complete epochs)\n",
               percentile(e2e_ms, 0.5), percentile(e2e_ms, 0.99));
@@ -404,6 +424,8 @@ int runDemo(int argc, char** argv) {
   j["bytes_madc_per_frame"] = jsonNumber(madc_per_frame);
   j["bytes_baseline_per_frame"] = jsonNumber(baseline_per_frame);
   j["bytes_ratio"] = jsonNumber(ratio);
+  j["bytes_per_ellipsoid"] = jsonNumber(per_ellipsoid);
+  j["bytes_per_ellipsoid_exact_wire"] = jsonNumber(exact_per_ellipsoid);
   j["rand_index_mean"] = jsonNumber(mean(ri));
   j["ari_mean"] = jsonNumber(mean(ari));
   j["rand_index_points_mean"] = jsonNumber(mean(ri_points));
@@ -431,6 +453,7 @@ Command demoCommand() {
           "       fogctl demo --scene FILE [--topology star|tree] [--frames 10] [--report FILE] [--png FILE] [--alpha 1.5]\n"
           "                   [--base-port 46000] [--state DIR] [--miss-rate 0.3] [--association kalman|paper]\n"
           "                   [--tracker-input global_map|centroids] [--track-frames 100] [--tracks-png FILE]\n"
+          "                   [--clustering exact|sensor] [--fragment-min-points N]\n"
           "Runs a local MAD-C cluster and the baseline over the same frames and compares them: bytes,\n"
           "latency, Rand index; writes a JSON report and a bird's-eye PNG (under --state, default .fogmap/demo).\n"
           "  --input DIR    recorded scans (default: the bundled KITTI frames), cut into --nodes virtual LiDARs\n"
@@ -445,7 +468,8 @@ Command demoCommand() {
           "                 cycle of the scene are scored against the truth (CLEAR MOT, IDF1, localization error,\n"
           "                 sensor time to published tracks: the report's \"tracking\" object), and --tracks-png\n"
           "                 (default tracks.png under --state) shows the last with the tracks, their ids, labels\n"
-          "                 and trails\n",
+          "                 and trails\n" +
+              std::string(kSceneMappingUsage),
           runDemo};
 }
 

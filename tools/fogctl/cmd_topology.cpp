@@ -100,10 +100,14 @@ int runTopology(int argc, char** argv) {
   const auto args = Args::parse(
       argc, argv, 2,
       {"edges", "source", "scene", "base-port", "mode", "frames", "out", "fanout", "deadline-ms", "tls-ca", "association",
-       "miss-rate", "box-jitter-px", "latency-ms", "cameras", "calib", "camera-rate-hz", "tracker-input"},
+       "miss-rate", "box-jitter-px", "latency-ms", "cameras", "calib", "camera-rate-hz", "tracker-input", "clustering",
+       "fragment-min-points"},
       {"tracker"});
   if (!args) return fail(args.error());
   const bool from_scene = args->has("scene");
+  if (!from_scene && (args->has("clustering") || args->has("fragment-min-points"))) {
+    return fail(invalidArgument("--clustering and --fragment-min-points go with --scene (its LiDARs name their models)"));
+  }
   std::string shape = from_scene ? "star" : "";  // a scene's topology is a star unless told
   if (args->positional().size() == 1) shape = args->positional()[0];
   if (args->positional().size() > 1 || (shape != "star" && shape != "tree")) {
@@ -144,6 +148,9 @@ int runTopology(int argc, char** argv) {
                                   " LiDARs; a topology has at most 64 edges"));
     }
     sim::SceneTopologyOptions options;
+    const auto mapping = sceneMapping(*args, options.mapping);
+    if (!mapping) return fail(mapping.error());
+    options.mapping = *mapping;
     options.tree = shape == "tree";
     options.fanout = static_cast<int>(*fanout);
     options.base_port = static_cast<int>(*base);
@@ -269,9 +276,11 @@ Command topologyCommand() {
           "                   detections (detector truth) with --miss-rate R (0), --box-jitter-px S (0) and\n"
           "                   --latency-ms L (0); --tracker-input centroids: every edge streams the tracker\n"
           "                   the displacement centroids of its scans instead of the root's maps (global_map)\n"
+          "  --clustering, --fragment-min-points   with --scene: how the edges make their maps (below)\n"
           "  --fanout F       a tree's aggregators have at most F children (default 2)\n"
           "  --deadline-ms D  an aggregator's deadline per level (default 80)\n"
-          "  --tls-ca FILE    mutual TLS on every link, certificates next to FILE (fogctl certs)\n",
+          "  --tls-ca FILE    mutual TLS on every link, certificates next to FILE (fogctl certs)\n" +
+              std::string(kSceneMappingUsage),
           runTopology};
 }
 

@@ -94,6 +94,8 @@ void expectSameTopology(const TopologyConfig& a, const TopologyConfig& b) {
     EXPECT_DOUBLE_EQ(x.sensor->rate_hz, y.sensor->rate_hz);
     EXPECT_EQ(x.sensor->loop, y.sensor->loop);
     EXPECT_EQ(x.sensor->frames, y.sensor->frames);
+    EXPECT_EQ(x.sensor->clustering, y.sensor->clustering);
+    EXPECT_EQ(x.sensor->model, y.sensor->model);
     ASSERT_EQ(x.sensor->split.has_value(), y.sensor->split.has_value());
     if (x.sensor->split) {
       EXPECT_EQ(x.sensor->split->views, y.sensor->split->views);
@@ -677,6 +679,37 @@ TEST(Topology, SimulatedSensorNeedsASceneAndALidarAndIsNotSplit) {
   EXPECT_EQ(dir->nodes.back().sensor->source, fs::path("base") / "./sim");
 }
 
+TEST(Topology, SensorAwareClusteringIsChosenPerEdgeWithItsLidarModel) {
+  TopologyConfig star = makeStarTopology(3, "scans", 54000);
+  customize(star);
+  star.nodes[1].sensor->clustering = ClusteringMode::kSensor;
+  star.nodes[1].sensor->model = "HDL-64E";
+  const std::string yaml = toYaml(star);
+  const Expected<TopologyConfig> parsed = parseTopology(yaml, "");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message << "\n" << yaml;
+  expectSameTopology(*parsed, star);
+  EXPECT_EQ(parsed->nodes[1].sensor->clustering, ClusteringMode::kSensor);
+  EXPECT_EQ(parsed->nodes[2].sensor->clustering, ClusteringMode::kExact) << "exact unless the edge says otherwise";
+  EXPECT_EQ(yaml.find("clustering: exact"), std::string::npos) << "the default is not written";
+
+  const Expected<TopologyConfig> sim =
+      parseTopology(topologyYaml("", "", simEdge("{source: sim, scene: s.yaml, lidar: l1, clustering: sensor, model: VLP-16}")), "");
+  ASSERT_TRUE(sim.ok()) << sim.error().message;
+  EXPECT_EQ(sim->nodes.back().sensor->model, "VLP-16");
+}
+
+TEST(Topology, SensorAwareClusteringMistakesAreNamed) {
+  expectRejectedWith(topologyYaml("", "", simEdge("{source: scans, clustering: rings}")),
+                     {"topology: nodes[2].sensor.clustering: ", "exact", "sensor", "'rings'"});
+  expectRejectedWith(topologyYaml("", "", simEdge("{source: scans, clustering: sensor}")),
+                     {"topology: nodes[2].sensor.model: ", "required with clustering: sensor", "VLP-16", "HDL-64E"});
+  expectRejectedWith(topologyYaml("", "", simEdge("{source: scans, clustering: sensor, model: HDL-128}")),
+                     {"topology: nodes[2].sensor.model: ", "no LiDAR model 'HDL-128'", "known: "});
+  expectRejectedWith(topologyYaml("", "", simEdge("{source: scans, model: VLP-16}")),
+                     {"topology: nodes[2].sensor.model: ", "goes with clustering: sensor only"});
+  expectRejectedWith(topologyYaml("", "", simEdge("{source: scans, clustering: [sensor]}")),
+                     {"topology: nodes[2].sensor.clustering"});
+}
 
 // Cameras and a tracker beside the map's tree: detection nodes send to a tracker, which has no
 // parent; every section round-trips.

@@ -14,6 +14,7 @@
 #include <Eigen/Geometry>
 
 #include "common/geometry/map.hpp"
+#include "common/perception/madc.hpp"
 
 namespace fogmap {
 namespace {
@@ -214,11 +215,11 @@ Clustering bruteForceSensorClusters(std::span<const Point> points, const SensorC
     const BeamIndex& b = beam[j];
     if (a.ring == BeamIndex::kNoBeam || b.ring == BeamIndex::kNoBeam || std::abs(a.ring - b.ring) != 1) return false;
     const int d = std::abs(a.azimuth_bin - b.azimuth_bin);
-    if (std::min(d, bins - d) > params.azimuth_window) return false;
+    if (std::min(d, bins - d) > params.links.azimuth_window) return false;
     if (!(std::abs(a.range_m - b.range_m) < eps)) return false;
     const int lower = std::min(a.ring, b.ring);
     const double gap_rad = geometry->elevationRad(lower + 1) - geometry->elevationRad(lower);
-    const double bound = std::max(eps, (params.ring_gap_slack * gap_rad) * std::min(a.range_m, b.range_m));
+    const double bound = std::max(eps, (params.links.ring_gap_slack * gap_rad) * std::min(a.range_m, b.range_m));
     const double dx = static_cast<double>(points[i].x) - static_cast<double>(points[j].x);
     const double dy = static_cast<double>(points[i].y) - static_cast<double>(points[j].y);
     const double dz = static_cast<double>(points[i].z) - static_cast<double>(points[j].z);
@@ -272,10 +273,10 @@ RuleBCounts ruleBCounts(std::span<const Point> points, const SensorClusteringPar
       const auto& b = beam[j];
       if (a.ring == BeamIndex::kNoBeam || b.ring != a.ring + 1) continue;
       const int d = std::abs(a.azimuth_bin - b.azimuth_bin);
-      if (std::min(d, bins - d) > params.azimuth_window) continue;
+      if (std::min(d, bins - d) > params.links.azimuth_window) continue;
       const double dist = (points[i].xyz() - points[j].xyz()).cast<double>().norm();
       const double gap = geometry->elevationRad(a.ring + 1) - geometry->elevationRad(a.ring);
-      if (!(dist < params.ring_gap_slack * gap * std::min(a.range_m, b.range_m))) continue;
+      if (!(dist < params.links.ring_gap_slack * gap * std::min(a.range_m, b.range_m))) continue;
       if (!(std::abs(a.range_m - b.range_m) < eps)) {
         ++counts.depth_refused;
       } else if (dist >= eps) {
@@ -306,13 +307,13 @@ TEST(SensorClustering, EqualsBruteForceOnSimulatedLidarClouds) {
     const float nan = std::numeric_limits<float>::quiet_NaN();
     for (std::size_t i = 7; i < scan.points.size(); i += 211) scan.points[i].y = nan;
     SensorClusteringParams params;
-    params.beams = beams;
-    params.sensor_pose = pose;
+    params.links.beams = beams;
+    params.links.sensor_pose = pose;
     params.clustering.eps_m = 0.2 + 0.4 * uni(rng);
     params.clustering.min_points = 1 + static_cast<std::size_t>(uni(rng) * 8.0);
     params.clustering.max_points = trial % 3 == 0 ? 150 : params.clustering.max_points;
-    params.ring_gap_slack = 1.0 + 1.5 * uni(rng);
-    params.azimuth_window = trial % 4;
+    params.links.ring_gap_slack = 1.0 + 1.5 * uni(rng);
+    params.links.azimuth_window = trial % 4;
     ASSERT_GE(scan.points.size(), 300U) << "trial " << trial;
     const Clustering expected = bruteForceSensorClusters(scan.points, params);
     const Clustering actual = sensorAware(scan.points, params);
@@ -339,11 +340,11 @@ TEST(SensorClustering, EqualsBruteForceAcrossTheAzimuthSeamAndWithWholeRingWindo
     const Eigen::Isometry3d pose = randomPose(rng);
     const Scan scan = randomLidarScan(rng, beams, pose, 40, 30.0, 20.0);
     SensorClusteringParams params;
-    params.beams = beams;
+    params.links.beams = beams;
     // The same sensor turned about z by half a turn: the rays' sector [-20, 20] degrees is behind it.
-    params.sensor_pose = pose * Eigen::AngleAxisd(std::numbers::pi, Eigen::Vector3d::UnitZ());
+    params.links.sensor_pose = pose * Eigen::AngleAxisd(std::numbers::pi, Eigen::Vector3d::UnitZ());
     params.clustering.min_points = 2;
-    params.azimuth_window = trial % 4 == 3 ? 100 : trial % 4;
+    params.links.azimuth_window = trial % 4 == 3 ? 100 : trial % 4;
     const Clustering expected = bruteForceSensorClusters(scan.points, params);
     EXPECT_EQ(sensorAware(scan.points, params).labels, expected.labels) << "trial " << trial;
     across_seam += ruleBCounts(scan.points, params).across_seam;
@@ -363,7 +364,7 @@ TEST(SensorClustering, LinksCrossTheAzimuthSeam) {
   };
   const Cloud cloud{at(20.0, -1.0, 179.95), at(20.0, 1.0, -179.95), at(30.0, -1.0, -179.9), at(30.0, 1.0, 179.9)};
   SensorClusteringParams params;
-  params.beams = vlp16();
+  params.links.beams = vlp16();
   params.clustering.min_points = 1;
   const auto geometry = BeamGeometry::make(params);
   ASSERT_TRUE(geometry.ok());
@@ -374,7 +375,7 @@ TEST(SensorClustering, LinksCrossTheAzimuthSeam) {
   EXPECT_EQ(euclideanClusters(cloud, params.clustering).cluster_count, 4);
   EXPECT_EQ(sensorAware(cloud, params).labels, (std::vector<std::int32_t>{0, 0, 1, 1}));
   EXPECT_EQ(bruteForceSensorClusters(cloud, params).labels, (std::vector<std::int32_t>{0, 0, 1, 1}));
-  params.azimuth_window = 0;  // bins 1799 and 0 are one apart
+  params.links.azimuth_window = 0;  // bins 1799 and 0 are one apart
   EXPECT_EQ(sensorAware(cloud, params).cluster_count, 4);
 }
 
@@ -389,8 +390,8 @@ TEST(SensorClustering, PersonAt20mIsOneClusterWhereExactModeSplitsIt) {
   const Scan scan = scanWorld(world, vlp16(), pose, regularAzimuths(vlp16()), 0.5, 100.0, 0.0, rng);
   ASSERT_GE(scan.points.size(), 12U);
   SensorClusteringParams params;
-  params.beams = vlp16();
-  params.sensor_pose = pose;
+  params.links.beams = vlp16();
+  params.links.sensor_pose = pose;
   params.clustering.min_points = 1;
   const Clustering exact = euclideanClusters(scan.points, params.clustering);
   EXPECT_GE(exact.cluster_count, 3);
@@ -406,13 +407,42 @@ TEST(SensorClustering, PersonAt20mIsOneClusterWhereExactModeSplitsIt) {
   EXPECT_EQ(sensorAware(scan.points, params).labels, std::vector<std::int32_t>(scan.points.size(), -1));
 }
 
+// MAD-C's GENLOCALMAP clusters as its parameters say: exactly without sensor links, sensor-aware
+// with them (one ellipsoid for the person instead of one per ring slice); bad links are an error.
+TEST(SensorClustering, GenLocalMapUsesTheSensorAwareModeWhenGivenSensorLinks) {
+  World world;
+  world.cylinders.push_back({Eigen::Vector2d(20.0, 0.0), 0.25, 0.0, 1.8});
+  const Eigen::Isometry3d pose(Eigen::Translation3d(0.0, 0.0, 1.2));
+  std::mt19937_64 rng(1);
+  const Scan scan = scanWorld(world, vlp16(), pose, regularAzimuths(vlp16()), 0.5, 100.0, 0.0, rng);
+  MadcParams madc;
+  madc.clustering.min_points = 1;
+  const auto exact = genLocalMap(scan.points, 7, 3, madc);
+  ASSERT_TRUE(exact.ok());
+  EXPECT_EQ(exact->clustering.labels, euclideanClusters(scan.points, madc.clustering).labels);
+  EXPECT_GE(exact->map.ellipsoidCount(), 3U);
+
+  madc.sensor_links = SensorLinks{vlp16(), pose};
+  const auto aware = genLocalMap(scan.points, 7, 3, madc);
+  ASSERT_TRUE(aware.ok()) << aware.error().message;
+  EXPECT_EQ(aware->clustering.labels, sensorAware(scan.points, SensorClusteringParams{madc.clustering, *madc.sensor_links}).labels);
+  ASSERT_EQ(aware->map.ellipsoidCount(), 1U);
+  EXPECT_EQ(aware->map.objects[0].ellipsoids[0].point_count, scan.points.size());
+  EXPECT_EQ(aware->map.objects[0].ellipsoids[0].id, (EllipsoidId{7, 3, 0}));
+
+  madc.sensor_links->beams.elevations_deg = {1.0};
+  const auto bad = genLocalMap(scan.points, 7, 3, madc);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("beams.elevations_deg needs at least 2 rings"), std::string::npos) << bad.error().message;
+}
+
 // Each object of `world` one cluster, nothing else (min_points 1).
 void expectObjectsApart(const World& world, const Eigen::Isometry3d& pose, const std::string& what) {
   std::mt19937_64 rng(2);
   const Scan scan = scanWorld(world, vlp16(), pose, regularAzimuths(vlp16()), 0.5, 100.0, 0.0, rng);
   SensorClusteringParams params;
-  params.beams = vlp16();
-  params.sensor_pose = pose;
+  params.links.beams = vlp16();
+  params.links.sensor_pose = pose;
   params.clustering.min_points = 1;
   const Clustering aware = sensorAware(scan.points, params);
   EXPECT_EQ(aware.cluster_count, static_cast<std::int32_t>(world.boxes.size() + world.cylinders.size())) << what;
@@ -450,8 +480,8 @@ TEST(SensorClustering, DepthDiscontinuityKeepsObjectsApart) {
   std::mt19937_64 rng(2);
   const Scan scan = scanWorld(world, vlp16(), pose, regularAzimuths(vlp16()), 0.5, 100.0, 0.0, rng);
   SensorClusteringParams params;
-  params.beams = vlp16();
-  params.sensor_pose = pose;
+  params.links.beams = vlp16();
+  params.links.sensor_pose = pose;
   const auto geometry = BeamGeometry::make(params);
   ASSERT_TRUE(geometry.ok());
   bool premise = false;
@@ -462,8 +492,8 @@ TEST(SensorClustering, DepthDiscontinuityKeepsObjectsApart) {
       const auto b = geometry->index(scan.points[j]);
       const double dist = (scan.points[i].xyz() - scan.points[j].xyz()).cast<double>().norm();
       const double gap = 2.0 * kDeg;
-      premise = premise || (std::abs(a.ring - b.ring) == 1 && std::abs(a.azimuth_bin - b.azimuth_bin) <= params.azimuth_window &&
-                            dist < params.ring_gap_slack * gap * std::min(a.range_m, b.range_m) &&
+      premise = premise || (std::abs(a.ring - b.ring) == 1 && std::abs(a.azimuth_bin - b.azimuth_bin) <= params.links.azimuth_window &&
+                            dist < params.links.ring_gap_slack * gap * std::min(a.range_m, b.range_m) &&
                             std::abs(a.range_m - b.range_m) >= params.clustering.eps_m);
     }
   }
@@ -479,15 +509,15 @@ TEST(SensorClustering, EqualsExactModeWhereRingsAreCloserThanEps) {
     const Eigen::Isometry3d pose = randomPose(rng);
     const Scan scan = randomLidarScan(rng, upper_block, pose, 120, 38.0);
     SensorClusteringParams params;
-    params.beams = upper_block;
-    params.sensor_pose = pose;
-    params.azimuth_window = trial % 4;
+    params.links.beams = upper_block;
+    params.links.sensor_pose = pose;
+    params.links.azimuth_window = trial % 4;
     params.clustering.min_points = 1 + static_cast<std::size_t>(trial % 5);
     params.clustering.max_points = trial % 3 == 0 ? 100 : params.clustering.max_points;
     const auto geometry = BeamGeometry::make(params);
     ASSERT_TRUE(geometry.ok());
     for (const auto& p : scan.points) {
-      ASSERT_LT(params.ring_gap_slack * (1.0 / 3.0 + 1e-9) * kDeg * geometry->index(p).range_m, params.clustering.eps_m);
+      ASSERT_LT(params.links.ring_gap_slack * (1.0 / 3.0 + 1e-9) * kDeg * geometry->index(p).range_m, params.clustering.eps_m);
     }
     const Clustering exact = euclideanClusters(scan.points, params.clustering);
     EXPECT_GT(exact.cluster_count, 0) << "trial " << trial;
@@ -503,11 +533,11 @@ TEST(SensorClustering, BeamIndexIsNearestRingAndAzimuthBin) {
   std::mt19937_64 rng(11);
   std::uniform_real_distribution<double> uni(-1.0, 1.0);
   SensorClusteringParams params;
-  params.beams = {{7.0, -3.5, -12.0, 1.0, -1.5, 3.0, -6.0, 12.0, -0.2, 10.0}, 0.7};
-  params.sensor_pose = randomPose(rng);
+  params.links.beams = {{7.0, -3.5, -12.0, 1.0, -1.5, 3.0, -6.0, 12.0, -0.2, 10.0}, 0.7};
+  params.links.sensor_pose = randomPose(rng);
   const auto geometry = BeamGeometry::make(params);
   ASSERT_TRUE(geometry.ok());
-  std::vector<double> sorted = params.beams.elevations_deg;
+  std::vector<double> sorted = params.links.beams.elevations_deg;
   std::sort(sorted.begin(), sorted.end());
   ASSERT_EQ(geometry->rings(), 10);
   EXPECT_EQ(geometry->azimuthBins(), 515);  // 514.3 steps: the last bin partial
@@ -517,7 +547,7 @@ TEST(SensorClustering, BeamIndexIsNearestRingAndAzimuthBin) {
   for (int k = 0; k < 20000; ++k) {
     const Eigen::Vector3d p(30.0 * uni(rng), 30.0 * uni(rng), 30.0 * uni(rng));
     const Point point{static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()), 0.0F};
-    const Eigen::Vector3d s = params.sensor_pose.inverse() * point.xyz().cast<double>();
+    const Eigen::Vector3d s = params.links.sensor_pose.inverse() * point.xyz().cast<double>();
     const double elevation = std::asin(s.z() / s.norm()) / kDeg;
     std::vector<double> distance;
     for (const double e : sorted) distance.push_back(std::abs(e - elevation));
@@ -534,8 +564,8 @@ TEST(SensorClustering, BeamIndexIsNearestRingAndAzimuthBin) {
   }
   EXPECT_GT(checked, 19000);
   // Straight behind the sensor (atan2 = pi) is the direction of -pi: bin 0.
-  params.sensor_pose = Eigen::Isometry3d::Identity();
-  params.beams.azimuth_step_deg = 0.2;
+  params.links.sensor_pose = Eigen::Isometry3d::Identity();
+  params.links.beams.azimuth_step_deg = 0.2;
   const auto plain = BeamGeometry::make(params);
   ASSERT_TRUE(plain.ok());
   EXPECT_EQ(plain->azimuthBins(), 1800);
@@ -562,7 +592,7 @@ TEST(SensorClustering, AzimuthBinsFollowTheirFormulaAtBinEdges) {
   // The last one has too many bins for the table of edge directions.
   for (const double step_deg : {0.2, 0.7, 360.0 / 2048.0, 0.08, 5.0, 0.001}) {
     SensorClusteringParams params;
-    params.beams = {evenly(-15.0, 2.0, 16), step_deg};
+    params.links.beams = {evenly(-15.0, 2.0, 16), step_deg};
     const auto geometry = BeamGeometry::make(params);
     ASSERT_TRUE(geometry.ok());
     const double step = step_deg * kDeg;
@@ -605,7 +635,7 @@ TEST(SensorClustering, PointsWithoutBeamLinkByDistanceOnly) {
   const Cloud cloud{{0.0F, 0.0F, 0.0F, 0.0F},  {0.2F, 0.0F, 0.0F, 0.0F}, {nan, 0.1F, 0.0F, 0.0F},
                     {0.0F, 0.0F, inf, 0.0F},    {5.0F, 0.0F, 0.0F, 0.0F}, {0.0F, 0.0F, 0.0F, 0.0F}};
   SensorClusteringParams params;
-  params.beams = vlp16();
+  params.links.beams = vlp16();
   params.clustering.min_points = 1;
   const auto geometry = BeamGeometry::make(params);
   ASSERT_TRUE(geometry.ok());
@@ -630,7 +660,7 @@ TEST(SensorClustering, BadParametersAreRefusedNamingTheField) {
     EXPECT_FALSE(BeamGeometry::make(params).ok()) << field;
   };
   SensorClusteringParams good;
-  good.beams = vlp16();
+  good.links.beams = vlp16();
   EXPECT_TRUE(validateSensorClusteringParams(good).ok());
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const double inf = std::numeric_limits<double>::infinity();
@@ -640,31 +670,31 @@ TEST(SensorClustering, BadParametersAreRefusedNamingTheField) {
     change(p);
     return p;
   };
-  refused(with([](auto& p) { p.beams.elevations_deg.clear(); }), "elevations_deg");
-  refused(with([](auto& p) { p.beams.elevations_deg = {1.0}; }), "elevations_deg");
-  refused(with([&](auto& p) { p.beams.elevations_deg[3] = nan; }), "elevations_deg[3]");
-  refused(with([&](auto& p) { p.beams.elevations_deg[0] = -inf; }), "elevations_deg[0]");
-  refused(with([](auto& p) { p.beams.elevations_deg[5] = 91.0; }), "elevations_deg[5]");
-  refused(with([](auto& p) { p.beams.elevations_deg[5] = p.beams.elevations_deg[9]; }), "elevations_deg");
-  refused(with([](auto& p) { p.beams.azimuth_step_deg = 0.0; }), "azimuth_step_deg");
-  refused(with([](auto& p) { p.beams.azimuth_step_deg = -0.2; }), "azimuth_step_deg");
-  refused(with([&](auto& p) { p.beams.azimuth_step_deg = nan; }), "azimuth_step_deg");
-  refused(with([&](auto& p) { p.beams.azimuth_step_deg = inf; }), "azimuth_step_deg");
-  refused(with([](auto& p) { p.beams.azimuth_step_deg = 1e-6; }), "azimuth_step_deg");
-  refused(with([](auto& p) { p.ring_gap_slack = 0.99; }), "ring_gap_slack");
-  refused(with([&](auto& p) { p.ring_gap_slack = nan; }), "ring_gap_slack");
-  refused(with([&](auto& p) { p.ring_gap_slack = inf; }), "ring_gap_slack");
-  refused(with([](auto& p) { p.azimuth_window = -1; }), "azimuth_window");
+  refused(with([](auto& p) { p.links.beams.elevations_deg.clear(); }), "elevations_deg");
+  refused(with([](auto& p) { p.links.beams.elevations_deg = {1.0}; }), "elevations_deg");
+  refused(with([&](auto& p) { p.links.beams.elevations_deg[3] = nan; }), "elevations_deg[3]");
+  refused(with([&](auto& p) { p.links.beams.elevations_deg[0] = -inf; }), "elevations_deg[0]");
+  refused(with([](auto& p) { p.links.beams.elevations_deg[5] = 91.0; }), "elevations_deg[5]");
+  refused(with([](auto& p) { p.links.beams.elevations_deg[5] = p.links.beams.elevations_deg[9]; }), "elevations_deg");
+  refused(with([](auto& p) { p.links.beams.azimuth_step_deg = 0.0; }), "azimuth_step_deg");
+  refused(with([](auto& p) { p.links.beams.azimuth_step_deg = -0.2; }), "azimuth_step_deg");
+  refused(with([&](auto& p) { p.links.beams.azimuth_step_deg = nan; }), "azimuth_step_deg");
+  refused(with([&](auto& p) { p.links.beams.azimuth_step_deg = inf; }), "azimuth_step_deg");
+  refused(with([](auto& p) { p.links.beams.azimuth_step_deg = 1e-6; }), "azimuth_step_deg");
+  refused(with([](auto& p) { p.links.ring_gap_slack = 0.99; }), "ring_gap_slack");
+  refused(with([&](auto& p) { p.links.ring_gap_slack = nan; }), "ring_gap_slack");
+  refused(with([&](auto& p) { p.links.ring_gap_slack = inf; }), "ring_gap_slack");
+  refused(with([](auto& p) { p.links.azimuth_window = -1; }), "azimuth_window");
   refused(with([](auto& p) { p.clustering.eps_m = 0.0; }), "eps_m");
   refused(with([&](auto& p) { p.clustering.eps_m = nan; }), "eps_m");
-  refused(with([](auto& p) { p.sensor_pose.linear() *= 2.0; }), "sensor_pose");
-  refused(with([&](auto& p) { p.sensor_pose.translation().x() = nan; }), "sensor_pose");
+  refused(with([](auto& p) { p.links.sensor_pose.linear() *= 2.0; }), "sensor_pose");
+  refused(with([&](auto& p) { p.links.sensor_pose.translation().x() = nan; }), "sensor_pose");
   // The edges that are allowed.
   EXPECT_TRUE(validateSensorClusteringParams(with([](auto& p) {
-                p.ring_gap_slack = 1.0;
-                p.azimuth_window = 0;
-                p.beams.elevations_deg = {-90.0, 90.0};
-                p.beams.azimuth_step_deg = 720.0;
+                p.links.ring_gap_slack = 1.0;
+                p.links.azimuth_window = 0;
+                p.links.beams.elevations_deg = {-90.0, 90.0};
+                p.links.beams.azimuth_step_deg = 720.0;
               })).ok());
 }
 

@@ -13,7 +13,7 @@
 #include "common/scoring/object_match.hpp"
 #include "common/scoring/rand_index.hpp"
 #include "common/sim/generators.hpp"
-#include "common/sim/lidar_models.hpp"
+#include "common/perception/lidar_models.hpp"
 #include "common/sim/raycaster.hpp"
 #include "common/sim/scene.hpp"
 

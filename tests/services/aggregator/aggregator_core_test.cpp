@@ -1267,7 +1267,7 @@ TEST(MergeAggregator, ExtRootLabelsPointsWithTheirGlobalObjects) {
   std::vector<LocalMapResult> locals;
   std::vector<Map> maps;
   for (std::uint32_t s = 0; s < 2; ++s) {
-    locals.push_back(genLocalMap(clouds[s], s + 1, epoch, params));
+    locals.push_back(genLocalMap(clouds[s], s + 1, epoch, params).value());
     maps.push_back(locals.back().map);
     accept(aggregator, streams, mapMessage(s + 1, epoch, locals.back().map), at(6, 5));
   }

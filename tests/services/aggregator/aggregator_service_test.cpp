@@ -252,6 +252,20 @@ Map overTheWire(const MapMessage& message) {
   return received.ok() ? received->map : Map{};
 }
 
+// A global map as a subscriber decodes it (its ellipsoids on the compact wire).
+Map overTheWire(const Map& global) {
+  auto received = throughGlobalWire(global);
+  EXPECT_TRUE(received.ok());
+  return received.ok() ? *received : Map{};
+}
+
+// The number of objects a subscriber decodes from a global map.
+std::size_t objectCount(const v1::GlobalMap& wire) {
+  auto decoded = fromProto(wire);
+  EXPECT_TRUE(decoded.ok()) << decoded.error().message;
+  return decoded.ok() ? decoded->map.objects.size() : 0;
+}
+
 // Sum of the counter series of `family` that carry the label (any series when the label is empty).
 double counterValue(Metrics& metrics, const std::string& family, const std::pair<std::string, std::string>& label) {
   double sum = 0.0;
@@ -348,7 +362,7 @@ TEST(AggregatorService, PushFromTwoChildrenPublishesTheMergedGlobalMap) {
   }
   ASSERT_TRUE(received.has_value());
   const std::vector<Map> maps{overTheWire(epoch2[0]), overTheWire(epoch2[1])};
-  EXPECT_EQ(received->map, mergeAll(maps).map);
+  EXPECT_EQ(received->map, overTheWire(mergeAll(maps).map)) << "the merge of the decoded maps, as published";
   EXPECT_EQ(received->header.node, kRoot);
   EXPECT_EQ(received->header.contributing_nodes, (std::vector<std::uint32_t>{1, 2}));
   EXPECT_TRUE(received->header.missing_nodes.empty());
@@ -413,7 +427,7 @@ TEST(AggregatorService, EveryUploadIsAnsweredWithItsStatusAndRefusalsAreCounted)
 
   ASSERT_TRUE(child.writeMap(1, randomMap(rng, 1, E(1), 2)));
   v1::Upload bad;
-  *bad.mutable_map() = toProto(randomMap(rng, 1, E(2), 2));
+  *bad.mutable_map() = toProto(randomMap(rng, 1, E(2), 2), EllipsoidWire::kExact);
   bad.mutable_map()->mutable_objects(0)->mutable_ellipsoids(0)->mutable_shape()->RemoveLast();  // 5 values
   ASSERT_TRUE(child.write(2, bad));
   ASSERT_TRUE(child.write(3, v1::Upload{}));  // no payload at all
@@ -474,7 +488,7 @@ TEST(AggregatorService, MessagesAboveTheSizeBoundsAreRefusedAndOtherStreamsGoOn)
   ASSERT_TRUE(child.answered(1));
   // Above admission max_map_bytes (8 MiB), below the transport limit: answered and counted.
   v1::Upload big;
-  *big.mutable_map() = toProto(randomMap(rng, 1, E(1), 1));
+  *big.mutable_map() = toProto(randomMap(rng, 1, E(1), 1), EllipsoidWire::kExact);
   big.mutable_map()->mutable_objects(0)->mutable_ellipsoids(0)->mutable_shape()->Resize((9U << 20) / 4, 1.0F);
   ASSERT_TRUE(child.write(2, big));
   const auto too_large = child.readAck();
@@ -486,7 +500,7 @@ TEST(AggregatorService, MessagesAboveTheSizeBoundsAreRefusedAndOtherStreamsGoOn)
   EXPECT_EQ(counterValue(metrics, "fogmap_refused_uploads_total", {"reason", "too_large"}), 1.0);
   // Above the transport limit: gRPC ends the stream RESOURCE_EXHAUSTED before the service sees it.
   v1::Upload huge;
-  *huge.mutable_map() = toProto(randomMap(rng, 1, E(1), 1));
+  *huge.mutable_map() = toProto(randomMap(rng, 1, E(1), 1), EllipsoidWire::kExact);
   huge.mutable_map()->mutable_objects(0)->mutable_ellipsoids(0)->mutable_shape()->Resize((kMaxMessageBytes / 4) + 16, 1.0F);
   (void)child.write(3, huge);
   EXPECT_FALSE(child.readAck().has_value());
@@ -527,7 +541,7 @@ TEST(AggregatorService, HostileUploadsAreRefusedWithTheirCodeWhileALegitimateStr
 
   const auto proto = [&](std::uint32_t node, std::uint64_t e) {
     v1::Upload upload;
-    *upload.mutable_map() = toProto(randomMap(rng, node, e, 2));
+    *upload.mutable_map() = toProto(randomMap(rng, node, e, 2), EllipsoidWire::kExact);
     return upload;
   };
   struct Attack {
@@ -837,8 +851,8 @@ TEST(AggregatorService, BaselineSubscribersGetPointLabelsOnlyWhenTheyAskForThem)
   ASSERT_TRUE(labelled.has_value());
   ASSERT_TRUE(plain.has_value());
   EXPECT_EQ(labelled->mode(), "baseline");
-  EXPECT_EQ(labelled->objects_size(), 5) << "six blobs, two of which coincide";
-  EXPECT_EQ(plain->objects_size(), 5);
+  EXPECT_EQ(objectCount(*labelled), 5U) << "six blobs, two of which coincide";
+  EXPECT_EQ(objectCount(*plain), 5U);
   ASSERT_EQ(labelled->point_labels_size(), 2);
   EXPECT_EQ(labelled->point_labels(0).labels().size(), 75U * 4U);
   EXPECT_EQ(plain->point_labels_size(), 0);
@@ -939,7 +953,7 @@ TEST(AggregatorService, ExtTreeMergesAtTheIntermediateAndRelaysPointsToTheRoot) 
   // root sees, so the root must name the intermediate's stream by the sensor's id. A relayed
   // chunk is answered when the root has answered it.
   for (std::uint32_t s = 0; s < 2; ++s) {
-    const auto local = genLocalMap(clouds[s], s + 1, E(1), params);
+    const auto local = genLocalMap(clouds[s], s + 1, E(1), params).value();
     ASSERT_TRUE(edges[s]->writePoints(1, wholeScan(s + 1, E(1), clouds[s], local.clustering.labels)));
     ASSERT_TRUE(edges[s]->answered(1));
     MapMessage map = randomMap(rng, s + 1, E(1), 0);
@@ -953,7 +967,7 @@ TEST(AggregatorService, ExtTreeMergesAtTheIntermediateAndRelaysPointsToTheRoot) 
   std::vector<LocalMapResult> locals;
   std::vector<Map> maps;
   for (std::uint32_t s = 0; s < 2; ++s) {
-    locals.push_back(genLocalMap(clouds[s], s + 1, E(2), params));
+    locals.push_back(genLocalMap(clouds[s], s + 1, E(2), params).value());
     MapMessage map = randomMap(rng, s + 1, E(2), 0);
     map.map = locals.back().map;
     maps.push_back(overTheWire(map));
@@ -972,7 +986,7 @@ TEST(AggregatorService, ExtTreeMergesAtTheIntermediateAndRelaysPointsToTheRoot) 
     if (converted->header.epoch == E(2)) received = std::move(*converted);
   }
   ASSERT_TRUE(received.has_value());
-  const Map expected = mergeAll(maps).map;
+  const Map expected = overTheWire(mergeAll(maps).map);
   EXPECT_EQ(received->map, expected);
   EXPECT_EQ(received->header.contributing_nodes, (std::vector<std::uint32_t>{1, 2}));
   EXPECT_EQ(received->header.missing_nodes, (std::vector<std::uint32_t>{3}));

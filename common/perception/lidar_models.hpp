@@ -6,7 +6,7 @@
 
 #include "common/base/status.hpp"
 
-namespace fogmap::sim {
+namespace fogmap {
 
 struct LidarModel {
   std::string name;
@@ -23,4 +23,4 @@ struct LidarModel {
 Expected<LidarModel> lidarModel(const std::string& name);
 std::vector<std::string> lidarModelNames();
 
-}  // namespace fogmap::sim
+}  // namespace fogmap

@@ -1,6 +1,6 @@
-#include "common/sim/lidar_models.hpp"
+#include "common/perception/lidar_models.hpp"
 
-namespace fogmap::sim {
+namespace fogmap {
 namespace {
 
 // `count` angles from `first` in steps of `step` degrees.
@@ -53,4 +53,4 @@ Expected<LidarModel> lidarModel(const std::string& name) {
   return Error{ErrorCode::kNotFound, "no LiDAR model '" + name + "' (known: " + known + ")"};
 }
 
-}  // namespace fogmap::sim
+}  // namespace fogmap
