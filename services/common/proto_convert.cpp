@@ -118,13 +118,23 @@ struct PackedBlock {
   bool own_objects = true;             // every record is the only ellipsoid of its object
 };
 
-// Packs every ellipsoid that fits into the block of its (node, frame), whose origin is the first
-// packed centre in canonical order (rounded to cm, which a decoded map's centre already is, so the
-// origin survives a decode and re-encode); the others go exactly in their objects. A block whose records are
-// all objects of their own leaves object_step out, and those objects are not listed in `objects`;
-// nor are the objects whose ellipsoids are all records (`packed_objects` counts them).
+// Packs every ellipsoid that fits into the block of its (node, frame), whose origin is the common
+// frame's (left off the wire: 9 bytes less a block) when every ellipsoid of the block that fits a
+// record near its own centre also fits one there, else the first packed centre in canonical order
+// (rounded to cm, which a decoded map's centre already is, so the origin survives a decode and
+// re-encode); the others go exactly in their objects. A block whose records are all objects of
+// their own leaves object_step out, and those objects are not listed in `objects`; nor are the
+// objects whose ellipsoids are all records (`packed_objects` counts them).
 void toProto(const Map& map, std::uint64_t epoch, EllipsoidWire wire, WireObjects* objects, WireBlocks* blocks,
              std::uint32_t* packed_objects) {
+  const CompactOrigin common_origin{0, 0, 0};
+  std::map<std::pair<std::uint32_t, std::uint64_t>, bool> at_common_origin;
+  for (const MapObject& object : map.objects) {
+    for (const Ellipsoid& e : object.ellipsoids) {
+      auto [it, fresh] = at_common_origin.emplace(std::make_pair(e.id.node, e.id.frame), true);
+      it->second = it->second && (fitsCompact(e, common_origin) || !fitsCompact(e, compactOriginNear(e.center)));
+    }
+  }
   std::vector<PackedBlock> packed;
   std::map<std::pair<std::uint32_t, std::uint64_t>, std::size_t> block_of;
   std::vector<std::vector<const Ellipsoid*>> exact(map.objects.size());
@@ -140,7 +150,8 @@ void toProto(const Map& map, std::uint64_t epoch, EllipsoidWire wire, WireObject
       const auto key = std::make_pair(e.id.node, e.id.frame);
       auto it = block_of.find(key);
       if (it == block_of.end()) {
-        PackedBlock fresh{e.id.node, e.id.frame, compactOriginNear(e.center), {}, {}, true};
+        const CompactOrigin origin = at_common_origin.at(key) ? common_origin : compactOriginNear(e.center);
+        PackedBlock fresh{e.id.node, e.id.frame, origin, {}, {}, true};
         if (!fitsCompact(e, fresh.origin)) {
           exact[o].push_back(&e);
           continue;

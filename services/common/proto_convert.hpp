@@ -15,7 +15,8 @@ namespace fogmap {
 enum class EllipsoidWire { kCompact, kExact };
 
 // Maps and global maps: every ellipsoid that fits (fitsCompact) travels as a 22-byte compact record
-// in the EllipsoidBlock of its (node, frame), whose origin is the block's first centre in canonical
+// in the EllipsoidBlock of its (node, frame), whose origin is the common frame's (left off the wire)
+// when every ellipsoid of the block fits a record there, else the block's first centre in canonical
 // order, rounded to cm; an ellipsoid that does not fit (a semi-axis above 65.535 m or below 0.5 mm,
 // more than 65,535 points or a local index above 65,535, a centre more than 327.67 m per axis from
 // its block's origin) travels exactly, as v1::Ellipsoid with float32 geometry, in its object.

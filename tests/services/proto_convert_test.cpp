@@ -713,6 +713,37 @@ std::vector<Ellipsoid> sensorClusters(std::mt19937_64& rng, std::uint32_t node, 
   return out;
 }
 
+// A block whose ellipsoids all fit records around the common frame's origin takes that origin,
+// which the wire leaves out; one beyond 327.67 m of it takes the first centre's instead.
+TEST(ProtoConvert, BlocksNearTheCommonOriginLeaveTheirOriginOut) {
+  std::mt19937_64 rng(23);
+  MapMessage m;
+  m.header.node = 7;
+  m.header.epoch = 17'000'000'123ULL;
+  m.map = localMap(sensorClusters(rng, 7, m.header.epoch, 10, {25.0, -40.0, 1.0}));
+  const v1::Map near = toProto(m);
+  ASSERT_EQ(near.blocks_size(), 1);
+  EXPECT_EQ((CompactOrigin{near.blocks(0).origin_x_cm(), near.blocks(0).origin_y_cm(), near.blocks(0).origin_z_cm()}),
+            (CompactOrigin{0, 0, 0}));
+  const auto back = fromProto(near);
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  expectWithinCompactBound(back->map, m.map);
+  EXPECT_EQ(toProto(*back).SerializeAsString(), near.SerializeAsString()) << "a decoded map encodes to the same bytes";
+
+  // Moved 200 m out, and one ellipsoid 300 m beyond the first: beyond 327.67 m of the common origin,
+  // so the block's origin is its first centre, and every record still fits around it.
+  std::vector<Ellipsoid> ellipsoids;
+  for (const auto& o : m.map.objects) ellipsoids.push_back(o.ellipsoids[0]);
+  for (auto& e : ellipsoids) e.center += Eigen::Vector3d(200.0, 0.0, 0.0);
+  ellipsoids.back().center = ellipsoids.front().center + Eigen::Vector3d(300.0, 0.0, 0.0);
+  m.map = localMap(ellipsoids);
+  const v1::Map far = toProto(m);
+  ASSERT_EQ(far.blocks_size(), 1);
+  EXPECT_EQ(far.blocks(0).records().size(), 10 * kCompactEllipsoidBytes);
+  EXPECT_EQ((CompactOrigin{far.blocks(0).origin_x_cm(), far.blocks(0).origin_y_cm(), far.blocks(0).origin_z_cm()}),
+            compactOriginNear(m.map.objects[0].ellipsoids[0].center));
+}
+
 TEST(ProtoConvert, LocalMapTravelsAsOneBlockOfAtMost24BytesAnEllipsoid) {
   std::mt19937_64 rng(21);
   MapMessage m;

@@ -203,9 +203,11 @@ Expected<sim::SceneMapping> sceneMapping(const Args& args, const sim::SceneMappi
     if (!mode) return invalidArgument("--clustering " + mode.error().message);
     mapping.clustering = *mode;
   }
-  if (args.has("fragment-min-points")) {
+  if (args.get("fragment-min-points") == "off") {
+    mapping.fragment_min_points.reset();
+  } else if (args.has("fragment-min-points")) {
     const auto n = args.getInt("fragment-min-points", 0);
-    if (!n || *n < 1 || *n > 1000) return invalidArgument("--fragment-min-points must be in [1, 1000]");
+    if (!n || *n < 1 || *n > 1000) return invalidArgument("--fragment-min-points must be off or in [1, 1000]");
     mapping.fragment_min_points = static_cast<std::size_t>(*n);
   }
   return mapping;

@@ -70,14 +70,17 @@ Expected<RootConnection> rootConnection(const Args& args, const std::string& usa
 // --eps, --min-points and --threads, validated.
 Expected<ClusteringParams> clusteringParams(const Args& args);
 
-// --clustering exact|sensor and --fragment-min-points N (1 to 1000): how a scene's edges make their
-// maps (demo --scene, topology --scene), over `defaults`.
+// --clustering exact|sensor and --fragment-min-points N|off (N from 1 to 1000): how a scene's edges
+// make their maps (demo --scene, topology --scene), over `defaults`.
 Expected<sim::SceneMapping> sceneMapping(const Args& args, const sim::SceneMapping& defaults);
 inline constexpr const char* kSceneMappingUsage =
     "  --clustering exact|sensor   how the edges cluster: exact (PCL's Euclidean partition) or sensor (with\n"
-    "                 ring links from each LiDAR model's beam table, so that a sparse LiDAR's rings join)\n"
-    "  --fragment-min-points N     edges ship their clusters of at least N points as fragments; min_points\n"
-    "                 then applies to a global object's points over all its sensors, at the root\n";
+    "                 ring links from each LiDAR model's beam table, so that a sparse LiDAR's rings join;\n"
+    "                 the default for a scene)\n"
+    "  --fragment-min-points N|off edges ship their clusters of at least N points (default for a scene: 1)\n"
+    "                 as fragments, and min_points applies to a global object's points over all its\n"
+    "                 sensors, at the root; off: an edge drops its clusters below min_points (the paper's\n"
+    "                 MAD-C, the default for recorded scans)\n";
 
 // Reads --input within --max-scan-bytes (--remove-ground: the points above the ground); non-finite
 // points are kept in place (they cluster as noise) when `keep_non_finite`, so that the cloud lines

@@ -277,8 +277,7 @@ int runDemo(int argc, char** argv) {
     }
     return runSceneDemo(*args);
   }
-  for (const char* flag :
-       {"miss-rate", "association", "tracker-input", "track-frames", "tracks-png", "clustering", "fragment-min-points"}) {
+  for (const char* flag : {"miss-rate", "association", "tracker-input", "track-frames", "tracks-png", "clustering"}) {
     if (args->has(flag)) return fail(invalidArgument(std::string("--") + flag + " goes with --scene"), "fogctl demo");
   }
   const std::filesystem::path input = args->has("input") ? std::filesystem::absolute(args->get("input")) : defaultInput();
@@ -294,6 +293,9 @@ int runDemo(int argc, char** argv) {
   const std::string shape = args->get("topology", "star");
   if (shape != "star" && shape != "tree") return fail(invalidArgument("--topology must be star or tree"), "fogctl demo");
   const std::filesystem::path dir = args->get("state", ".fogmap/demo");
+  // Recorded scans: the paper's MAD-C unless told (the sensor's model is not known here).
+  const auto mapping = sceneMapping(*args, sim::SceneMapping{ClusteringMode::kExact, std::nullopt});
+  if (!mapping) return fail(mapping.error(), "fogctl demo");
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   installStopHandlers();
@@ -304,6 +306,7 @@ int runDemo(int argc, char** argv) {
     t.mode = mode;
     t.name = std::string(modeName(mode)) + "-" + t.name;
     t.madc.alpha = *alpha;
+    t.madc.fragment_min_points = mapping->fragment_min_points;
     for (auto& n : t.nodes) {
       if (n.sensor) n.sensor->frames = static_cast<std::uint64_t>(*frames);
     }
@@ -449,11 +452,11 @@ Command demoCommand() {
   return {"demo",
           "[--input DIR | --scene FILE] [--nodes 4] [--topology star|tree] [--frames 20] [--report FILE] [--png FILE]",
           "usage: fogctl demo [--input DIR] [--nodes 4] [--topology star|tree] [--frames 20] [--report FILE] [--png FILE]\n"
-          "                   [--alpha 1.5] [--base-port 46000] [--state DIR]\n"
+          "                   [--alpha 1.5] [--base-port 46000] [--state DIR] [--fragment-min-points N|off]\n"
           "       fogctl demo --scene FILE [--topology star|tree] [--frames 10] [--report FILE] [--png FILE] [--alpha 1.5]\n"
           "                   [--base-port 46000] [--state DIR] [--miss-rate 0.3] [--association kalman|paper]\n"
           "                   [--tracker-input global_map|centroids] [--track-frames 100] [--tracks-png FILE]\n"
-          "                   [--clustering exact|sensor] [--fragment-min-points N]\n"
+          "                   [--clustering exact|sensor] [--fragment-min-points N|off]\n"
           "Runs a local MAD-C cluster and the baseline over the same frames and compares them: bytes,\n"
           "latency, Rand index; writes a JSON report and a bird's-eye PNG (under --state, default .fogmap/demo).\n"
           "  --input DIR    recorded scans (default: the bundled KITTI frames), cut into --nodes virtual LiDARs\n"

@@ -53,7 +53,11 @@ TEST(SceneTopology, OneSimulatedEdgePerLidarAtItsPoseInAStarAndATree) {
       EXPECT_FALSE(edge.sensor->split.has_value());
       EXPECT_LT((edge.sensor->pose.translation() - lidar.pose.translation()).norm(), 1e-9) << edge.name;
       EXPECT_LT((edge.sensor->pose.linear() - lidar.pose.linear()).cwiseAbs().maxCoeff(), 1e-9) << edge.name;
+      // Sparse LiDARs of known models: sensor-aware clustering with the LiDAR's beam table.
+      EXPECT_EQ(edge.sensor->clustering, ClusteringMode::kSensor);
+      EXPECT_EQ(edge.sensor->model, lidar.model);
     }
+    EXPECT_EQ(parsed->madc.fragment_min_points, std::optional<std::size_t>(1)) << "every cluster ships, as a fragment";
     // The common frame is the scene's: the crop box holds the whole area and its tallest object.
     ASSERT_TRUE(parsed->preprocess.crop.has_value());
     EXPECT_DOUBLE_EQ(parsed->preprocess.crop->max_m.x(), scene.extent_m);
@@ -61,6 +65,19 @@ TEST(SceneTopology, OneSimulatedEdgePerLidarAtItsPoseInAStarAndATree) {
     EXPECT_LT(parsed->preprocess.crop->min_m.z(), scene.ground.height_m);
     ASSERT_TRUE(parsed->preprocess.ground.has_value());
     EXPECT_EQ(parsed->preprocess.ground->ground_z_hint_m, scene.ground.height_m);
+  }
+}
+
+TEST(SceneTopology, TheExactModeWithoutFragmentsIsOneOptionAway) {
+  const Scene scene = randomScene(20, 3, 5);
+  SceneTopologyOptions options;
+  options.mapping = SceneMapping{ClusteringMode::kExact, std::nullopt};
+  const Expected<TopologyConfig> parsed = parseTopology(toYaml(sceneTopology(scene, "s.yaml", options)), "");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  EXPECT_FALSE(parsed->madc.fragment_min_points.has_value());
+  for (const NodeConfig* edge : edgesOf(*parsed)) {
+    EXPECT_EQ(edge->sensor->clustering, ClusteringMode::kExact);
+    EXPECT_TRUE(edge->sensor->model.empty());
   }
 }
 
