@@ -162,7 +162,15 @@ Expected<SceneScores> scoreSceneRuns(const sim::Scene& scene, const SceneRun& ma
       if (completeEpoch(g)) baseline_by_frame.emplace(cycle(*base_schedule, e), &g);
     }
   }
-  const std::vector<std::uint64_t> epochs = completeEpochs(madc.result);
+  // One complete epoch per frame of the scene's cycle (the first): a run that waited for every frame
+  // of the cycle may hold several of some, and each frame weighs the same in the scores.
+  std::vector<std::uint64_t> epochs;
+  {
+    std::set<std::uint64_t> scored;
+    for (const std::uint64_t e : completeEpochs(madc.result)) {
+      if (scored.insert(cycle(*schedule, e)).second) epochs.push_back(e);
+    }
+  }
   if (epochs.empty()) return Error{ErrorCode::kInternal, "no complete MAD-C epoch to score"};
   auto views = recomputeEdges(madc.topology, epochs);
   if (!views) return views.error();

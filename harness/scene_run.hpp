@@ -61,7 +61,7 @@ Expected<SceneRun> runScene(const std::filesystem::path& dir, const std::filesys
 
 // MAD-C (an ext run) against the baseline and the truth over the frames both published complete.
 struct SceneScores {
-  std::size_t frames = 0;              // complete MAD-C epochs scored against the truth
+  std::size_t frames = 0;              // complete MAD-C epochs scored against the truth, one a cycle frame
   std::size_t frames_vs_baseline = 0;  // of which paired with a complete baseline epoch of the same frame
   RandScores madc_vs_baseline;         // mean over frames, elements = local clusters (MAD-C, the paper)
   RandScores ext_vs_baseline;          // mean over frames, elements = points (MAD-C-ext)
