@@ -18,6 +18,14 @@ inline void check(bool holds, const char* property) {
   std::abort();
 }
 
+// A round trip that must succeed: on failure the property and the error say what went wrong.
+template <class T>
+void checkOk(const Expected<T>& result, const char* property) {
+  if (result.ok()) return;
+  std::fprintf(stderr, "fogmap fuzz: property violated: %s: %s\n", property, result.error().message.c_str());
+  std::abort();
+}
+
 // Bad input is an error a person can act on: an invalid argument whose message starts with
 // `prefix` (the file or document it is about) and says more than that.
 inline void checkRejection(const Error& error, std::string_view prefix) {

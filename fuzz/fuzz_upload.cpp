@@ -144,10 +144,10 @@ class Harness {
         core_.published(std::get<GlobalMapMessage>(out.message));
       }
       if (const auto* map = std::get_if<MapMessage>(&out.message)) {
-        fuzz::check(fromProto(toProto(*map)).ok(), "an emitted map converts to the wire and back");
+        fuzz::checkOk(fromProto(toProto(*map)), "an emitted map converts to the wire and back");
       } else {
         const auto& global = std::get<GlobalMapMessage>(out.message);
-        fuzz::check(fromProto(toProto(global)).ok(), "a global map converts to the wire and back");
+        fuzz::checkOk(fromProto(toProto(global)), "a global map converts to the wire and back");
       }
       if (core_.config().is_root) fuzz::check(core_.queryGeofences("").ok(), "the root answers geofence queries");
     }

@@ -97,7 +97,8 @@ std::optional<CompactFields> quantise(const Ellipsoid& e, const CompactOrigin& o
   if (!(eigenvalues[0] > 0.0)) return std::nullopt;
   for (int i = 0; i < 3; ++i) {
     const double a = std::sqrt(eigenvalues[i]);
-    if (!(a >= kCompactMinSemiAxisM && a <= kCompactMaxSemiAxisM)) return std::nullopt;
+    // What rounds to 1 .. 65,535 mm fits: a decoded 65.535 m axis may come back a hair above it.
+    if (!(a >= kCompactMinSemiAxisM && a < kCompactMaxSemiAxisM + kCompactSemiAxisErrorM)) return std::nullopt;
     // a = 0.5 mm may land a hair below 0.5 in mm; the clamp keeps it within half a step.
     fields.semi_axes_mm[i] = static_cast<std::uint16_t>(std::clamp(std::round(a * 1000.0), 1.0, 65535.0));
   }

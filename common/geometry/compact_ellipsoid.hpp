@@ -89,7 +89,8 @@ struct CompactOrigin {
 CompactOrigin compactOriginNear(const Eigen::Vector3d& p);
 
 // True when e can be packed: finite, symmetric positive definite shape, centre within +-327.67 m of
-// origin per axis, every semi-axis in [0.5 mm, 65.535 m], point_count and id.index at most 65535.
+// origin per axis, every semi-axis in [0.5 mm, 65.5355 m) (what rounds to 1 .. 65,535 mm),
+// point_count and id.index at most 65535.
 bool fitsCompact(const Ellipsoid& e, const CompactOrigin& origin);
 
 // Appends e's 22-byte record to out and returns true when fitsCompact(e, origin); otherwise

@@ -118,11 +118,13 @@ struct PackedBlock {
   bool own_objects = true;             // every record is the only ellipsoid of its object
 };
 
-// Packs every ellipsoid that fits into the block of its (node, frame), whose origin is the common
-// frame's (left off the wire: 9 bytes less a block) when every ellipsoid of the block that fits a
-// record near its own centre also fits one there, else the first packed centre in canonical order
-// (rounded to cm, which a decoded map's centre already is, so the origin survives a decode and
-// re-encode); the others go exactly in their objects. A block whose records are all objects of
+// Packs every ellipsoid that fits into a block of its (node, frame), whose origin is the common
+// frame's (left off the wire: 9 bytes less a block) when every ellipsoid of the (node, frame) that
+// fits a record near its own centre also fits one there, else the first packed centre in canonical
+// order (rounded to cm, which a decoded map's centre already is, so the origin survives a decode and
+// re-encode); an ellipsoid beyond reach of the newest 4 blocks of its (node, frame) opens another
+// around its centre. Only ellipsoids no record holds (axes, point count, index) go exactly in their
+// objects. A block whose records are all objects of
 // their own leaves object_step out, and those objects are not listed in `objects`; nor are the
 // objects whose ellipsoids are all records (`packed_objects` counts them).
 void toProto(const Map& map, std::uint64_t epoch, EllipsoidWire wire, WireObjects* objects, WireBlocks* blocks,
@@ -136,7 +138,8 @@ void toProto(const Map& map, std::uint64_t epoch, EllipsoidWire wire, WireObject
     }
   }
   std::vector<PackedBlock> packed;
-  std::map<std::pair<std::uint32_t, std::uint64_t>, std::size_t> block_of;
+  std::map<std::pair<std::uint32_t, std::uint64_t>, std::vector<std::size_t>> blocks_of;
+  constexpr std::size_t kBlocksTried = 4;  // the newest blocks of a (node, frame) an ellipsoid may join
   std::vector<std::vector<const Ellipsoid*>> exact(map.objects.size());
   std::vector<std::size_t> lone_block(map.objects.size(), SIZE_MAX);  // a one-ellipsoid object's block
   for (std::size_t o = 0; o < map.objects.size(); ++o) {
@@ -148,25 +151,30 @@ void toProto(const Map& map, std::uint64_t epoch, EllipsoidWire wire, WireObject
         continue;
       }
       const auto key = std::make_pair(e.id.node, e.id.frame);
-      auto it = block_of.find(key);
-      if (it == block_of.end()) {
-        const CompactOrigin origin = at_common_origin.at(key) ? common_origin : compactOriginNear(e.center);
+      std::vector<std::size_t>& candidates = blocks_of[key];  // this (node, frame)'s blocks, newest last
+      std::size_t chosen = SIZE_MAX;
+      for (std::size_t t = 0; t < std::min(candidates.size(), kBlocksTried) && chosen == SIZE_MAX; ++t) {
+        const std::size_t b = candidates[candidates.size() - 1 - t];
+        if (appendCompact(e, packed[b].origin, packed[b].records)) chosen = b;
+      }
+      if (chosen == SIZE_MAX) {
+        // A block of its own around it, when the others' origins are too far (a relay's map may
+        // hold a node's ellipsoids hundreds of metres apart): a record still, never float32.
+        const CompactOrigin origin =
+            candidates.empty() && at_common_origin.at(key) ? common_origin : compactOriginNear(e.center);
         PackedBlock fresh{e.id.node, e.id.frame, origin, {}, {}, true};
-        if (!fitsCompact(e, fresh.origin)) {
+        if (!appendCompact(e, fresh.origin, fresh.records)) {
           exact[o].push_back(&e);
           continue;
         }
-        it = block_of.emplace(key, packed.size()).first;
+        chosen = packed.size();
+        candidates.push_back(chosen);
         packed.push_back(std::move(fresh));
       }
-      PackedBlock& block = packed[it->second];
-      if (!appendCompact(e, block.origin, block.records)) {
-        exact[o].push_back(&e);
-        continue;
-      }
+      PackedBlock& block = packed[chosen];
       block.object_of.push_back(o);
       block.own_objects = block.own_objects && lone;
-      if (lone) lone_block[o] = it->second;
+      if (lone) lone_block[o] = chosen;
     }
   }
 

@@ -882,18 +882,25 @@ TEST(ProtoConvert, EllipsoidsThatDoNotFitARecordTravelExactlyInTheirObjects) {
   }
   std::sort(exact.begin(), exact.end());
   // Objects in canonical order (by first id): {near1, long2}, {far1, near2}, {more1}, {lone3}. The
-  // three with an exact ellipsoid are listed; {more1}, all records, follows them unlisted (node 1's
-  // block holds records of shared objects, so it names the object of each record).
-  EXPECT_EQ(exact, (std::vector<std::array<std::uint32_t, 3>>{{0, 2, 0}, {1, 1, 1}, {2, 3, 0}}));
-  ASSERT_EQ(wire.objects_size(), 3);
-  EXPECT_EQ(wire.packed_objects(), 1U);
-  ASSERT_EQ(wire.blocks_size(), 2);
+  // two with an exact ellipsoid (80 m and 70 m semi-axes) are listed; {far1, near2} and {more1},
+  // all records, follow them unlisted.
+  EXPECT_EQ(exact, (std::vector<std::array<std::uint32_t, 3>>{{0, 2, 0}, {1, 3, 0}}));
+  ASSERT_EQ(wire.objects_size(), 2);
+  EXPECT_EQ(wire.packed_objects(), 2U);
+  // Node 1's ellipsoids 400 m apart take two blocks: near1 and more1 around near1, far1 around
+  // itself, a record still; node 2's near2 a block around itself (beyond reach of the common origin).
+  ASSERT_EQ(wire.blocks_size(), 3);
   EXPECT_EQ(wire.blocks(0).node(), 1U);
-  EXPECT_EQ(wire.blocks(0).records().size(), 2 * kCompactEllipsoidBytes);
   EXPECT_EQ(recordObjects(wire.blocks(0)), (std::vector<std::int64_t>{0, 3}));
-  EXPECT_EQ(wire.blocks(1).node(), 2U);
-  EXPECT_EQ(recordObjects(wire.blocks(1)), (std::vector<std::int64_t>{1}));
+  EXPECT_EQ((CompactOrigin{wire.blocks(0).origin_x_cm(), wire.blocks(0).origin_y_cm(), wire.blocks(0).origin_z_cm()}),
+            compactOriginNear(near1.center));
+  EXPECT_EQ(wire.blocks(1).node(), 1U);
+  EXPECT_EQ(recordObjects(wire.blocks(1)), (std::vector<std::int64_t>{2}));
   EXPECT_EQ((CompactOrigin{wire.blocks(1).origin_x_cm(), wire.blocks(1).origin_y_cm(), wire.blocks(1).origin_z_cm()}),
+            compactOriginNear(far1.center));
+  EXPECT_EQ(wire.blocks(2).node(), 2U);
+  EXPECT_EQ(recordObjects(wire.blocks(2)), (std::vector<std::int64_t>{2}));
+  EXPECT_EQ((CompactOrigin{wire.blocks(2).origin_x_cm(), wire.blocks(2).origin_y_cm(), wire.blocks(2).origin_z_cm()}),
             compactOriginNear(near2.center))
       << "the origin is the first centre that fits";
 
@@ -902,7 +909,7 @@ TEST(ProtoConvert, EllipsoidsThatDoNotFitARecordTravelExactlyInTheirObjects) {
   expectWithinCompactBound(back->map, m.map);
   for (const auto& o : back->map.objects) {
     for (const auto& e : o.ellipsoids) {
-      for (const Ellipsoid& sent : {long2, far1, lone3}) {
+      for (const Ellipsoid& sent : {long2, lone3}) {
         if (e.id == sent.id) {
           EXPECT_EQ(e, roundedToFloat(sent)) << toString(e.id) << " travelled exactly";
         }

@@ -475,6 +475,29 @@ TEST(CompactEllipsoidFits, RefusesWhatCannotBePacked) {
   e.point_count = 65535;
   e.id.index = 65535;
   EXPECT_TRUE(fitsCompact(e, origin)) << "point_count and index 65535";
+  e = ok;
+  e.shape = shapeOf(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0.001, 1.0, 65.5356));
+  refused(e, "a semi-axis of 65.5356 m (rounds to 65,536 mm)");
+}
+
+// A decoded record fits a record again, also at the ends of the semi-axis range, where the shape
+// rebuilt in double may put an axis a hair beyond the record's value (a relay re-encodes what it
+// decoded; found by fuzz_upload, fuzz/corpus/fuzz_upload/relay_of_one_node_blocks_far_apart).
+TEST(CompactEllipsoid, DecodedRecordsAtTheEndsOfTheRangesFitARecordAgain) {
+  std::mt19937_64 rng(65535);
+  const CompactOrigin origin{0, 0, 0};
+  for (int k = 0; k < 2000; ++k) {
+    Ellipsoid e;
+    e.id = {4, 17, 20};
+    e.center = {-20.0, 5.0, -0.01};
+    e.shape = shapeOf(randomRotation(rng), Eigen::Vector3d(0.001, 59.392, 65.535));
+    e.point_count = 6992;
+    std::string record;
+    ASSERT_TRUE(appendCompact(e, origin, record)) << k;
+    const auto decoded = decodeCompact(record, origin, 4, 17);
+    ASSERT_TRUE(decoded.ok()) << decoded.error().message;
+    ASSERT_TRUE(fitsCompact(*decoded, origin)) << "rotation " << k;
+  }
 }
 
 TEST(CompactEllipsoidOrigin, RoundsToCentimetresAndClamps) {

@@ -379,15 +379,20 @@ TEST(SensorClustering, LinksCrossTheAzimuthSeam) {
   EXPECT_EQ(sensorAware(cloud, params).cluster_count, 4);
 }
 
-// The person of the problem: 0.5 m across, 1.8 m tall, 20 m from a VLP-16 mounted at 1.2 m. Its
-// three ring slices are 0.7 m apart, further than eps 0.35: three components for the exact mode,
-// one object for the sensor-aware mode.
-TEST(SensorClustering, PersonAt20mIsOneClusterWhereExactModeSplitsIt) {
+// The person of the problem: 0.5 m across, 1.8 m tall, 20 m from a VLP-16 mounted at `pose` (1.2 m
+// up). Its three ring slices are 0.7 m apart, further than eps 0.35: three components for the exact
+// mode, one object for the sensor-aware mode.
+const Eigen::Isometry3d kPersonLidarPose(Eigen::Translation3d(0.0, 0.0, 1.2));
+Scan personAt20m() {
   World world;
   world.cylinders.push_back({Eigen::Vector2d(20.0, 0.0), 0.25, 0.0, 1.8});
-  const Eigen::Isometry3d pose(Eigen::Translation3d(0.0, 0.0, 1.2));
   std::mt19937_64 rng(1);
-  const Scan scan = scanWorld(world, vlp16(), pose, regularAzimuths(vlp16()), 0.5, 100.0, 0.0, rng);
+  return scanWorld(world, vlp16(), kPersonLidarPose, regularAzimuths(vlp16()), 0.5, 100.0, 0.0, rng);
+}
+
+TEST(SensorClustering, PersonAt20mIsOneClusterWhereExactModeSplitsIt) {
+  const Eigen::Isometry3d pose = kPersonLidarPose;
+  const Scan scan = personAt20m();
   ASSERT_GE(scan.points.size(), 12U);
   SensorClusteringParams params;
   params.links.beams = vlp16();
@@ -410,11 +415,8 @@ TEST(SensorClustering, PersonAt20mIsOneClusterWhereExactModeSplitsIt) {
 // MAD-C's GENLOCALMAP clusters as its parameters say: exactly without sensor links, sensor-aware
 // with them (one ellipsoid for the person instead of one per ring slice); bad links are an error.
 TEST(SensorClustering, GenLocalMapUsesTheSensorAwareModeWhenGivenSensorLinks) {
-  World world;
-  world.cylinders.push_back({Eigen::Vector2d(20.0, 0.0), 0.25, 0.0, 1.8});
-  const Eigen::Isometry3d pose(Eigen::Translation3d(0.0, 0.0, 1.2));
-  std::mt19937_64 rng(1);
-  const Scan scan = scanWorld(world, vlp16(), pose, regularAzimuths(vlp16()), 0.5, 100.0, 0.0, rng);
+  const Eigen::Isometry3d pose = kPersonLidarPose;
+  const Scan scan = personAt20m();
   MadcParams madc;
   madc.clustering.min_points = 1;
   const auto exact = genLocalMap(scan.points, 7, 3, madc);

@@ -804,6 +804,60 @@ TEST(FogctlTopologyScene, ARandomScenesTopologyRunsAsAClusterOfSimulatedLidars) 
   EXPECT_GE(complete, 5U) << run->epochs.size() << " epochs published";
 }
 
+// A scene's edges cluster sensor-aware with their LiDAR's model and ship fragments unless told; the
+// flags' mistakes are named, and they go with --scene only.
+TEST(FogctlTopologyScene, MappingFlagsChooseClusteringAndFragments) {
+  ScratchDir dir("scene-mapping");
+  const Outcome scene_made =
+      fogctl({"scene", "moving", "--people", "2", "--vehicles", "1", "--lidars", "2", "--cameras", "0", "--out", "s.yaml"},
+             dir.path());
+  ASSERT_EQ(scene_made.code, 0) << describe(scene_made);
+  const auto scene = sim::loadScene(dir.path() / "s.yaml");
+  ASSERT_TRUE(scene.ok()) << scene.error().message;
+  const auto edgesOf = [](const TopologyConfig& t) {
+    std::vector<const NodeConfig*> edges;
+    for (const NodeConfig& n : t.nodes) {
+      if (n.role == Role::kEdge) edges.push_back(&n);
+    }
+    return edges;
+  };
+
+  ASSERT_EQ(fogctl({"topology", "--scene", "s.yaml", "--out", "default.yaml"}, dir.path()).code, 0);
+  const auto by_default = loadTopology(dir.path() / "default.yaml");
+  ASSERT_TRUE(by_default.ok()) << by_default.error().message;
+  EXPECT_EQ(by_default->madc.fragment_min_points, std::optional<std::size_t>(1));
+  for (const NodeConfig* edge : edgesOf(*by_default)) {
+    EXPECT_EQ(edge->sensor->clustering, ClusteringMode::kSensor);
+    EXPECT_EQ(edge->sensor->model, scene->lidars[edge->id - 1].model);
+  }
+
+  const Outcome paper = fogctl({"topology", "--scene", "s.yaml", "--clustering", "exact", "--fragment-min-points", "off",
+                                "--out", "paper.yaml"},
+                               dir.path());
+  ASSERT_EQ(paper.code, 0) << describe(paper);
+  const auto exact = loadTopology(dir.path() / "paper.yaml");
+  ASSERT_TRUE(exact.ok()) << exact.error().message;
+  EXPECT_FALSE(exact->madc.fragment_min_points.has_value());
+  for (const NodeConfig* edge : edgesOf(*exact)) EXPECT_EQ(edge->sensor->clustering, ClusteringMode::kExact);
+
+  ASSERT_EQ(fogctl({"topology", "--scene", "s.yaml", "--fragment-min-points", "4", "--out", "four.yaml"}, dir.path()).code, 0);
+  const auto four = loadTopology(dir.path() / "four.yaml");
+  ASSERT_TRUE(four.ok()) << four.error().message;
+  EXPECT_EQ(four->madc.fragment_min_points, std::optional<std::size_t>(4));
+
+  const Outcome rings = fogctl({"topology", "--scene", "s.yaml", "--clustering", "rings"}, dir.path());
+  EXPECT_EQ(rings.code, 2);
+  EXPECT_TRUE(contains(rings.err, "--clustering must be exact")) << describe(rings);
+  for (const char* bad : {"0", "1001", "some"}) {
+    const Outcome fragments = fogctl({"topology", "--scene", "s.yaml", "--fragment-min-points", bad}, dir.path());
+    EXPECT_EQ(fragments.code, 2) << bad;
+    EXPECT_TRUE(contains(fragments.err, "--fragment-min-points must be off or in [1, 1000]")) << describe(fragments);
+  }
+  const Outcome scans = fogctl({"topology", "star", "--edges", "2", "--source", "scans", "--clustering", "sensor"}, dir.path());
+  EXPECT_EQ(scans.code, 2);
+  EXPECT_TRUE(contains(scans.err, "go with --scene")) << describe(scans);
+}
+
 // The compose file mounts its directory into every container: a simulated LiDAR's scene must lie
 // inside it like any other file the topology names ("sim" itself is no file).
 TEST(FogctlTopologyScene, ComposeWantsTheSceneFileInsideTheMountedDirectory) {
