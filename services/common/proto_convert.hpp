@@ -15,11 +15,12 @@ namespace fogmap {
 enum class EllipsoidWire { kCompact, kExact };
 
 // Maps and global maps: every ellipsoid that fits (fitsCompact) travels as a 22-byte compact record
-// in the EllipsoidBlock of its (node, frame), whose origin is the common frame's (left off the wire)
-// when every ellipsoid of the block fits a record there, else the block's first centre in canonical
-// order, rounded to cm; an ellipsoid that does not fit (a semi-axis above 65.535 m or below 0.5 mm,
-// more than 65,535 points or a local index above 65,535, a centre more than 327.67 m per axis from
-// its block's origin) travels exactly, as v1::Ellipsoid with float32 geometry, in its object.
+// in an EllipsoidBlock of its (node, frame), whose origin is the common frame's (left off the wire)
+// when every ellipsoid of the (node, frame) fits a record there, else the block's first centre in
+// canonical order, rounded to cm; an ellipsoid beyond reach (327.67 m per axis) of the newest 4
+// blocks of its (node, frame) opens another around its centre. An ellipsoid no record holds (a
+// semi-axis of 65.5355 m or more, or below 0.5 mm, more than 65,535 points or a local index above
+// 65,535) travels exactly, as v1::Ellipsoid with float32 geometry, in its object.
 // Objects on the wire: `objects` lists the objects with exact ellipsoids; the objects whose
 // ellipsoids are all records follow them unlisted (`packed_objects` counts them); a block names the
 // object of each record as steps from the previous record's (object_step), or names nothing when each
