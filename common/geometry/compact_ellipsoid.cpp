@@ -76,6 +76,18 @@ std::uint64_t packOrientation(Eigen::Quaterniond q) {
   return word;
 }
 
+// The centre's offset from the origin in cm, or nothing when an axis is beyond +-327.67 m.
+std::optional<std::array<std::int16_t, 3>> centreOffsetCm(const Eigen::Vector3d& centre, const CompactOrigin& origin) {
+  const std::array<std::int32_t, 3> origin_cm = {origin.x_cm, origin.y_cm, origin.z_cm};
+  std::array<std::int16_t, 3> offset{};
+  for (int i = 0; i < 3; ++i) {
+    const double cm = std::round(centre[i] * 100.0 - static_cast<double>(origin_cm[static_cast<std::size_t>(i)]));
+    if (!(std::abs(cm) <= kCentreLimitCm)) return std::nullopt;
+    offset[static_cast<std::size_t>(i)] = static_cast<std::int16_t>(cm);
+  }
+  return offset;
+}
+
 // The fields of e, or nothing when e does not fit (see fitsCompact).
 std::optional<CompactFields> quantise(const Ellipsoid& e, const CompactOrigin& origin) {
   if (!e.center.allFinite() || !e.shape.allFinite()) return std::nullopt;
@@ -84,12 +96,9 @@ std::optional<CompactFields> quantise(const Ellipsoid& e, const CompactOrigin& o
   if (!((e.shape - e.shape.transpose()).cwiseAbs().maxCoeff() <= 1e-9 * scale)) return std::nullopt;
 
   CompactFields fields;
-  const std::array<std::int32_t, 3> origin_cm = {origin.x_cm, origin.y_cm, origin.z_cm};
-  for (int i = 0; i < 3; ++i) {
-    const double cm = std::round(e.center[i] * 100.0 - static_cast<double>(origin_cm[i]));
-    if (!(std::abs(cm) <= kCentreLimitCm)) return std::nullopt;
-    fields.centre_cm[i] = static_cast<std::int16_t>(cm);
-  }
+  const auto offset = centreOffsetCm(e.center, origin);
+  if (!offset) return std::nullopt;
+  fields.centre_cm = *offset;
 
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(0.5 * (e.shape + e.shape.transpose()));
   if (solver.info() != Eigen::Success) return std::nullopt;
@@ -138,6 +147,10 @@ CompactOrigin compactOriginNear(const Eigen::Vector3d& p) {
 }
 
 bool fitsCompact(const Ellipsoid& e, const CompactOrigin& origin) { return quantise(e, origin).has_value(); }
+
+bool compactCentreFits(const Eigen::Vector3d& centre, const CompactOrigin& origin) {
+  return centreOffsetCm(centre, origin).has_value();
+}
 
 bool appendCompact(const Ellipsoid& e, const CompactOrigin& origin, std::string& out) {
   const std::optional<CompactFields> fields = quantise(e, origin);

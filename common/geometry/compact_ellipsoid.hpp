@@ -92,6 +92,8 @@ CompactOrigin compactOriginNear(const Eigen::Vector3d& p);
 // origin per axis, every semi-axis in [0.5 mm, 65.5355 m) (what rounds to 1 .. 65,535 mm),
 // point_count and id.index at most 65535.
 bool fitsCompact(const Ellipsoid& e, const CompactOrigin& origin);
+// The centre condition of fitsCompact alone (no eigen-decomposition): within +-327.67 m per axis.
+bool compactCentreFits(const Eigen::Vector3d& centre, const CompactOrigin& origin);
 
 // Appends e's 22-byte record to out and returns true when fitsCompact(e, origin); otherwise
 // appends nothing and returns false (the caller then sends e exactly).

@@ -119,8 +119,8 @@ struct PackedBlock {
 };
 
 // Packs every ellipsoid that fits into a block of its (node, frame), whose origin is the common
-// frame's (left off the wire: 9 bytes less a block) when every ellipsoid of the (node, frame) that
-// fits a record near its own centre also fits one there, else the first packed centre in canonical
+// frame's (left off the wire: 9 bytes less a block) when every centre of the (node, frame) is within
+// a record's reach of it (+-327.67 m per axis), else the first packed centre in canonical
 // order (rounded to cm, which a decoded map's centre already is, so the origin survives a decode and
 // re-encode); an ellipsoid beyond reach of the newest 4 blocks of its (node, frame) opens another
 // around its centre. Only ellipsoids no record holds (axes, point count, index) go exactly in their
@@ -134,7 +134,7 @@ void toProto(const Map& map, std::uint64_t epoch, EllipsoidWire wire, WireObject
   for (const MapObject& object : map.objects) {
     for (const Ellipsoid& e : object.ellipsoids) {
       auto [it, fresh] = at_common_origin.emplace(std::make_pair(e.id.node, e.id.frame), true);
-      it->second = it->second && (fitsCompact(e, common_origin) || !fitsCompact(e, compactOriginNear(e.center)));
+      it->second = it->second && compactCentreFits(e.center, common_origin);
     }
   }
   std::vector<PackedBlock> packed;

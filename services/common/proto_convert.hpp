@@ -16,7 +16,7 @@ enum class EllipsoidWire { kCompact, kExact };
 
 // Maps and global maps: every ellipsoid that fits (fitsCompact) travels as a 22-byte compact record
 // in an EllipsoidBlock of its (node, frame), whose origin is the common frame's (left off the wire)
-// when every ellipsoid of the (node, frame) fits a record there, else the block's first centre in
+// when every centre of the (node, frame) lies within a record's reach of it, else the block's first centre in
 // canonical order, rounded to cm; an ellipsoid beyond reach (327.67 m per axis) of the newest 4
 // blocks of its (node, frame) opens another around its centre. An ellipsoid no record holds (a
 // semi-axis of 65.5355 m or more, or below 0.5 mm, more than 65,535 points or a local index above

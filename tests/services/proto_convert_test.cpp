@@ -114,6 +114,11 @@ v1::Map exactSampleProtoMap() { return toProto(sampleMapMessage(Wire::kExact)); 
 // frame of their own); every object is listed, with no exact ellipsoid.
 v1::Map packedSampleProtoMap() { return toProto(sampleMapMessage(Wire::kPacked)); }
 
+// A block's origin as the codec takes it.
+CompactOrigin originOf(const v1::EllipsoidBlock& block) {
+  return {block.origin_x_cm(), block.origin_y_cm(), block.origin_z_cm()};
+}
+
 // The object of each record of a block: its object_step summed.
 std::vector<std::int64_t> recordObjects(const v1::EllipsoidBlock& block) {
   std::vector<std::int64_t> objects;
@@ -723,7 +728,7 @@ TEST(ProtoConvert, BlocksNearTheCommonOriginLeaveTheirOriginOut) {
   m.map = localMap(sensorClusters(rng, 7, m.header.epoch, 10, {25.0, -40.0, 1.0}));
   const v1::Map near = toProto(m);
   ASSERT_EQ(near.blocks_size(), 1);
-  EXPECT_EQ((CompactOrigin{near.blocks(0).origin_x_cm(), near.blocks(0).origin_y_cm(), near.blocks(0).origin_z_cm()}),
+  EXPECT_EQ(originOf(near.blocks(0)),
             (CompactOrigin{0, 0, 0}));
   const auto back = fromProto(near);
   ASSERT_TRUE(back.ok()) << back.error().message;
@@ -740,7 +745,7 @@ TEST(ProtoConvert, BlocksNearTheCommonOriginLeaveTheirOriginOut) {
   const v1::Map far = toProto(m);
   ASSERT_EQ(far.blocks_size(), 1);
   EXPECT_EQ(far.blocks(0).records().size(), 10 * kCompactEllipsoidBytes);
-  EXPECT_EQ((CompactOrigin{far.blocks(0).origin_x_cm(), far.blocks(0).origin_y_cm(), far.blocks(0).origin_z_cm()}),
+  EXPECT_EQ(originOf(far.blocks(0)),
             compactOriginNear(m.map.objects[0].ellipsoids[0].center));
 }
 
@@ -764,7 +769,7 @@ TEST(ProtoConvert, LocalMapTravelsAsOneBlockOfAtMost24BytesAnEllipsoid) {
   EXPECT_EQ(block.object_step_size(), 0);
   EXPECT_EQ(wire.packed_objects(), 0U);
   EXPECT_EQ(block.records().size(), 100 * kCompactEllipsoidBytes);
-  EXPECT_EQ((CompactOrigin{block.origin_x_cm(), block.origin_y_cm(), block.origin_z_cm()}),
+  EXPECT_EQ(originOf(block),
             compactOriginNear(m.map.objects[0].ellipsoids[0].center))
       << "the origin is the first centre";
 
@@ -892,15 +897,15 @@ TEST(ProtoConvert, EllipsoidsThatDoNotFitARecordTravelExactlyInTheirObjects) {
   ASSERT_EQ(wire.blocks_size(), 3);
   EXPECT_EQ(wire.blocks(0).node(), 1U);
   EXPECT_EQ(recordObjects(wire.blocks(0)), (std::vector<std::int64_t>{0, 3}));
-  EXPECT_EQ((CompactOrigin{wire.blocks(0).origin_x_cm(), wire.blocks(0).origin_y_cm(), wire.blocks(0).origin_z_cm()}),
+  EXPECT_EQ(originOf(wire.blocks(0)),
             compactOriginNear(near1.center));
   EXPECT_EQ(wire.blocks(1).node(), 1U);
   EXPECT_EQ(recordObjects(wire.blocks(1)), (std::vector<std::int64_t>{2}));
-  EXPECT_EQ((CompactOrigin{wire.blocks(1).origin_x_cm(), wire.blocks(1).origin_y_cm(), wire.blocks(1).origin_z_cm()}),
+  EXPECT_EQ(originOf(wire.blocks(1)),
             compactOriginNear(far1.center));
   EXPECT_EQ(wire.blocks(2).node(), 2U);
   EXPECT_EQ(recordObjects(wire.blocks(2)), (std::vector<std::int64_t>{2}));
-  EXPECT_EQ((CompactOrigin{wire.blocks(2).origin_x_cm(), wire.blocks(2).origin_y_cm(), wire.blocks(2).origin_z_cm()}),
+  EXPECT_EQ(originOf(wire.blocks(2)),
             compactOriginNear(near2.center))
       << "the origin is the first centre that fits";
 
