@@ -23,10 +23,18 @@ Error namingFile(Error error, const fs::path& file) {
 
 }  // namespace
 
-ScanSource::ScanSource(SensorConfig sensor, ReadLimits limits, std::vector<fs::path> files)
-    : sensor_(std::move(sensor)), limits_(limits), files_(std::move(files)) {}
+ScanSource::ScanSource(SensorConfig sensor, ReadLimits limits, std::size_t kept_bytes, std::vector<fs::path> files)
+    : sensor_(std::move(sensor)),
+      limits_(limits),
+      files_(std::move(files)),
+      kept_budget_bytes_(kept_bytes),
+      kept_(files_.size()) {}
 
 Expected<ScanSource> ScanSource::open(const SensorConfig& sensor, ReadLimits limits) {
+  return open(sensor, limits, kDefaultKeptBytes);
+}
+
+Expected<ScanSource> ScanSource::open(const SensorConfig& sensor, ReadLimits limits, std::size_t kept_bytes) {
   const fs::path& source = sensor.source;
   std::error_code ec;
   const fs::file_status status = fs::status(source, ec);
@@ -52,7 +60,7 @@ Expected<ScanSource> ScanSource::open(const SensorConfig& sensor, ReadLimits lim
     if (!format) return format.error();
     files.push_back(source);
   }
-  return ScanSource(sensor, limits, std::move(files));
+  return ScanSource(sensor, limits, kept_bytes, std::move(files));
 }
 
 std::string ScanSource::describe() const {
@@ -67,7 +75,7 @@ bool ScanSource::done() const {
 Expected<ScanFrame> ScanSource::next() {
   if (done()) return Error{ErrorCode::kInternal, "ScanSource::next called after the source is done"};
 
-  const fs::path file = files_[position_];
+  const std::size_t file = position_;
   ++position_;
   if (position_ == files_.size()) {
     position_ = 0;
@@ -82,24 +90,37 @@ Expected<ScanFrame> ScanSource::at(std::uint64_t n) {
   // Without looping each scan plays once: the source ends after as many reads as files, readable
   // or not (an unreadable file is still its turn in the recording).
   if (!sensor_.loop && ++reads_by_number_ >= files_.size()) exhausted_ = true;
-  return read(files_[static_cast<std::size_t>(n % files_.size())], n);
+  return read(static_cast<std::size_t>(n % files_.size()), n);
 }
 
-Expected<ScanFrame> ScanSource::read(const fs::path& file, std::uint64_t sequence) {
-  Expected<LoadedCloud> loaded = readCloud(file, limits_);
-  if (!loaded) {
-    ++failures_in_a_row_;
-    return namingFile(loaded.error(), file);
+Expected<ScanFrame> ScanSource::read(std::size_t file_index, std::uint64_t sequence) {
+  const fs::path& file = files_[file_index];
+  std::optional<Kept>& kept = kept_[file_index];
+  ScanFrame frame;
+  if (kept) {
+    frame.points = kept->points;
+    frame.dropped_non_finite = kept->dropped_non_finite;
+    frame.trailing_zero_bytes = kept->trailing_zero_bytes;
+  } else {
+    Expected<LoadedCloud> loaded = readCloud(file, limits_);
+    ++file_reads_;
+    if (!loaded) {
+      ++failures_in_a_row_;
+      return namingFile(loaded.error(), file);
+    }
+    frame.points = sensor_.split ? sectorView(loaded->points, *sensor_.split) : std::move(loaded->points);
+    frame.dropped_non_finite = loaded->dropped_non_finite;
+    frame.trailing_zero_bytes = loaded->trailing_zero_bytes;
+    const std::size_t bytes = frame.points.size() * sizeof(Point);
+    if (kept_budget_bytes_ > 0 && bytes <= kept_budget_bytes_ - kept_bytes_) {  // kept_bytes_ <= the budget
+      kept_bytes_ += bytes;
+      kept = Kept{frame.points, frame.dropped_non_finite, frame.trailing_zero_bytes};
+    }
   }
   failures_in_a_row_ = 0;
-
-  ScanFrame frame;
   ++emitted_;
   frame.sequence = sequence;
   frame.file = file;
-  frame.dropped_non_finite = loaded->dropped_non_finite;
-  frame.trailing_zero_bytes = loaded->trailing_zero_bytes;
-  frame.points = sensor_.split ? sectorView(loaded->points, *sensor_.split) : std::move(loaded->points);
   return frame;
 }
 

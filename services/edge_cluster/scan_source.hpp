@@ -2,7 +2,9 @@
 // Replays a sensor's recorded scans (SensorConfig.source): a directory of scans in name order, or
 // one file, optionally looped and limited to a number of frames, cut to a virtual LiDAR's sector
 // when the sensor is split. Files above the size bound are refused unread. Pacing is the caller's:
-// next() and at() return at once.
+// next() and at() return at once. A scan read once is kept (cut to the sector) while the kept
+// scans stay under a memory budget, so a looped recording is parsed once, not at every frame: a
+// recording is replayed as it was when first read, and a file that failed is read again.
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
@@ -49,6 +51,9 @@ class ScanSource : public ScanProvider {
   // unsupported name, or a directory holds no scans. Every read is bounded by `limits` (topology
   // max_scan_bytes): a larger file is an error naming the bound.
   static Expected<ScanSource> open(const SensorConfig& sensor, ReadLimits limits = {});
+  // What the kept scans may take in memory: points x sizeof(Point), per source.
+  static constexpr std::size_t kDefaultKeptBytes = std::size_t{256} << 20;
+  static Expected<ScanSource> open(const SensorConfig& sensor, ReadLimits limits, std::size_t kept_bytes);
 
   // True once `frames` frames were emitted, or after the last scan when not looping (next(): the
   // last file; at(): as many reads as files), or after a whole pass over the scans emitted nothing
@@ -65,12 +70,20 @@ class ScanSource : public ScanProvider {
   Expected<ScanFrame> at(std::uint64_t n) override;
   const std::vector<std::filesystem::path>& files() const { return files_; }
   std::uint64_t emitted() const override { return emitted_; }
+  // Files read from disk so far (a kept scan is not read again).
+  std::uint64_t fileReads() const { return file_reads_; }
   // "N scan(s) from SOURCE".
   std::string describe() const override;
 
  private:
-  ScanSource(SensorConfig sensor, ReadLimits limits, std::vector<std::filesystem::path> files);
-  Expected<ScanFrame> read(const std::filesystem::path& file, std::uint64_t sequence);
+  // A scan as read and cut, to replay without reading it again.
+  struct Kept {
+    Cloud points;
+    std::size_t dropped_non_finite = 0;
+    std::size_t trailing_zero_bytes = 0;
+  };
+  ScanSource(SensorConfig sensor, ReadLimits limits, std::size_t kept_bytes, std::vector<std::filesystem::path> files);
+  Expected<ScanFrame> read(std::size_t file_index, std::uint64_t sequence);
 
   SensorConfig sensor_;
   ReadLimits limits_;
@@ -79,6 +92,10 @@ class ScanSource : public ScanProvider {
   std::uint64_t emitted_ = 0;         // frames emitted so far (= next()'s next sequence number)
   std::uint64_t reads_by_number_ = 0;  // calls of at(), readable or not
   std::size_t failures_in_a_row_ = 0;  // consecutive unreadable files
+  std::size_t kept_budget_bytes_ = kDefaultKeptBytes;
+  std::size_t kept_bytes_ = 0;
+  std::vector<std::optional<Kept>> kept_;  // per file
+  std::uint64_t file_reads_ = 0;
   bool exhausted_ = false;            // passed the last scan without looping
 };
 

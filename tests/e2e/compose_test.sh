@@ -216,10 +216,18 @@ while IFS= read -r expr; do
 done < <(echo "$rules" | jq -r '.data.groups[].rules[] | select(.type == "alerting") | .query')
 phase "star: $checked queries and rules have data"
 
-# At start-up the root publishes its first epochs before every edge has connected: those sensors
-# are missing for a moment (the alert may be pending, never firing).
-wait_for 60 "every sensor in the global map" 'sum(fogmap_sensor_missing) == 0'
-has_data 'ALERTS{alertname="FogmapSensorMissing",alertstate="firing"}' && fail "FogmapSensorMissing fired before any edge was killed"
+# At start-up the root publishes its first epochs before every edge has connected, and on a busy
+# machine an edge may miss a deadline now and then: the alert may be pending or even firing for a
+# while. Before the kill, every sensor is in the global map and no FogmapSensorMissing fires, so
+# that the alert below is the kill's.
+calm_deadline=$(($(date +%s) + 90))
+until has_data 'sum(fogmap_sensor_missing) == 0' &&
+  ! has_data 'ALERTS{alertname="FogmapSensorMissing",alertstate="firing"}'; do
+  if [ "$(date +%s)" -ge $calm_deadline ]; then
+    fail "sensors still missing, or FogmapSensorMissing firing, 90 s into the run, before any edge was killed: $(query 'ALERTS{alertname="FogmapSensorMissing"}' | jq -c '[.data.result[].metric | {sensor, alertstate}]'); samples with the sensor missing over the last 5 minutes: $(query 'sum_over_time(fogmap_sensor_missing[5m])' | jq -c '[.data.result[] | {sensor: .metric.sensor, missing: .value[1]}]')"
+  fi
+  sleep 2
+done
 camera=$(awk '/^  - name:/ {n=$3} /role: detection/ {print n; exit}' "$star")
 [ -n "$camera" ] || fail "$star has no detection node"
 has_data 'ALERTS{alertname="FogmapCameraStale"}' && fail "FogmapCameraStale pending or firing before the camera was killed"

@@ -211,6 +211,34 @@ TEST_F(ScanSourceTest, ASplitSensorReturnsItsSectorInTheSectorFrame) {
   EXPECT_EQ(frame->points.size(), 19U);  // azimuths 90, 95, ..., 180 of [86, 184)
 }
 
+TEST_F(ScanSourceTest, ALoopedRecordingIsReadFromDiskOncePerFileAndReplayedAsFirstRead) {
+  writeKitti("a.bin", 3);
+  writeKitti("b.bin", 5);
+  Expected<ScanSource> source = ScanSource::open(sensor(true, 6));
+  ASSERT_TRUE(source.ok()) << source.error().message;
+  EXPECT_EQ(drain(*source, 2), (std::vector<long>{3, 5}));
+  EXPECT_EQ(source->fileReads(), 2U);
+  // The recording changes on disk: the replay keeps what it read (a recording, not a live feed).
+  writeKitti("a.bin", 7);
+  EXPECT_EQ(drain(*source), (std::vector<long>{3, 5, 3, 5}));
+  EXPECT_EQ(source->fileReads(), 2U);
+  EXPECT_EQ(source->emitted(), 6U);
+}
+
+TEST_F(ScanSourceTest, ScansBeyondTheMemoryBudgetAreReadAgainAndAFailedFileIsNotKept) {
+  writeKitti("a.bin", 3);  // 3 points: 48 bytes, within a budget of 64
+  writeKitti("b.bin", 5);  // 80 bytes: beyond what is left
+  const fs::path bad = writeBytes("c.bin", "12345");  // not a whole number of KITTI records
+  Expected<ScanSource> source = ScanSource::open(sensor(true, 6), ReadLimits{}, 3 * sizeof(Point) + 16);
+  ASSERT_TRUE(source.ok()) << source.error().message;
+  EXPECT_EQ(drain(*source, 3), (std::vector<long>{3, 5, -1}));
+  EXPECT_EQ(source->fileReads(), 3U);
+  // Repaired, the file is read again and replays; the kept scan is not read, the other one is.
+  writeKitti("c.bin", 2);
+  EXPECT_EQ(drain(*source), (std::vector<long>{3, 5, 2, 3}));
+  EXPECT_EQ(source->fileReads(), 5U);
+}
+
 TEST_F(ScanSourceTest, OpeningFailsForAMissingSourceAnEmptyDirectoryOrAnUnknownFormat) {
   SensorConfig missing = sensor(true);
   missing.source = dir_ / "nowhere";
