@@ -1,0 +1,71 @@
+#include "common/geometry/oriented_box.hpp"
+
+#include <cmath>
+#include <numbers>
+
+namespace fogmap {
+
+std::string_view boxAnchorName(BoxAnchor anchor) {
+  switch (anchor) {
+    case BoxAnchor::kNone: return "none";
+    case BoxAnchor::kFrontFace: return "front";
+    case BoxAnchor::kRearFace: return "rear";
+    case BoxAnchor::kLeftFace: return "left";
+    case BoxAnchor::kRightFace: return "right";
+    case BoxAnchor::kFrontLeft: return "front_left";
+    case BoxAnchor::kFrontRight: return "front_right";
+    case BoxAnchor::kRearLeft: return "rear_left";
+    case BoxAnchor::kRearRight: return "rear_right";
+  }
+  return "none";
+}
+
+double foldedYaw(double yaw) {
+  constexpr double pi = std::numbers::pi;
+  double folded = std::remainder(yaw, pi);  // [-pi/2, pi/2]
+  if (folded >= 0.5 * pi) folded -= pi;
+  return folded;
+}
+
+double axisAngleBetween(double yaw_a, double yaw_b) { return std::abs(std::remainder(yaw_a - yaw_b, std::numbers::pi)); }
+
+Eigen::Vector3d OrientedBox::anchorPoint() const {
+  double u = 0.0;  // along length
+  double v = 0.0;  // along width
+  switch (anchor) {
+    case BoxAnchor::kNone: break;
+    case BoxAnchor::kFrontFace: u = 1; break;
+    case BoxAnchor::kRearFace: u = -1; break;
+    case BoxAnchor::kLeftFace: v = 1; break;
+    case BoxAnchor::kRightFace: v = -1; break;
+    case BoxAnchor::kFrontLeft: u = 1; v = 1; break;
+    case BoxAnchor::kFrontRight: u = 1; v = -1; break;
+    case BoxAnchor::kRearLeft: u = -1; v = 1; break;
+    case BoxAnchor::kRearRight: u = -1; v = -1; break;
+  }
+  const double c = std::cos(yaw);
+  const double s = std::sin(yaw);
+  const double a = 0.5 * length * u;
+  const double b = 0.5 * width * v;
+  return centre + Eigen::Vector3d(c * a - s * b, s * a + c * b, 0.0);
+}
+
+BoxAnchor OrientedBox::anchorFor(const Eigen::Vector3d& sensor) const {
+  const double c = std::cos(yaw);
+  const double s = std::sin(yaw);
+  const double dx = sensor.x() - centre.x();
+  const double dy = sensor.y() - centre.y();
+  const double u = c * dx + s * dy;
+  const double v = -s * dx + c * dy;
+  const bool beyond_length = std::abs(u) > 0.5 * length;
+  const bool beyond_width = std::abs(v) > 0.5 * width;
+  if (beyond_length && beyond_width) {
+    if (u > 0) return v > 0 ? BoxAnchor::kFrontLeft : BoxAnchor::kFrontRight;
+    return v > 0 ? BoxAnchor::kRearLeft : BoxAnchor::kRearRight;
+  }
+  if (beyond_length) return u > 0 ? BoxAnchor::kFrontFace : BoxAnchor::kRearFace;
+  if (beyond_width) return v > 0 ? BoxAnchor::kLeftFace : BoxAnchor::kRightFace;
+  return BoxAnchor::kNone;
+}
+
+}  // namespace fogmap
