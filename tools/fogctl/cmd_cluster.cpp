@@ -1,10 +1,15 @@
 // fogctl cluster: the core pipeline on one scan: its clusters, and a label per point.
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "common/io/cloud_io.hpp"
+#include "common/perception/box_fitting.hpp"
 #include "common/perception/clustering.hpp"
 #include "tools/fogctl/args.hpp"
 #include "tools/fogctl/commands.hpp"
@@ -14,9 +19,36 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+// One JSON object per cluster: its id (the label), points, and oriented box fitted in the scan's
+// frame with the sensor at its origin.
+Expected<nlohmann::ordered_json> objectsJson(const Cloud& cloud, const Clustering& clustering) {
+  std::vector<Cloud> clusters(static_cast<std::size_t>(std::max(clustering.cluster_count, 0)));
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    if (clustering.labels[i] >= 0) clusters[static_cast<std::size_t>(clustering.labels[i])].push_back(cloud[i]);
+  }
+  auto objects = nlohmann::ordered_json::array();
+  for (std::size_t id = 0; id < clusters.size(); ++id) {
+    const auto box = fitOrientedBox(clusters[id], Eigen::Vector3d::Zero());
+    if (!box) return box.error();
+    objects.push_back({{"id", id},
+                       {"points", clusters[id].size()},
+                       {"box",
+                        {{"x", box->centre.x()},
+                         {"y", box->centre.y()},
+                         {"z", box->centre.z()},
+                         {"yaw", box->yaw},
+                         {"length", box->length},
+                         {"width", box->width},
+                         {"height", box->height}}},
+                       {"nearest", std::string(boxAnchorName(box->anchor))}});
+  }
+  return objects;
+}
+
 int runCluster(int argc, char** argv) {
   const auto args =
-      Args::parse(argc, argv, 2, {"input", "eps", "min-points", "labels", "method", "threads", "max-scan-bytes"}, {"remove-ground"});
+      Args::parse(argc, argv, 2, {"input", "eps", "min-points", "labels", "objects", "method", "threads", "max-scan-bytes"},
+                  {"remove-ground"});
   if (!args) return fail(args.error());
   const auto params = clusteringParams(*args);
   if (!params) return fail(params.error());
@@ -38,6 +70,14 @@ int runCluster(int argc, char** argv) {
     for (const auto l : clustering.labels) out << l << '\n';
     if (!out) return fail(ioError("writing labels to " + args->get("labels") + " failed"));
   }
+  if (args->has("objects")) {
+    const auto objects = objectsJson(*cloud, clustering);
+    if (!objects) return fail(objects.error());
+    std::ofstream out(args->get("objects"));
+    if (!out) return fail(ioError("cannot write objects to " + args->get("objects")));
+    out << objects->dump(2) << '\n';
+    if (!out) return fail(ioError("writing objects to " + args->get("objects") + " failed"));
+  }
   std::printf("%zu points, %d clusters, %.2f ms (%s)\n", cloud->size(), clustering.cluster_count, ms, method_name.c_str());
   return 0;
 }
@@ -46,14 +86,19 @@ int runCluster(int argc, char** argv) {
 
 Command clusterCommand() {
   return {"cluster",
-          "--input SCAN [--eps 0.35] [--min-points 10] [--labels OUT.txt] [--method fogmap|pcl] [--remove-ground] [--threads N]",
-          "usage: fogctl cluster --input SCAN [--eps 0.35] [--min-points 10] [--labels OUT.txt] [--method fogmap|pcl]\n"
-          "                      [--remove-ground] [--threads N] [--max-scan-bytes N]\n"
+          "--input SCAN [--eps 0.35] [--min-points 10] [--labels OUT.txt] [--objects OUT.json] [--method fogmap|pcl] "
+          "[--remove-ground] [--threads N]",
+          "usage: fogctl cluster --input SCAN [--eps 0.35] [--min-points 10] [--labels OUT.txt] [--objects OUT.json]\n"
+          "                      [--method fogmap|pcl] [--remove-ground] [--threads N] [--max-scan-bytes N]\n"
           "Clusters one scan (KITTI .bin, nuScenes .pcd.bin, PCD) and prints the number of clusters.\n"
           "  --eps M              clustering radius in metres, 0.001 to 100 (default 0.35)\n"
           "  --min-points N       smallest cluster, in points (default 10)\n"
           "  --labels FILE        one label per point of the file, in its order: the cluster, -1 for noise\n"
           "                       (non-finite points are noise); with --remove-ground, per non-ground point\n"
+          "  --objects FILE       a JSON array, one object per cluster: {\"id\", \"points\", \"box\": {\"x\", \"y\", \"z\",\n"
+          "                       \"yaw\", \"length\", \"width\", \"height\"}, \"nearest\"}: the oriented box fitted by L-shape\n"
+          "                       (metres, radians; yaw of the length axis in [-pi/2, pi/2)) in the scan's frame, and\n"
+          "                       the face or corner nearest the sensor (at the frame's origin)\n"
           "  --method fogmap|pcl  fogmap's grid clustering or PCL's, the reference (default fogmap)\n"
           "  --remove-ground      remove the ground before clustering\n"
           "  --threads N          threads for the neighbour search (default: one per core)\n"

@@ -11,6 +11,7 @@
 
 #include <array>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <cstring>
 #include <filesystem>
@@ -29,6 +30,7 @@
 
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "common/certs/certs.hpp"
 #include "common/config/camera_node.hpp"
@@ -364,6 +366,45 @@ TEST(FogctlCluster, LabelsLineUpWithTheInputPointsNonFiniteOnesNoise) {
   text << in.rdbuf();
   EXPECT_EQ(lines(text.str()), (std::vector<std::string>{"0", "0", "-1", "0", "1", "-1", "1", "1", "-1", "-1", "0"}))
       << text.str();
+}
+
+TEST(FogctlCluster, ObjectsAreWrittenWithTheirOrientedBoxes) {
+  ScratchDir dir("objects");
+  // A car's two sides seen from the origin: 4 m along a 30 degree yaw and 1.6 m across it, from the
+  // corner at (10, 5); and a post 20 m away. Points every 0.1 m, 5 rows 0.3 m apart.
+  std::vector<std::array<float, 3>> points;
+  const double c = std::cos(30.0 * M_PI / 180.0), s = std::sin(30.0 * M_PI / 180.0);
+  for (int row = 0; row < 5; ++row) {
+    const auto z = static_cast<float>(-1.2 + 0.3 * row);
+    for (int k = 0; k <= 40; ++k) points.push_back({float(10.0 + 0.1 * k * c), float(5.0 + 0.1 * k * s), z});
+    for (int k = 1; k <= 16; ++k) points.push_back({float(10.0 - 0.1 * k * s), float(5.0 + 0.1 * k * c), z});
+    points.push_back({-20.0F, 0.0F, z});
+    points.push_back({-20.0F, 0.05F, z + 0.3F});
+  }
+  writeKitti(dir.path() / "scan.bin", points);
+  const fs::path objects = dir.path() / "objects.json";
+  const Outcome o = fogctl({"cluster", "--input", (dir.path() / "scan.bin").string(), "--min-points", "5", "--objects",
+                            objects.string()});
+  ASSERT_EQ(o.code, 0) << describe(o);
+  std::ifstream in(objects);
+  const auto json = nlohmann::json::parse(in, nullptr, false);
+  ASSERT_TRUE(json.is_array()) << "not a JSON array";
+  ASSERT_EQ(json.size(), 2U) << json.dump();
+  std::size_t total = 0;
+  for (const auto& object : json) total += object.at("points").get<std::size_t>();
+  EXPECT_EQ(total, points.size());
+  const auto& car = json[0].at("points").get<int>() > 10 ? json[0] : json[1];
+  const auto& box = car.at("box");
+  EXPECT_NEAR(box.at("yaw").get<double>(), 30.0 * M_PI / 180.0, 1.0 * M_PI / 180.0) << car.dump();
+  EXPECT_NEAR(box.at("length").get<double>(), 4.0, 0.05) << car.dump();
+  EXPECT_NEAR(box.at("width").get<double>(), 1.6, 0.05) << car.dump();
+  EXPECT_NEAR(box.at("height").get<double>(), 1.2, 1e-5) << car.dump();
+  // The centre: the corner plus half of each side.
+  EXPECT_NEAR(box.at("x").get<double>(), 10.0 + 2.0 * c - 0.8 * s, 0.05) << car.dump();
+  EXPECT_NEAR(box.at("y").get<double>(), 5.0 + 2.0 * s + 0.8 * c, 0.05) << car.dump();
+  // The origin lies behind the box (13.2 m along -length) and within its width (0.13 m right of
+  // its axis): it sees the rear face.
+  EXPECT_EQ(car.at("nearest").get<std::string>(), "rear") << car.dump();
 }
 
 TEST(FogctlCluster, RefusesAnEpsOutsideTheAcceptedRangeNamingIt) {
