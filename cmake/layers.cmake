@@ -3,7 +3,7 @@
 # include that crosses the map. A folder always uses itself, and otherwise only folders listed before it.
 set(FOGMAP_FOLDERS
   common/base common/geometry common/perception common/io common/camera common/tracking
-  common/config common/scoring common/certs common/sim
+  common/config common/scoring common/certs common/sim common/classify
   protos
   services/common services/edge_cluster services/merge_aggregator services/detection services/tracker
   harness pictures tools/fogctl
@@ -21,8 +21,10 @@ set(FOGMAP_MAY_USE_common/scoring common/base)
 set(FOGMAP_MAY_USE_common/config common/base common/camera common/geometry common/io common/perception common/tracking)
 set(FOGMAP_MAY_USE_common/certs common/base common/config)
 set(FOGMAP_MAY_USE_common/sim common/base common/camera common/config common/geometry common/perception common/tracking)
+# LiDAR-only classification of a cluster's features.
+set(FOGMAP_MAY_USE_common/classify common/base common/geometry common/perception)
 set(FOGMAP_COMMON common/base common/geometry common/perception common/io common/camera common/tracking
-  common/config common/scoring common/certs common/sim)
+  common/config common/scoring common/certs common/sim common/classify)
 
 # The wire (generated from protos/), then the transport layer and the services: a service never
 # uses another service.

@@ -87,19 +87,24 @@ float scoreAt(const Footprint& f, float c, float s, float d0) {
   return total;
 }
 
-// The yaw of highest score among first + k step for k in [0, count).
+// The yaw of highest score among first + k step for k in [0, count). Where consecutive yaws tie
+// (every point within d0 of an edge at each: a straight face scores alike over about
+// +-asin(d0 / length)), the middle of the first tied run.
 double bestYaw(const Footprint& f, double first, double step, int count, float d0) {
-  double best = first;
+  int run_first = 0;
+  int run_last = 0;
   float best_score = -1.0F;
   for (int k = 0; k < count; ++k) {
     const double t = first + k * step;
     const float score = scoreAt(f, static_cast<float>(std::cos(t)), static_cast<float>(std::sin(t)), d0);
     if (score > best_score) {
       best_score = score;
-      best = t;
+      run_first = run_last = k;
+    } else if (score == best_score && run_last == k - 1) {
+      run_last = k;
     }
   }
-  return best;
+  return first + (run_first + (run_last - run_first) / 2) * step;
 }
 
 }  // namespace

@@ -126,6 +126,18 @@ TEST(BoxFitting, OnLShapesTheSearchFindsTheBruteForceBestScore) {
   }
 }
 
+TEST(BoxFitting, AStraightFaceTakesTheMiddleOfTheYawsThatTie) {
+  // A 1 m face along 30 degrees, no noise: every yaw within asin(d0 / 1 m) = 0.57 degrees of it
+  // keeps all points within d0 of an edge and scores the same; the middle of that run is 30.
+  Cloud face;
+  const double c = std::cos(30.0 * kDeg), s = std::sin(30.0 * kDeg);
+  for (int k = 0; k <= 20; ++k) face.push_back({static_cast<float>(8.0 + 0.05 * k * c), static_cast<float>(2.0 + 0.05 * k * s), 0.0F, 0.0F});
+  const auto box = fitOrientedBox(face, std::nullopt);
+  ASSERT_TRUE(box.ok()) << box.error().message;
+  EXPECT_LT(axisAngleBetween(box->yaw, 30.0 * kDeg), 0.13 * kDeg) << box->yaw / kDeg;
+  EXPECT_NEAR(box->length, 1.0, 1e-5);
+}
+
 TEST(BoxFitting, EveryPointLiesInTheBoxWhateverTheCluster) {
   std::mt19937 rng(3);
   std::normal_distribution<double> spread(0.0, 2.0);
