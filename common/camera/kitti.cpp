@@ -144,6 +144,31 @@ std::array<Eigen::Vector3d, 8> boxCorners(const KittiLabel& label) {
   return corners;
 }
 
+VelodyneBox labelBoxInVelodyne(const KittiLabel& label, const KittiCalibration& calibration) {
+  Eigen::Isometry3d rect_to_velodyne = Eigen::Isometry3d::Identity();
+  rect_to_velodyne.linear() = calibration.rectification * calibration.velodyne_to_camera.linear();
+  rect_to_velodyne.translation() = calibration.rectification * calibration.velodyne_to_camera.translation();
+  rect_to_velodyne = rect_to_velodyne.inverse();
+  VelodyneBox box;
+  box.corners = boxCorners(label);
+  for (auto& c : box.corners) c = rect_to_velodyne * c;
+  for (const auto& c : box.corners) box.centre += c / 8.0;
+  // boxCorners: corners 1 -> 2 run along the length, 0 -> 1 across it, 0 -> 4 up.
+  const Eigen::Vector3d along = box.corners[1] - box.corners[2];
+  box.length = label.size_hwl.z();
+  box.width = label.size_hwl.y();
+  box.height = label.size_hwl.x();
+  box.yaw = std::atan2(along.y(), along.x());
+  return box;
+}
+
+bool VelodyneBox::contains(const Eigen::Vector3d& point) const {
+  const double c = std::cos(yaw), s = std::sin(yaw);
+  const double dx = point.x() - centre.x(), dy = point.y() - centre.y();
+  return std::abs(c * dx + s * dy) <= 0.5 * length && std::abs(-s * dx + c * dy) <= 0.5 * width &&
+         std::abs(point.z() - centre.z()) <= 0.5 * height;
+}
+
 std::optional<Eigen::Vector2d> projectPoint(const Eigen::Matrix<double, 3, 4>& projection, const Eigen::Vector3d& point,
                                             double near_m) {
   if (!(point.z() >= near_m)) return std::nullopt;

@@ -56,6 +56,18 @@ Expected<std::vector<KittiLabel>> parseKittiLabels(const std::string& text);
 // The 8 corners of a label's box in the rectified camera frame: bottom face first.
 std::array<Eigen::Vector3d, 8> boxCorners(const KittiLabel& label);
 
+// A label's box in the Velodyne frame (the LiDAR's): the corners of boxCorners taken back from the
+// rectified camera frame (the inverse of R0_rect Tr_velo_to_cam); its centre, its length (along
+// yaw, radians about the LiDAR's z from its x), width and height. KITTI's camera y axis is within
+// a degree of the LiDAR's -z, so the box is taken as upright.
+struct VelodyneBox {
+  std::array<Eigen::Vector3d, 8> corners;
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  double length = 0.0, width = 0.0, height = 0.0, yaw = 0.0;
+  bool contains(const Eigen::Vector3d& point) const;
+};
+VelodyneBox labelBoxInVelodyne(const KittiLabel& label, const KittiCalibration& calibration);
+
 // The pixel of a point (camera frame of `projection`), or nothing when it is not in front (z below
 // `near_m`).
 std::optional<Eigen::Vector2d> projectPoint(const Eigen::Matrix<double, 3, 4>& projection, const Eigen::Vector3d& point,

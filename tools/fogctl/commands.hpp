@@ -27,5 +27,6 @@ Command composeCommand();
 Command topologyCommand();
 Command sceneCommand();
 Command splitCommand();
+Command trainClassifierCommand();
 
 }  // namespace fogmap::cli

@@ -292,30 +292,16 @@ TEST(BoxFitting, LabelledKittiCarsGetTheirCentreAndYaw) {
     const auto clustered = sensorAwareClusters(points, sensor_params);
     ASSERT_TRUE(clustered.ok()) << clustered.error().message;
     const Clustering& clusters = *clustered;
-    // Rectified camera frame -> Velodyne frame.
-    Eigen::Affine3d to_rect = Eigen::Affine3d::Identity();
-    to_rect.linear() = calibration->rectification;
-    const Eigen::Affine3d rect_to_velo = (to_rect * calibration->velodyne_to_camera).inverse();
     for (const auto& label : *labels) {
       if (label.type != "Car") continue;
-      std::array<Eigen::Vector3d, 8> corners = camera::boxCorners(label);
-      for (auto& c : corners) c = rect_to_velo * c;
-      Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-      for (const auto& c : corners) centre += c / 8.0;
-      // The length axis: the longer of the bottom face's first two edges.
-      const Eigen::Vector3d a = corners[1] - corners[0], b = corners[2] - corners[1];
-      const Eigen::Vector3d axis = a.head<2>().norm() >= b.head<2>().norm() ? a : b;
-      const double label_yaw = std::atan2(axis.y(), axis.x());
-      const double half_length = 0.5 * std::max(a.head<2>().norm(), b.head<2>().norm());
-      const double half_width = 0.5 * std::min(a.head<2>().norm(), b.head<2>().norm());
+      const camera::VelodyneBox truth = camera::labelBoxInVelodyne(label, *calibration);
+      const Eigen::Vector3d centre = truth.centre;
+      const double label_yaw = truth.yaw;
       // The points in the label's box, and the cluster holding most of them.
       std::map<std::int32_t, int> votes;
       int inside = 0;
-      const double c = std::cos(label_yaw), s = std::sin(label_yaw);
       for (std::size_t i = 0; i < points.size(); ++i) {
-        const double dx = points[i].x - centre.x(), dy = points[i].y - centre.y();
-        if (std::abs(c * dx + s * dy) <= half_length && std::abs(-s * dx + c * dy) <= half_width &&
-            std::abs(points[i].z - centre.z()) <= 0.5 * label.size_hwl.x()) {
+        if (truth.contains(points[i].xyz().cast<double>())) {
           ++inside;
           ++votes[clusters.labels[i]];
         }

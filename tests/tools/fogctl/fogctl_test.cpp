@@ -407,6 +407,25 @@ TEST(FogctlCluster, ObjectsAreWrittenWithTheirOrientedBoxes) {
   EXPECT_EQ(car.at("nearest").get<std::string>(), "rear") << car.dump();
 }
 
+TEST(FogctlTrainClassifier, TrainsOnSomeSeedsScoresOthersAndWritesAModel) {
+  ScratchDir dir("classifier");
+  const fs::path model = dir.path() / "model.yml.gz";
+  const Outcome o = fogctl({"train-classifier", "--train-seeds", "1-2", "--test-seeds", "5", "--objects", "20", "--lidars", "2",
+                            "--trees", "10", "--out", model.string(), "--kitti", (fs::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_object").string()},
+                           {}, 120s);
+  ASSERT_EQ(o.code, 0) << describe(o);
+  EXPECT_TRUE(contains(o.out, "held-out seeds, confusion matrix")) << describe(o);
+  EXPECT_TRUE(contains(o.out, "accuracy")) << describe(o);
+  EXPECT_TRUE(contains(o.out, "000002 Car")) << describe(o);
+  EXPECT_TRUE(fs::exists(model));
+  const Outcome both = fogctl({"train-classifier", "--train-seeds", "1-3", "--test-seeds", "3,7", "--out", model.string()});
+  EXPECT_EQ(both.code, 2) << describe(both);
+  EXPECT_TRUE(contains(both.err, "seed 3 is in both")) << describe(both);
+  const Outcome bad = fogctl({"train-classifier", "--train-seeds", "x-2"});
+  EXPECT_EQ(bad.code, 2) << describe(bad);
+  EXPECT_TRUE(contains(bad.err, "--train-seeds")) << describe(bad);
+}
+
 TEST(FogctlCluster, RefusesAnEpsOutsideTheAcceptedRangeNamingIt) {
   ScratchDir dir("eps");
   writeKitti(dir.path() / "scan.bin", {{0.0F, 0.0F, 0.0F}, {0.1F, 0.0F, 0.0F}});
