@@ -2,14 +2,18 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "common/classify/object_classifier.hpp"
 #include "common/io/cloud_io.hpp"
 #include "common/perception/box_fitting.hpp"
+#include "common/perception/object_features.hpp"
 #include "common/perception/clustering.hpp"
 #include "tools/fogctl/args.hpp"
 #include "tools/fogctl/commands.hpp"
@@ -19,9 +23,11 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// One JSON object per cluster: its id (the label), points, and oriented box fitted in the scan's
-// frame with the sensor at its origin.
-Expected<nlohmann::ordered_json> objectsJson(const Cloud& cloud, const Clustering& clustering) {
+constexpr const char* kDefaultClassifier = "data/models/lidar_classifier.yml.gz";
+
+// One JSON object per cluster: its id (the label), class and confidence (with a classifier),
+// points, and oriented box fitted in the scan's frame with the sensor at its origin.
+Expected<nlohmann::ordered_json> objectsJson(const Cloud& cloud, const Clustering& clustering, const ObjectClassifier* classifier) {
   std::vector<Cloud> clusters(static_cast<std::size_t>(std::max(clustering.cluster_count, 0)));
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     if (clustering.labels[i] >= 0) clusters[static_cast<std::size_t>(clustering.labels[i])].push_back(cloud[i]);
@@ -30,8 +36,13 @@ Expected<nlohmann::ordered_json> objectsJson(const Cloud& cloud, const Clusterin
   for (std::size_t id = 0; id < clusters.size(); ++id) {
     const auto box = fitOrientedBox(clusters[id], Eigen::Vector3d::Zero());
     if (!box) return box.error();
-    objects.push_back({{"id", id},
-                       {"points", clusters[id].size()},
+    nlohmann::ordered_json object = {{"id", id}};
+    if (classifier != nullptr) {
+      const Classified c = classifier->classify(objectFeatures(clusters[id], *box, Eigen::Vector3d::Zero()));
+      object["class"] = std::string(objectClassName(c.object_class));
+      object["confidence"] = c.confidence;
+    }
+    object.update(nlohmann::ordered_json{{"points", clusters[id].size()},
                        {"box",
                         {{"x", box->centre.x()},
                          {"y", box->centre.y()},
@@ -41,13 +52,15 @@ Expected<nlohmann::ordered_json> objectsJson(const Cloud& cloud, const Clusterin
                          {"width", box->width},
                          {"height", box->height}}},
                        {"nearest", std::string(boxAnchorName(box->anchor))}});
+    objects.push_back(std::move(object));
   }
   return objects;
 }
 
 int runCluster(int argc, char** argv) {
   const auto args =
-      Args::parse(argc, argv, 2, {"input", "eps", "min-points", "labels", "objects", "method", "threads", "max-scan-bytes"},
+      Args::parse(argc, argv, 2,
+                  {"input", "eps", "min-points", "labels", "objects", "classifier", "method", "threads", "max-scan-bytes"},
                   {"remove-ground"});
   if (!args) return fail(args.error());
   const auto params = clusteringParams(*args);
@@ -71,7 +84,16 @@ int runCluster(int argc, char** argv) {
     if (!out) return fail(ioError("writing labels to " + args->get("labels") + " failed"));
   }
   if (args->has("objects")) {
-    const auto objects = objectsJson(*cloud, clustering);
+    // The classifier: --classifier FILE (an error when it does not load), else the bundled model
+    // when it is there, else no classes.
+    std::optional<ObjectClassifier> classifier;
+    const std::string model = args->get("classifier", kDefaultClassifier);
+    if (args->has("classifier") || std::filesystem::exists(model)) {
+      auto loaded = ObjectClassifier::load(model);
+      if (!loaded) return fail(loaded.error());
+      classifier = std::move(*loaded);
+    }
+    const auto objects = objectsJson(*cloud, clustering, classifier ? &*classifier : nullptr);
     if (!objects) return fail(objects.error());
     std::ofstream out(args->get("objects"));
     if (!out) return fail(ioError("cannot write objects to " + args->get("objects")));
@@ -89,16 +111,19 @@ Command clusterCommand() {
           "--input SCAN [--eps 0.35] [--min-points 10] [--labels OUT.txt] [--objects OUT.json] [--method fogmap|pcl] "
           "[--remove-ground] [--threads N]",
           "usage: fogctl cluster --input SCAN [--eps 0.35] [--min-points 10] [--labels OUT.txt] [--objects OUT.json]\n"
-          "                      [--method fogmap|pcl] [--remove-ground] [--threads N] [--max-scan-bytes N]\n"
+          "                      [--classifier FILE] [--method fogmap|pcl] [--remove-ground] [--threads N] [--max-scan-bytes N]\n"
           "Clusters one scan (KITTI .bin, nuScenes .pcd.bin, PCD) and prints the number of clusters.\n"
           "  --eps M              clustering radius in metres, 0.001 to 100 (default 0.35)\n"
           "  --min-points N       smallest cluster, in points (default 10)\n"
           "  --labels FILE        one label per point of the file, in its order: the cluster, -1 for noise\n"
           "                       (non-finite points are noise); with --remove-ground, per non-ground point\n"
-          "  --objects FILE       a JSON array, one object per cluster: {\"id\", \"points\", \"box\": {\"x\", \"y\", \"z\",\n"
-          "                       \"yaw\", \"length\", \"width\", \"height\"}, \"nearest\"}: the oriented box fitted by L-shape\n"
-          "                       (metres, radians; yaw of the length axis in [-pi/2, pi/2)) in the scan's frame, and\n"
-          "                       the face or corner nearest the sensor (at the frame's origin)\n"
+          "  --objects FILE       a JSON array, one object per cluster: {\"id\", \"class\", \"confidence\", \"points\",\n"
+          "                       \"box\": {\"x\", \"y\", \"z\", \"yaw\", \"length\", \"width\", \"height\"}, \"nearest\"}: the\n"
+          "                       LiDAR-only class, the oriented box fitted by L-shape (metres, radians; yaw of the\n"
+          "                       length axis in [-pi/2, pi/2)) in the scan's frame, and the face or corner nearest\n"
+          "                       the sensor (at the frame's origin)\n"
+          "  --classifier FILE    the model for the classes (default " + std::string(kDefaultClassifier) + " when it\n"
+          "                       exists, else no class; fogctl train-classifier makes it)\n"
           "  --method fogmap|pcl  fogmap's grid clustering or PCL's, the reference (default fogmap)\n"
           "  --remove-ground      remove the ground before clustering\n"
           "  --threads N          threads for the neighbour search (default: one per core)\n"

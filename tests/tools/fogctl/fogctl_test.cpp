@@ -33,6 +33,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/certs/certs.hpp"
+#include "common/classify/object_classifier.hpp"
 #include "common/config/camera_node.hpp"
 #include "common/sim/generators.hpp"
 #include "common/sim/scene.hpp"
@@ -383,8 +384,9 @@ TEST(FogctlCluster, ObjectsAreWrittenWithTheirOrientedBoxes) {
   }
   writeKitti(dir.path() / "scan.bin", points);
   const fs::path objects = dir.path() / "objects.json";
+  const fs::path model = fs::path(FOGMAP_SOURCE_DIR) / "data" / "models" / "lidar_classifier.yml.gz";
   const Outcome o = fogctl({"cluster", "--input", (dir.path() / "scan.bin").string(), "--min-points", "5", "--objects",
-                            objects.string()});
+                            objects.string(), "--classifier", model.string()});
   ASSERT_EQ(o.code, 0) << describe(o);
   std::ifstream in(objects);
   const auto json = nlohmann::json::parse(in, nullptr, false);
@@ -405,6 +407,15 @@ TEST(FogctlCluster, ObjectsAreWrittenWithTheirOrientedBoxes) {
   // The origin lies behind the box (13.2 m along -length) and within its width (0.13 m right of
   // its axis): it sees the rear face.
   EXPECT_EQ(car.at("nearest").get<std::string>(), "rear") << car.dump();
+  for (const auto& object : json) {
+    EXPECT_TRUE(parseObjectClass(object.at("class").get<std::string>()).has_value()) << object.dump();
+    EXPECT_GE(object.at("confidence").get<double>(), 0.0);
+    EXPECT_LE(object.at("confidence").get<double>(), 1.0);
+  }
+  const Outcome missing = fogctl({"cluster", "--input", (dir.path() / "scan.bin").string(), "--objects", objects.string(),
+                                  "--classifier", (dir.path() / "none.yml").string()});
+  EXPECT_EQ(missing.code, 1) << describe(missing);
+  EXPECT_TRUE(contains(missing.err, "none.yml")) << describe(missing);
 }
 
 TEST(FogctlTrainClassifier, TrainsOnSomeSeedsScoresOthersAndWritesAModel) {
