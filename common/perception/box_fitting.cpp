@@ -4,9 +4,10 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
-#include <sstream>
 #include <string>
 #include <vector>
+
+#include "common/base/text.hpp"
 
 namespace fogmap {
 namespace {
@@ -14,12 +15,6 @@ namespace {
 constexpr double kDegToRad = std::numbers::pi / 180.0;
 // Lanes of the score's loops: independent accumulators the compiler maps onto vector registers.
 constexpr std::size_t kLanes = 8;
-
-std::string str(double value) {
-  std::ostringstream out;
-  out << value;
-  return out.str();
-}
 
 // The points' (x, y) relative to their mean, in float: the search's input.
 struct Footprint {
@@ -111,13 +106,13 @@ double bestYaw(const Footprint& f, double first, double step, int count, float d
 
 Status validateBoxFitParams(const BoxFitParams& params) {
   if (!std::isfinite(params.coarse_step_deg) || !(params.coarse_step_deg > 0.0) || params.coarse_step_deg > 90.0) {
-    return invalidArgument("box fit coarse_step_deg must be in (0, 90], got " + str(params.coarse_step_deg));
+    return invalidArgument("box fit coarse_step_deg must be in (0, 90], got " + readableNumber(params.coarse_step_deg));
   }
   if (!std::isfinite(params.fine_step_deg) || !(params.fine_step_deg > 0.0) || params.fine_step_deg > params.coarse_step_deg) {
-    return invalidArgument("box fit fine_step_deg must be positive and at most coarse_step_deg, got " + str(params.fine_step_deg));
+    return invalidArgument("box fit fine_step_deg must be positive and at most coarse_step_deg, got " + readableNumber(params.fine_step_deg));
   }
   if (!std::isfinite(params.min_distance_m) || !(params.min_distance_m > 0.0)) {
-    return invalidArgument("box fit min_distance_m must be positive and finite, got " + str(params.min_distance_m));
+    return invalidArgument("box fit min_distance_m must be positive and finite, got " + readableNumber(params.min_distance_m));
   }
   return {};
 }

@@ -6,7 +6,6 @@
 #include <cstdint>
 #include <limits>
 #include <numbers>
-#include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
@@ -18,15 +17,10 @@
 #include <pcl/sample_consensus/ransac.h>
 #include <pcl/sample_consensus/sac_model_perpendicular_plane.h>
 
+#include "common/base/text.hpp"
+
 namespace fogmap {
 namespace {
-
-// Shortest readable form for error messages ("0.001", "15"), unlike std::to_string's "%f".
-std::string str(double value) {
-  std::ostringstream out;
-  out << value;
-  return out.str();
-}
 
 // PCL reports problems on stderr; every problem we care about is returned as an Error instead.
 void silencePcl() { pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS); }
@@ -179,8 +173,8 @@ Expected<GroundGrid> localGround(std::span<const Point> points, std::span<const 
   const double cells_y = std::floor((hi_y + reach_m - grid.min_y) * grid.inverse_cell) + 1.0;
   constexpr double kMaxCells = 16777216.0;  // 2^24: 64 MiB of heights
   if (!(cells_x * cells_y <= kMaxCells)) {
-    return invalidArgument("ground cell " + str(params.cell_m) + " m is too small for ground spanning " +
-                           str(hi_x - lo_x) + " x " + str(hi_y - lo_y) + " m: the grid would exceed 2^24 cells");
+    return invalidArgument("ground cell " + readableNumber(params.cell_m) + " m is too small for ground spanning " +
+                           readableNumber(hi_x - lo_x) + " x " + readableNumber(hi_y - lo_y) + " m: the grid would exceed 2^24 cells");
   }
   grid.nx = static_cast<std::int64_t>(cells_x);
   grid.ny = static_cast<std::int64_t>(cells_y);
@@ -254,7 +248,7 @@ Expected<Cloud> voxelDownsample(std::span<const Point> points, double leaf_m) {
   const float leaf = static_cast<float>(leaf_m);  // PCL works in float
   if (!std::isfinite(leaf) || !(leaf > 0.0F)) {
     return invalidArgument("voxel leaf size must be a positive, finite number of metres (as float), got " +
-                           str(leaf_m));
+                           readableNumber(leaf_m));
   }
 
   Eigen::Array3f lo = Eigen::Array3f::Constant(std::numeric_limits<float>::max());
@@ -275,10 +269,10 @@ Expected<Cloud> voxelDownsample(std::span<const Point> points, double leaf_m) {
   if (cloud->empty()) return Cloud{};
   if (voxelIndicesOverflow(lo, hi, leaf)) {
     const Eigen::Array3f extent = hi - lo;
-    return invalidArgument("voxel leaf " + str(leaf_m) + " m is too small for a cloud spanning " + str(extent.x()) +
-                           " x " + str(extent.y()) + " x " + str(extent.z()) + " m between (" + str(lo.x()) + ", " +
-                           str(lo.y()) + ", " + str(lo.z()) + ") and (" + str(hi.x()) + ", " + str(hi.y()) + ", " +
-                           str(hi.z()) + "): PCL's 32-bit voxel indices would overflow");
+    return invalidArgument("voxel leaf " + readableNumber(leaf_m) + " m is too small for a cloud spanning " + readableNumber(extent.x()) +
+                           " x " + readableNumber(extent.y()) + " x " + readableNumber(extent.z()) + " m between (" + readableNumber(lo.x()) + ", " +
+                           readableNumber(lo.y()) + ", " + readableNumber(lo.z()) + ") and (" + readableNumber(hi.x()) + ", " + readableNumber(hi.y()) + ", " +
+                           readableNumber(hi.z()) + "): PCL's 32-bit voxel indices would overflow");
   }
 
   silencePcl();
@@ -297,17 +291,17 @@ Expected<Cloud> voxelDownsample(std::span<const Point> points, double leaf_m) {
 Expected<GroundRemoval> removeGround(std::span<const Point> points, const GroundParams& params) {
   if (!std::isfinite(params.distance_threshold_m) || !(params.distance_threshold_m > 0.0)) {
     return invalidArgument("ground distance threshold must be positive and finite, got " +
-                           str(params.distance_threshold_m) + " m");
+                           readableNumber(params.distance_threshold_m) + " m");
   }
   // PCL treats an angle of 0 as "no constraint", so it is rejected rather than silently ignored.
   if (!(params.max_tilt_deg > 0.0 && params.max_tilt_deg < 90.0)) {
-    return invalidArgument("ground max tilt must be in (0, 90) degrees, got " + str(params.max_tilt_deg));
+    return invalidArgument("ground max tilt must be in (0, 90) degrees, got " + readableNumber(params.max_tilt_deg));
   }
   if (params.max_iterations <= 0) {
     return invalidArgument("ground RANSAC iterations must be positive, got " + std::to_string(params.max_iterations));
   }
   if (!std::isfinite(params.cell_m) || !(params.cell_m > 0.0)) {
-    return invalidArgument("ground cell size must be positive and finite, got " + str(params.cell_m) + " m");
+    return invalidArgument("ground cell size must be positive and finite, got " + readableNumber(params.cell_m) + " m");
   }
   if (params.neighbourhood_cells < 0) {
     return invalidArgument("ground neighbourhood must be at least 0 cells, got " +
@@ -316,7 +310,7 @@ Expected<GroundRemoval> removeGround(std::span<const Point> points, const Ground
   if (!std::isfinite(params.max_below_prior_m) || !(params.max_below_prior_m >= 0.0) ||
       !std::isfinite(params.max_above_prior_m) || !(params.max_above_prior_m >= 0.0)) {
     return invalidArgument("ground band around the prior plane must be non-negative and finite, got " +
-                           str(params.max_below_prior_m) + " m below and " + str(params.max_above_prior_m) +
+                           readableNumber(params.max_below_prior_m) + " m below and " + readableNumber(params.max_above_prior_m) +
                            " m above");
   }
 

@@ -8,10 +8,10 @@
 #include <limits>
 #include <memory>
 #include <numbers>
-#include <sstream>
 #include <string>
 #include <utility>
 
+#include "common/base/text.hpp"
 #include "common/geometry/map.hpp"
 
 namespace fogmap {
@@ -38,13 +38,6 @@ constexpr double kEdgeTolerance = 1e-12;
 // and std::cos every kEdgeRestart edges, by rotation by one step in between.
 constexpr int kMaxEdgeTable = 65536;
 constexpr int kEdgeRestart = 64;
-
-// Shortest readable form for error messages ("0.2", "1e-07"), unlike std::to_string's "%f".
-std::string str(double value) {
-  std::ostringstream out;
-  out << value;
-  return out.str();
-}
 
 double azimuthBinCount(double step_deg) { return std::ceil(360.0 / step_deg - 1e-9); }
 
@@ -151,7 +144,7 @@ void linkAdjacentRings(const RangeImage& image, int r, std::span<const Point> po
 Status validateSensorClusteringParams(const SensorClusteringParams& params) {
   const double eps = params.clustering.eps_m;
   if (!std::isfinite(eps) || !(eps > 0.0)) {
-    return invalidArgument("clustering.eps_m must be positive and finite, got " + str(eps));
+    return invalidArgument("clustering.eps_m must be positive and finite, got " + readableNumber(eps));
   }
   const auto& elevations = params.links.beams.elevations_deg;
   if (elevations.size() < 2) {
@@ -161,7 +154,7 @@ Status validateSensorClusteringParams(const SensorClusteringParams& params) {
     const double e = elevations[k];
     if (!std::isfinite(e) || e < -90.0 || e > 90.0) {
       return invalidArgument("beams.elevations_deg[" + std::to_string(k) + "] must be finite and within [-90, 90] degrees, got " +
-                             str(e));
+                             readableNumber(e));
     }
   }
   // Distinct in radians, as the rings are told apart (two degree values one ulp apart may not be).
@@ -169,20 +162,20 @@ Status validateSensorClusteringParams(const SensorClusteringParams& params) {
   std::transform(elevations.begin(), elevations.end(), sorted_rad.begin(), [](double e) { return e * kDegToRad; });
   std::sort(sorted_rad.begin(), sorted_rad.end());
   if (const auto dup = std::adjacent_find(sorted_rad.begin(), sorted_rad.end()); dup != sorted_rad.end()) {
-    return invalidArgument("beams.elevations_deg holds the elevation " + str(*dup / kDegToRad) +
+    return invalidArgument("beams.elevations_deg holds the elevation " + readableNumber(*dup / kDegToRad) +
                            " degrees twice: every ring needs its own");
   }
   const double step = params.links.beams.azimuth_step_deg;
   if (!std::isfinite(step) || !(step > 0.0)) {
-    return invalidArgument("beams.azimuth_step_deg must be positive and finite, got " + str(step));
+    return invalidArgument("beams.azimuth_step_deg must be positive and finite, got " + readableNumber(step));
   }
   const double bins = azimuthBinCount(step);
   if (bins > kMaxBins || bins * static_cast<double>(elevations.size()) > kMaxCells) {
-    return invalidArgument("beams.azimuth_step_deg " + str(step) + " is too small: " + str(bins) + " azimuth bins x " +
+    return invalidArgument("beams.azimuth_step_deg " + readableNumber(step) + " is too small: " + readableNumber(bins) + " azimuth bins x " +
                            std::to_string(elevations.size()) + " rings exceed the range image's 2^24 bins per ring or 2^32 cells");
   }
   if (!std::isfinite(params.links.ring_gap_slack) || params.links.ring_gap_slack < 1.0) {
-    return invalidArgument("ring_gap_slack must be at least 1 and finite, got " + str(params.links.ring_gap_slack));
+    return invalidArgument("ring_gap_slack must be at least 1 and finite, got " + readableNumber(params.links.ring_gap_slack));
   }
   if (params.links.azimuth_window < 0) {
     return invalidArgument("azimuth_window must be at least 0, got " + std::to_string(params.links.azimuth_window));

@@ -4,11 +4,12 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
+
+#include "tests/support/scratch_dir.hpp"
 
 namespace fogmap {
 namespace {
@@ -42,16 +43,6 @@ std::vector<LabelledFeatures> samples(int per_class, std::uint32_t seed) {
   return out;
 }
 
-struct ScratchFile {
-  fs::path path;
-  explicit ScratchFile(const std::string& name)
-      : path(fs::temp_directory_path() / ("fogmap_classifier_" + name + "_" + std::to_string(std::random_device{}()) + ".yml")) {}
-  ~ScratchFile() {
-    std::error_code ignored;
-    fs::remove(path, ignored);
-  }
-};
-
 TEST(ObjectClassifier, LearnsSeparableClassesAndClassifiesHeldOutSamples) {
   const auto train = samples(60, 1);
   const auto test = samples(50, 2);
@@ -79,9 +70,10 @@ TEST(ObjectClassifier, ASavedModelLoadsAndClassifiesAlikeAndTrainingRepeats) {
   const auto first = ObjectClassifier::train(train, ForestParams{30, 8, 2, 7});
   const auto second = ObjectClassifier::train(train, ForestParams{30, 8, 2, 7});
   ASSERT_TRUE(first.ok() && second.ok());
-  ScratchFile file("roundtrip");
-  ASSERT_TRUE(first->save(file.path).ok());
-  const auto loaded = ObjectClassifier::load(file.path);
+  const test_support::ScratchDir dir("classifier-roundtrip");
+  const fs::path file = dir.path() / "model.yml";
+  ASSERT_TRUE(first->save(file).ok());
+  const auto loaded = ObjectClassifier::load(file);
   ASSERT_TRUE(loaded.ok()) << loaded.error().message;
   for (const auto& s : samples(20, 6)) {
     const Classified a = first->classify(s.features);
@@ -100,31 +92,30 @@ TEST(ObjectClassifier, AMissingCorruptOrForeignModelIsRefusedNamingTheFile) {
   ASSERT_FALSE(none.ok());
   EXPECT_NE(none.error().message.find(missing.string()), std::string::npos) << none.error().message;
 
-  ScratchFile garbage("garbage");
-  std::ofstream(garbage.path) << "%YAML:1.0\n---\nthis: [is, not\n";
-  const auto corrupt = ObjectClassifier::load(garbage.path);
+  const test_support::ScratchDir dir("classifier-refused");
+  const fs::path garbage = dir.path() / "garbage.yml";
+  std::ofstream(garbage) << "%YAML:1.0\n---\nthis: [is, not\n";
+  const auto corrupt = ObjectClassifier::load(garbage);
   ASSERT_FALSE(corrupt.ok());
-  EXPECT_NE(corrupt.error().message.find(garbage.path.string()), std::string::npos) << corrupt.error().message;
+  EXPECT_NE(corrupt.error().message.find(garbage.string()), std::string::npos) << corrupt.error().message;
 
-  ScratchFile other("other");
-  std::ofstream(other.path) << "%YAML:1.0\n---\nsomething: 1\n";
-  const auto foreign = ObjectClassifier::load(other.path);
+  const fs::path other = dir.path() / "other.yml";
+  std::ofstream(other) << "%YAML:1.0\n---\nsomething: 1\n";
+  const auto foreign = ObjectClassifier::load(other);
   ASSERT_FALSE(foreign.ok());
   EXPECT_NE(foreign.error().message.find("not a fogmap classifier"), std::string::npos) << foreign.error().message;
 
   // A model trained on other features: its feature list differs from this build's.
   const auto classifier = ObjectClassifier::train(samples(10, 8), ForestParams{5, 4, 2, 1});
   ASSERT_TRUE(classifier.ok());
-  ScratchFile renamed("renamed");
-  ASSERT_TRUE(classifier->save(renamed.path).ok());
-  std::stringstream text;
-  text << std::ifstream(renamed.path).rdbuf();
-  std::string yaml = text.str();
+  const fs::path renamed = dir.path() / "renamed.yml";
+  ASSERT_TRUE(classifier->save(renamed).ok());
+  std::string yaml = test_support::readFile(renamed);
   const auto at = yaml.find("log_points");
   ASSERT_NE(at, std::string::npos);
   yaml.replace(at, 10, "point_count");
-  std::ofstream(renamed.path) << yaml;
-  const auto stale = ObjectClassifier::load(renamed.path);
+  std::ofstream(renamed) << yaml;
+  const auto stale = ObjectClassifier::load(renamed);
   ASSERT_FALSE(stale.ok());
   EXPECT_NE(stale.error().message.find("point_count"), std::string::npos) << stale.error().message;
   EXPECT_NE(stale.error().message.find("log_points"), std::string::npos) << stale.error().message;

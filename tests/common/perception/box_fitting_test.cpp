@@ -3,12 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <map>
 #include <numbers>
 #include <random>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -19,6 +17,7 @@
 #include "common/perception/clustering.hpp"
 #include "common/perception/lidar_models.hpp"
 #include "common/perception/sensor_clustering.hpp"
+#include "tests/support/scratch_dir.hpp"
 #include "common/perception/preprocess.hpp"
 
 namespace fogmap {
@@ -263,13 +262,6 @@ TEST(BoxFitting, RefusesNoFinitePointAndBadParametersNamingTheField) {
 // and 17 points in both clustering modes (its rear shows a gap wider than eps), and the box of the
 // larger, grown to the car prior, has its centre 0.53 m from the label's and its yaw 4.8 degrees
 // off. Checked: the yaw within 15 degrees, and the centre within 1 m until the car is one object.
-std::string readText(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
 TEST(BoxFitting, LabelledKittiCarsGetTheirCentreAndYaw) {
   int checked = 0;
   for (const std::string id : {"000001", "000002"}) {
@@ -277,9 +269,9 @@ TEST(BoxFitting, LabelledKittiCarsGetTheirCentreAndYaw) {
     const fs::path data = kSourceDir / "data/kitti_object";
     const auto scan = readKittiBin(data / "velodyne" / (id + ".bin"));
     ASSERT_TRUE(scan.ok()) << scan.error().message;
-    const auto calibration = camera::parseKittiCalibration(readText(data / "calib" / (id + ".txt")));
+    const auto calibration = camera::parseKittiCalibration(test_support::readFile(data / "calib" / (id + ".txt")));
     ASSERT_TRUE(calibration.ok()) << calibration.error().message;
-    const auto labels = camera::parseKittiLabels(readText(data / "label_2" / (id + ".txt")));
+    const auto labels = camera::parseKittiLabels(test_support::readFile(data / "label_2" / (id + ".txt")));
     ASSERT_TRUE(labels.ok()) << labels.error().message;
     const auto ground = removeGround(scan->points, GroundParams{});
     ASSERT_TRUE(ground.ok()) << ground.error().message;
