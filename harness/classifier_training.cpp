@@ -70,9 +70,7 @@ Expected<SampleSet> simulatedSamples(std::span<const std::uint64_t> seeds, const
       for (std::size_t i = 0; i < points.size(); ++i) {
         const auto label = clustering->labels[i];
         if (label < 0) continue;
-        Point p = points[i];
-        p.intensity = 0.0F;  // the simulator's intensity is the ring index
-        clusters[static_cast<std::size_t>(label)].push_back(p);
+        clusters[static_cast<std::size_t>(label)].push_back(points[i]);
         ++votes[static_cast<std::size_t>(label)][truth[i]];
       }
       const Eigen::Vector3d sensor = Eigen::Vector3d::Zero();

@@ -37,9 +37,9 @@ struct SampleSet {
   std::size_t unlabelled = 0;   // clusters without a majority object (ground left over, merged objects)
 };
 
-// The samples of the scenes of `seeds`, one frame per LiDAR. The simulator's intensity is the
-// ring index, not a reflectance: the intensity features are set to 0, so a forest trained on them
-// never splits on intensity. Errors when a scene cannot be built or cast.
+// The samples of the scenes of `seeds`, one frame per LiDAR. The simulator models no reflectance
+// (intensity 0), so a forest trained on them alone never splits on intensity. Errors when a scene
+// cannot be built or cast.
 Expected<SampleSet> simulatedSamples(std::span<const std::uint64_t> seeds, const SimSampleOptions& options = {});
 
 // The class of a KITTI label type: Car; Van, Truck: truck_or_bus; Pedestrian, Person_sitting:

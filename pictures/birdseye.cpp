@@ -4,11 +4,13 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 
 #include <Eigen/Eigenvalues>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "common/geometry/object_shape.hpp"
 #include "pictures/drawing.hpp"
 
 namespace fogmap::pictures {
@@ -185,6 +187,8 @@ struct Counts {
   std::size_t tracks_lost = 0;
   std::size_t tracks_unlabelled = 0;  // in view, but every place for its label was taken
   std::size_t missed_in_view = 0;
+  // Objects with an oriented box, by their class (the last: boxes without a class).
+  std::array<std::size_t, kObjectClassCount + 1> boxes{};
 };
 
 // The map itself, into `plot` (a view of the picture clipped to the map's square).
@@ -255,6 +259,17 @@ Counts drawMap(cv::Mat& plot, const Projection& proj, const BirdseyeScene& scene
   const int outline_px = std::max(1, static_cast<int>(std::lround(2.0 * unit)));
   for (std::size_t o = 0; o < ellipses.size(); ++o) {
     if (!ellipses[o].empty()) cv::polylines(plot, ellipses[o], true, bgr(colours[o]), outline_px, cv::LINE_AA, kShift);
+  }
+  // Oriented boxes over the ellipses, in their class's colour.
+  for (const MapObject& object : scene.objects) {
+    const auto box = objectBox(object);
+    if (!box || !box->centre.allFinite()) continue;
+    const auto label = objectLabel(object);
+    ++counts.boxes[label ? static_cast<std::size_t>(label->object_class) : kObjectClassCount];
+    const auto corners = box->footprint();
+    const std::vector<Eigen::Vector2d> polygon(corners.begin(), corners.end());
+    cv::polylines(plot, fixedPolygon(local, polygon), true, bgr(birdseyeClassColour(label ? std::optional(label->object_class) : std::nullopt)),
+                  outline_px, cv::LINE_AA, kShift);
   }
   // Missed true objects over the objects and the truth, under the tracks.
   if (scene.missed) {
@@ -474,6 +489,32 @@ void drawLegend(cv::Mat& image, const BirdseyeScene& scene, const BirdseyeLayout
                   cv::LINE_AA, kShift);
     }
   });
+  std::size_t boxes = 0;
+  std::string boxes_detail;
+  for (std::size_t k = 0; k <= kObjectClassCount; ++k) {
+    if (counts.boxes[k] == 0) continue;
+    boxes += counts.boxes[k];
+    boxes_detail += (boxes_detail.empty() ? "" : ", ") +
+                    (k < kObjectClassCount ? std::string(objectClassName(static_cast<ObjectClass>(k))) : std::string("no class")) +
+                    " " + withThousands(counts.boxes[k]);
+  }
+  if (boxes > 0) {
+    entry("oriented box of an object, in its LiDAR class's colour", boxes_detail, [&](const cv::Rect& r) {
+      const Eigen::Vector2d c = centreOf(r);
+      const std::array<std::optional<ObjectClass>, 3> shown = {ObjectClass::kCar, ObjectClass::kPerson, ObjectClass::kTruckOrBus};
+      for (int i = 0; i < 3; ++i) {
+        OrientedBox b;
+        b.centre = Eigen::Vector3d(c.x() + (i - 1) * r.width / 3.2, c.y(), 0.0);
+        b.length = r.height * 0.8;
+        b.width = r.width / 5.0;
+        b.yaw = 0.5 * (i - 1) + 1.2;
+        std::vector<cv::Point> poly;
+        for (const Eigen::Vector2d& corner : b.footprint()) poly.push_back(fixedPoint(corner));
+        cv::polylines(image, poly, true, bgr(birdseyeClassColour(shown[static_cast<std::size_t>(i)])),
+                      std::max(1, static_cast<int>(std::lround(2 * unit))), cv::LINE_AA, kShift);
+      }
+    });
+  }
   if (!scene.truth.empty()) {
     entry("true object outlines", plural(scene.truth.size(), "object") + " (simulated truth)", [&](const cv::Rect& r) {
       const Eigen::Vector2d c = centreOf(r);
@@ -590,6 +631,11 @@ BirdseyeLayout birdseyeLayout(const BirdseyeScene& scene, int size_px) {
   l.height_px = l.plot_top_px + size_px + px(62);
   l.grid_m = std::isfinite(scene.half_extent_m) && scene.half_extent_m > 0.0 ? gridSpacing(scene.half_extent_m) : 1.0;
   return l;
+}
+
+Rgb birdseyeClassColour(std::optional<ObjectClass> object_class) {
+  if (!object_class || static_cast<std::size_t>(*object_class) >= kObjectClassCount) return kBirdseyeUnclassifiedColour;
+  return kBirdseyeClassPalette[static_cast<std::size_t>(*object_class)];
 }
 
 std::vector<Rgb> birdseyeObjectColours(std::span<const MapObject> objects) {

@@ -1,8 +1,9 @@
 #pragma once
 // Bird's-eye pictures of a global map a person can read: LiDAR points, every global object's
-// ellipsoids as ellipses in the object's colour, sensors with their range, true object outlines
-// when known, the true objects that were missed when scored, tracks with their ids, labels and
-// trails when given, a metre grid, a scale bar, a legend and a title. A pure drawing unit: no sockets.
+// ellipsoids as ellipses in the object's colour and its oriented box (when the edges fit boxes) in
+// its class's colour, sensors with their range, true object outlines when known, the true objects
+// that were missed when scored, tracks with their ids, labels and trails when given, a metre grid, a
+// scale bar, a legend and a title. A pure drawing unit: no sockets.
 //
 // The picture: a title band on top, then the square map (x right, y up, in the common frame) with
 // its grid labelled in metres on the left and bottom edges, and the legend in a panel on its right,
@@ -80,6 +81,13 @@ inline constexpr Rgb kBirdseyeTruthColour{70, 70, 70};
 inline constexpr Rgb kBirdseyeMissedColour{255, 0, 0};
 inline constexpr Rgb kBirdseyePalette[] = {{31, 119, 180}, {255, 127, 14}, {44, 160, 44},  {214, 39, 40}, {148, 103, 189},
                                            {140, 86, 75},  {227, 119, 194}, {188, 189, 34}, {23, 190, 207}};
+
+// Oriented boxes (objectBox) are outlined in their object's class colour (objectLabel), indexed by
+// ObjectClass: other, person, car, truck or bus, cyclist, pole; without a class in black.
+inline constexpr Rgb kBirdseyeClassPalette[] = {{110, 110, 110}, {220, 20, 60}, {0, 70, 200},
+                                                {0, 130, 130},   {230, 140, 0}, {120, 60, 160}};
+inline constexpr Rgb kBirdseyeUnclassifiedColour{0, 0, 0};
+Rgb birdseyeClassColour(std::optional<ObjectClass> object_class);
 
 // Tracks are drawn in these colours, darker than the objects' so that a track stands out on its object.
 inline constexpr Rgb kBirdseyeTrackPalette[] = {{190, 0, 120}, {0, 105, 60}, {170, 70, 0}, {60, 40, 190}, {0, 110, 140}, {120, 30, 30}};

@@ -15,24 +15,9 @@ namespace fogmap {
 namespace {
 
 constexpr int kFormat = 1;
-constexpr std::array<std::string_view, kObjectClassCount> kClassNames = {"other",        "person",  "car",
-                                                                          "truck_or_bus", "cyclist", "pole"};
-
 float finiteOr0(float value) { return std::isfinite(value) ? value : 0.0F; }
 
 }  // namespace
-
-std::string_view objectClassName(ObjectClass object_class) {
-  const auto index = static_cast<std::size_t>(object_class);
-  return index < kClassNames.size() ? kClassNames[index] : "other";
-}
-
-std::optional<ObjectClass> parseObjectClass(std::string_view name) {
-  for (std::size_t k = 0; k < kClassNames.size(); ++k) {
-    if (kClassNames[k] == name) return static_cast<ObjectClass>(k);
-  }
-  return std::nullopt;
-}
 
 void ConfusionMatrix::add(ObjectClass truth, ObjectClass predicted) {
   ++counts[static_cast<std::size_t>(truth)][static_cast<std::size_t>(predicted)];
@@ -116,7 +101,7 @@ Status ObjectClassifier::save(const std::filesystem::path& file) const {
     for (std::size_t k = 0; k < kFeatureCount; ++k) out << std::string(featureName(static_cast<Feature>(k)));
     out << "]";
     out << "classes" << "[";
-    for (const auto name : kClassNames) out << std::string(name);
+    for (std::size_t k = 0; k < kObjectClassCount; ++k) out << std::string(objectClassName(static_cast<ObjectClass>(k)));
     out << "]";
     out << "model" << "{";
     model_->forest->write(out);
@@ -158,13 +143,13 @@ Expected<ObjectClassifier> ObjectClassifier::load(const std::filesystem::path& f
   return ObjectClassifier(std::move(model));
 }
 
-Classified ObjectClassifier::classify(const FeatureVector& features) const {
+ObjectLabel ObjectClassifier::classify(const FeatureVector& features) const {
   cv::Mat sample(1, static_cast<int>(kFeatureCount), CV_32F);
   for (std::size_t k = 0; k < kFeatureCount; ++k) sample.at<float>(0, static_cast<int>(k)) = finiteOr0(features[k]);
   cv::Mat votes;
   model_->forest->getVotes(sample, votes, 0);
   // Row 0: the class labels; row 1: this sample's votes for each.
-  Classified out;
+  ObjectLabel out;
   int best = -1;
   int total = 0;
   for (int c = 0; c < votes.cols; ++c) {

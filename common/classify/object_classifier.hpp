@@ -13,20 +13,10 @@
 #include <string_view>
 
 #include "common/base/status.hpp"
+#include "common/geometry/object_class.hpp"
 #include "common/perception/object_features.hpp"
 
 namespace fogmap {
-
-enum class ObjectClass : std::uint8_t { kOther = 0, kPerson, kCar, kTruckOrBus, kCyclist, kPole };
-inline constexpr std::size_t kObjectClassCount = 6;
-// "other", "person", "car", "truck_or_bus", "cyclist", "pole".
-std::string_view objectClassName(ObjectClass object_class);
-std::optional<ObjectClass> parseObjectClass(std::string_view name);
-
-struct Classified {
-  ObjectClass object_class = ObjectClass::kOther;
-  double confidence = 0.0;  // the fraction of the trees that vote for the class, in [0, 1]
-};
 
 struct LabelledFeatures {
   FeatureVector features{};
@@ -58,8 +48,9 @@ class ObjectClassifier {
   static Expected<ObjectClassifier> load(const std::filesystem::path& file);
   Status save(const std::filesystem::path& file) const;
 
+  // The class with the most votes; confidence is the fraction of the trees that vote for it.
   // Non-finite features are read as 0.
-  Classified classify(const FeatureVector& features) const;
+  ObjectLabel classify(const FeatureVector& features) const;
 
   ObjectClassifier(ObjectClassifier&&) noexcept;
   ObjectClassifier& operator=(ObjectClassifier&&) noexcept;

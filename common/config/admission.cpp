@@ -2,6 +2,9 @@
 
 #include <cmath>
 #include <cstdio>
+#include <numbers>
+#include <optional>
+#include <string>
 #include <utility>
 
 #include <Eigen/Eigenvalues>
@@ -17,6 +20,33 @@ std::string num(double v) {
 
 bool within(const Eigen::Vector3d& v, double extent) {
   return v.allFinite() && v.cwiseAbs().maxCoeff() <= extent;
+}
+
+// What is wrong with an ellipsoid's box or label, if anything: a box is finite, inside the world,
+// with sides in [0, 2 x world extent], yaw in [-pi/2, pi/2) and length >= width; a confidence is in
+// [0, 1].
+std::optional<std::string> viewProblem(const Ellipsoid& e, const AdmissionLimits& limits) {
+  if (e.box) {
+    const OrientedBox& b = *e.box;
+    if (!within(b.centre, limits.world_extent_m)) {
+      return "box centre (" + num(b.centre.x()) + ", " + num(b.centre.y()) + ", " + num(b.centre.z()) +
+             ") is not finite or lies outside the world extent of " + num(limits.world_extent_m) + " m";
+    }
+    const double largest = 2.0 * limits.world_extent_m;
+    for (const auto& [name, side] : {std::pair{"length", b.length}, std::pair{"width", b.width}, std::pair{"height", b.height}}) {
+      if (!(side >= 0.0 && side <= largest)) {
+        return std::string("box ") + name + " " + num(side) + " m is not in [0, " + num(largest) + "]";
+      }
+    }
+    if (b.width > b.length) return "box width " + num(b.width) + " m exceeds its length " + num(b.length) + " m";
+    if (!(b.yaw >= -0.5 * std::numbers::pi && b.yaw < 0.5 * std::numbers::pi)) {
+      return "box yaw " + num(b.yaw) + " rad is not in [-pi/2, pi/2)";
+    }
+  }
+  if (e.label && !(e.label->confidence >= 0.0 && e.label->confidence <= 1.0)) {
+    return "class confidence " + num(e.label->confidence) + " is not in [0, 1]";
+  }
+  return std::nullopt;
 }
 
 }  // namespace
@@ -55,6 +85,7 @@ const char* refusalName(Refusal refusal) {
     case Refusal::kEllipsoidConflict: return "ellipsoid_conflict";
     case Refusal::kInconsistentChunks: return "inconsistent_chunks";
     case Refusal::kUnknownPeer: return "unknown_peer";
+    case Refusal::kBadBox: return "bad_box";
   }
   return "unknown";
 }
@@ -85,6 +116,11 @@ std::optional<Refused> checkMapBounds(const Map& map, const AdmissionLimits& lim
                                                ", " + num(values[2]) + " m^2 are outside [" +
                                                num(limits.min_eigenvalue_m2) + ", " + num(limits.max_eigenvalue_m2) +
                                                "] or more ill-conditioned than " + num(limits.max_condition)};
+      }
+    }
+    for (const auto& e : object.ellipsoids) {
+      if (auto problem = viewProblem(e, limits)) {
+        return Refused{Refusal::kBadBox, what + ", ellipsoid " + toString(e.id) + ": " + *problem};
       }
     }
     if (!within(object.box.min, limits.world_extent_m) || !within(object.box.max, limits.world_extent_m)) {

@@ -48,7 +48,9 @@ enum class Refusal {
   kEllipsoidConflict,   // an ellipsoid id seen before in the epoch with other geometry
   kInconsistentChunks,  // point chunks that disagree with earlier chunks of the same scan
   kUnknownPeer,         // TLS: the stream's certificate names no child of this aggregator
+  kBadBox,              // an oriented box or class out of range: non-finite, sides, yaw, confidence
 };
+inline constexpr Refusal kLastRefusal = Refusal::kBadBox;
 const char* refusalName(Refusal refusal);
 // The error kind a refusal is answered with, in one place: kResourceExhausted for too_large (the
 // upload may be valid but is above a bound), kInvalidArgument for every other reason (the upload

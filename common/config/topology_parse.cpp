@@ -41,7 +41,7 @@ Expected<Mode> parseMode(const std::string& s) {
 Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesystem::path& base_dir) {
   if (!root.IsMap()) return invalidArgument("topology: the document must be a mapping with 'nodes'");
   if (const Status s = checkSection(root, "", {"name", "mode", "baseline_ships", "deadline_ms", "period_ms", "max_message_bytes",
-                                               "max_scan_bytes", "admission", "madc", "preprocess", "tls", "nodes"});
+                                               "max_scan_bytes", "admission", "madc", "objects", "preprocess", "tls", "nodes"});
       !s) {
     return s.error();
   }
@@ -136,6 +136,21 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
   // eps_m's range is validateClusteringParams's; its messages start with the field's name.
   if (const Status s = validateClusteringParams(t.madc.clustering); !s) {
     return invalidArgument("topology: madc." + s.error().message);
+  }
+  if (const YAML::Node o = root["objects"]) {
+    if (const Status s = checkSection(o, "objects", {"boxes", "classifier"}); !s) return s.error();
+    const auto classifier = scalar<std::string>(o, "classifier", "objects", "");
+    if (!classifier) return classifier.error();
+    // A class is read from a cluster's box: a classifier implies boxes.
+    const auto boxes = scalar<bool>(o, "boxes", "objects", true);
+    if (!boxes) return boxes.error();
+    if (!*boxes && !classifier->empty()) return bad("objects.boxes", "cannot be false with a classifier (classes are read from boxes)");
+    if (o["classifier"] && classifier->empty()) return bad("objects.classifier", "must name a model file");
+    t.objects.boxes = *boxes;
+    if (!classifier->empty()) {
+      t.objects.classifier = std::filesystem::path(*classifier).is_absolute() ? std::filesystem::path(*classifier)
+                                                                              : base_dir / *classifier;
+    }
   }
   if (const YAML::Node p = root["preprocess"]) {
     if (const Status s = checkSection(p, "preprocess", {"crop", "voxel_leaf_m", "ground"}); !s) return s.error();

@@ -33,6 +33,11 @@ std::string toYaml(const TopologyConfig& t) {
   if (t.madc.fragment_min_points) out << YAML::Key << "fragment_min_points" << YAML::Value << *t.madc.fragment_min_points;
   out << YAML::Key << "alpha" << YAML::Value << t.madc.alpha << YAML::Key << "threads" << YAML::Value
       << t.madc.clustering.threads << YAML::EndMap;
+  if (t.objects.boxes) {
+    out << YAML::Key << "objects" << YAML::Value << YAML::BeginMap << YAML::Key << "boxes" << YAML::Value << true;
+    if (t.objects.classifier) out << YAML::Key << "classifier" << YAML::Value << t.objects.classifier->string();
+    out << YAML::EndMap;
+  }
   out << YAML::Key << "preprocess" << YAML::Value << YAML::BeginMap;
   auto list3 = [&](const Eigen::Vector3d& v) {
     out << YAML::Flow << YAML::BeginSeq << v.x() << v.y() << v.z() << YAML::EndSeq;

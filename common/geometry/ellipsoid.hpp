@@ -4,12 +4,15 @@
 #include <compare>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <span>
 #include <string>
 
 #include <Eigen/Core>
 
 #include "common/geometry/cloud.hpp"
+#include "common/geometry/object_class.hpp"
+#include "common/geometry/oriented_box.hpp"
 
 namespace fogmap {
 
@@ -71,6 +74,12 @@ struct Ellipsoid {
   Eigen::Vector3d center = Eigen::Vector3d::Zero();
   Eigen::Matrix3d shape = Eigen::Matrix3d::Identity();
   std::uint64_t point_count = 0;
+  // What its sensor saw of the cluster beyond the ellipsoid, where the topology's `objects:` asks
+  // for it (docs/design.md "Oriented boxes"): the oriented box fitted on the cluster's points, with
+  // the face or corner nearest the sensor, and the LiDAR classifier's class. MERGE carries both
+  // through untouched; a global object's box and class are functions of its views' (object_shape.hpp).
+  std::optional<OrientedBox> box;
+  std::optional<ObjectLabel> label;
 
   std::uint32_t node() const { return id.node; }
   bool operator==(const Ellipsoid&) const = default;

@@ -68,4 +68,11 @@ BoxAnchor OrientedBox::anchorFor(const Eigen::Vector3d& sensor) const {
   return BoxAnchor::kNone;
 }
 
+std::array<Eigen::Vector2d, 4> OrientedBox::footprint() const {
+  const Eigen::Vector2d along = 0.5 * length * Eigen::Vector2d(std::cos(yaw), std::sin(yaw));
+  const Eigen::Vector2d across = 0.5 * width * Eigen::Vector2d(-std::sin(yaw), std::cos(yaw));
+  const Eigen::Vector2d c = centre.head<2>();
+  return {c + along + across, c - along + across, c - along - across, c + along - across};
+}
+
 }  // namespace fogmap

@@ -3,6 +3,7 @@
 // yaw about the vertical axis of the common frame, with a height. A box fitted from one sensor's
 // points also says which of its faces or corners that sensor sees nearest: the part of the box
 // whose position a tracker can trust when the far side is hidden.
+#include <array>
 #include <string_view>
 
 #include <Eigen/Core>
@@ -32,12 +33,15 @@ struct OrientedBox {
   double height = 0.0;
   double yaw = 0.0;     // radians in [-pi/2, pi/2): a box has no heading, only an axis
   BoxAnchor anchor = BoxAnchor::kNone;
+  bool operator==(const OrientedBox&) const = default;
 
   // The anchor's point on the footprint (at the centre's height): the middle of the anchor face,
   // the anchor corner, or the centre for kNone.
   Eigen::Vector3d anchorPoint() const;
   // Which part of this box is nearest a sensor at `sensor` (only x and y count).
   BoxAnchor anchorFor(const Eigen::Vector3d& sensor) const;
+  // The footprint's corners (x, y) counter-clockwise from (+length, +width).
+  std::array<Eigen::Vector2d, 4> footprint() const;
 };
 
 // Yaw folded into [-pi/2, pi/2) (a box's axis is the same turned by pi).

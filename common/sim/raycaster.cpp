@@ -377,8 +377,7 @@ Expected<SimFrame> SceneRaycaster::scan(const LidarConfig& lidar, std::uint64_t 
         const double range = static_cast<double>(packet.ray.tfar[lane]) + noise;
         if (range < min_range || range > max_range) continue;
         const Eigen::Vector3d p = direction(i) * range;
-        out.points.push_back({static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()),
-                              static_cast<float>(i / static_cast<std::size_t>(steps))});
+        out.points.push_back({static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()), 0.0F});
         out.truth.push_back(object);
       }
     }

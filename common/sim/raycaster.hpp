@@ -28,7 +28,7 @@ struct SimFrame {
   std::string lidar;
   double time_s = 0.0;
   Eigen::Isometry3d sensor_pose = Eigen::Isometry3d::Identity();  // sensor -> scene
-  Cloud points;                       // intensity holds the ring index
+  Cloud points;                       // intensity 0: the simulator models no reflectance
   std::vector<std::uint32_t> truth;   // per point: the object hit (kGroundId for the ground)
   std::uint64_t rays = 0;             // rays cast (returns + misses + dropped)
 };

@@ -71,6 +71,7 @@ TopologyConfig sceneTopology(const Scene& scene, const std::filesystem::path& sc
   if (prefix.front() == '.') prefix.front() = '_';
   t.name = prefix + "-" + t.name;
   t.preprocess = preprocessFor(scene);
+  t.objects = options.mapping.objects;
 
   std::set<std::string> taken;
   for (const NodeConfig& n : t.nodes) {

@@ -161,7 +161,7 @@ Metrics::Metrics(const std::string& bind_address, const std::string& service, co
                              "Edge: bytes the frames' points would have cost on the wire in baseline mode.", c);
   // Labelled series exist from the start at 0, so rates and alerts over them have data before the
   // first rejection (Prometheus's advice: initialise the label values you know).
-  for (int reason = 0; reason <= static_cast<int>(Refusal::kUnknownPeer); ++reason) {
+  for (int reason = 0; reason <= static_cast<int>(kLastRefusal); ++reason) {
     refused_->Add({{"reason", refusalName(static_cast<Refusal>(reason))}});
   }
   for (const char* what : kMalformedKinds) malformed_->Add({{"what", what}});

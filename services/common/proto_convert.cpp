@@ -19,6 +19,7 @@
 
 #include "common/config/topology.hpp"
 #include "common/geometry/compact_ellipsoid.hpp"
+#include "common/geometry/compact_view.hpp"
 
 
 namespace fogmap {
@@ -103,6 +104,19 @@ void toProto(const Ellipsoid& e, std::uint64_t epoch, v1::Ellipsoid* out) {
   const Eigen::Matrix3d& m = e.shape;
   for (const double v : {m(0, 0), m(0, 1), m(0, 2), m(1, 1), m(1, 2), m(2, 2)}) out->add_shape(static_cast<float>(v));
   out->set_point_count(e.point_count);
+  if (e.box) {
+    v1::OrientedBox* box = out->mutable_box();
+    for (int k = 0; k < 3; ++k) box->add_centre(static_cast<float>(e.box->centre[k]));
+    box->set_length(static_cast<float>(e.box->length));
+    box->set_width(static_cast<float>(e.box->width));
+    box->set_height(static_cast<float>(e.box->height));
+    box->set_yaw(static_cast<float>(e.box->yaw));
+    box->set_anchor(static_cast<std::uint32_t>(e.box->anchor));
+  }
+  if (e.label) {
+    out->mutable_label()->set_object_class(static_cast<std::uint32_t>(e.label->object_class));
+    out->mutable_label()->set_confidence(static_cast<float>(e.label->confidence));
+  }
 }
 
 using WireObjects = google::protobuf::RepeatedPtrField<v1::MapObject>;
@@ -114,6 +128,8 @@ struct PackedBlock {
   std::uint64_t frame = 0;
   CompactOrigin origin;
   std::string records;
+  std::string views;                   // one entry per record (compact_view.hpp)
+  bool any_view = false;               // else `views` stays off the wire
   std::vector<std::size_t> object_of;  // the map object of each record
   bool own_objects = true;             // every record is the only ellipsoid of its object
 };
@@ -146,7 +162,7 @@ void toProto(const Map& map, std::uint64_t epoch, EllipsoidWire wire, WireObject
     const auto& ellipsoids = map.objects[o].ellipsoids;
     const bool lone = ellipsoids.size() == 1;
     for (const Ellipsoid& e : ellipsoids) {
-      if (wire == EllipsoidWire::kExact) {
+      if (wire == EllipsoidWire::kExact || !viewFitsCompact(e)) {
         exact[o].push_back(&e);
         continue;
       }
@@ -162,7 +178,7 @@ void toProto(const Map& map, std::uint64_t epoch, EllipsoidWire wire, WireObject
         // hold a node's ellipsoids hundreds of metres apart): a record still, never float32.
         const CompactOrigin origin =
             candidates.empty() && at_common_origin.at(key) ? common_origin : compactOriginNear(e.center);
-        PackedBlock fresh{e.id.node, e.id.frame, origin, {}, {}, true};
+        PackedBlock fresh{e.id.node, e.id.frame, origin, {}, {}, false, {}, true};
         if (!appendCompact(e, fresh.origin, fresh.records)) {
           exact[o].push_back(&e);
           continue;
@@ -172,6 +188,9 @@ void toProto(const Map& map, std::uint64_t epoch, EllipsoidWire wire, WireObject
         packed.push_back(std::move(fresh));
       }
       PackedBlock& block = packed[chosen];
+      const bool written = appendCompactView(e, block.views);  // viewFitsCompact(e) holds
+      (void)written;
+      block.any_view = block.any_view || hasView(e);
       block.object_of.push_back(o);
       block.own_objects = block.own_objects && lone;
       if (lone) lone_block[o] = chosen;
@@ -204,6 +223,7 @@ void toProto(const Map& map, std::uint64_t epoch, EllipsoidWire wire, WireObject
     out->set_origin_y_cm(block.origin.y_cm);
     out->set_origin_z_cm(block.origin.z_cm);
     out->set_records(std::move(block.records));
+    if (block.any_view) out->set_views(std::move(block.views));
     if (block.own_objects) continue;
     out->mutable_object_step()->Reserve(static_cast<int>(block.object_of.size()));
     std::int64_t previous = 0;
@@ -267,6 +287,25 @@ Expected<Ellipsoid> fromProto(const v1::Ellipsoid& e, std::uint64_t epoch, const
     return invalidArgument(label + ": shape is not positive definite");
   }
   out.point_count = e.point_count();
+  if (e.has_box()) {
+    const v1::OrientedBox& b = e.box();
+    if (b.centre_size() != 3) {
+      return invalidArgument(label + ": box centre has " + std::to_string(b.centre_size()) + " values, expected 3 (x y z)");
+    }
+    if (b.anchor() > static_cast<std::uint32_t>(BoxAnchor::kRearRight)) {
+      return invalidArgument(label + ": box anchor " + std::to_string(b.anchor()) + " is not one of 0 to 8");
+    }
+    // Values (finite, sizes, yaw) are the admission's to judge: checkMapBounds counts bad_box.
+    out.box = OrientedBox{{b.centre(0), b.centre(1), b.centre(2)}, b.length(), b.width(), b.height(), b.yaw(),
+                          static_cast<BoxAnchor>(b.anchor())};
+  }
+  if (e.has_label()) {
+    if (e.label().object_class() >= kObjectClassCount) {
+      return invalidArgument(label + ": object_class " + std::to_string(e.label().object_class()) + " is not one of 0 to " +
+                             std::to_string(kObjectClassCount - 1));
+    }
+    out.label = ObjectLabel{static_cast<ObjectClass>(e.label().object_class()), e.label().confidence()};
+  }
   return out;
 }
 
@@ -337,6 +376,8 @@ Expected<Map> fromProto(const WireObjects& objects, const WireBlocks& blocks, st
     std::int64_t step_sum = 0;
     const CompactOrigin origin{block.origin_x_cm(), block.origin_y_cm(), block.origin_z_cm()};
     const std::uint64_t frame = block.has_frame() ? block.frame() : epoch;
+    const std::string_view views = block.views();
+    std::size_t view_at = 0;
     for (std::size_t r = 0; r < count; ++r) {
       std::size_t object = own_object;
       if (listed_objects == 0) {
@@ -354,9 +395,18 @@ Expected<Map> fromProto(const WireObjects& objects, const WireBlocks& blocks, st
       auto e = decodeCompact(records.substr(r * kCompactEllipsoidBytes, kCompactEllipsoidBytes), origin, block.node(),
                              frame);
       if (!e) return invalidArgument(recordLabel(where, b, r) + ": " + e.error().message);
+      if (!views.empty()) {
+        if (const Status read = readCompactView(views, view_at, *e); !read) {
+          return invalidArgument(recordLabel(where, b, r) + ": " + read.error().message);
+        }
+      }
       ellipsoids.push_back(std::move(e).value());
       object_of.push_back(object);
       places.push_back({true, b, r});
+    }
+    if (view_at != views.size()) {
+      return invalidArgument(label + ": views has " + std::to_string(views.size() - view_at) +
+                             " bytes beyond its " + std::to_string(count) + " entries (one per record)");
     }
   }
   for (std::size_t o = 0; o < listed; ++o) {

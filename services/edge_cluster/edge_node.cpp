@@ -8,6 +8,7 @@
 #include <string>
 #include <utility>
 
+#include "common/classify/cluster_views.hpp"
 #include "common/config/displacement_node.hpp"
 #include "common/perception/lidar_models.hpp"
 #include "common/perception/virtual_lidar.hpp"
@@ -82,7 +83,16 @@ EdgeConfig edgeConfigFor(const TopologyConfig& topology, const NodeConfig& node)
   config.max_points_per_chunk = std::clamp<std::size_t>(by_limit, 1, kDefaultMaxPointsPerChunk);
   config.name = node.name;
   if (node.displacement) config.displacement = node.displacement->params;
+  config.boxes = topology.objects.boxes;
+  config.box_min_points = topology.madc.clustering.min_points;
   return config;
+}
+
+Expected<std::shared_ptr<const ObjectClassifier>> loadClassifierOf(const TopologyConfig& topology) {
+  if (!topology.objects.classifier) return std::shared_ptr<const ObjectClassifier>();
+  auto loaded = ObjectClassifier::load(*topology.objects.classifier);
+  if (!loaded) return invalidArgument("objects.classifier: " + loaded.error().message);
+  return std::shared_ptr<const ObjectClassifier>(std::make_shared<ObjectClassifier>(std::move(*loaded)));
 }
 
 EdgeNode::EdgeNode(EdgeConfig config) : config_(std::move(config)) {
@@ -161,6 +171,12 @@ Expected<EdgeOutput> EdgeNode::processFrame(const Cloud& scan_in_sensor_frame, s
   const SteadyClock::time_point clustering_start = SteadyClock::now();
   auto local = genLocalMap(points, config_.node, frame, config_.madc);
   if (!local) return local.error();
+  if (config_.boxes) {
+    const auto views = clusterViews(points, local->clustering, config_.preprocess.sensor_to_common.translation(),
+                                    config_.classifier.get(), config_.box_min_points);
+    if (!views) return views.error();
+    attachViews(*views, local->map);
+  }
   output.clustering_seconds = secondsSince(clustering_start);
   output.clusters = static_cast<std::size_t>(local->clustering.cluster_count);
   output.map = MapMessage{header, std::move(local->map)};

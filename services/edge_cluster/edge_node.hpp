@@ -6,12 +6,14 @@
 // (DESIGN.md 2.4). Domain types only; no gRPC.
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include <Eigen/Geometry>
 
+#include "common/classify/object_classifier.hpp"
 #include "common/geometry/cloud.hpp"
 #include "common/perception/madc.hpp"
 #include "common/io/messages.hpp"
@@ -36,6 +38,12 @@ struct EdgeConfig {
   // Run the displacement detector on every cleaned scan (common frame) and put its centroids in
   // the output; none when empty.
   std::optional<tracking::DisplacementParams> displacement;
+  // The topology's `objects:`: each local cluster of at least box_min_points points gets its
+  // oriented box (fitted with the sensor's position) and, with a classifier, its LiDAR class, on its
+  // ellipsoid. Fragments (smaller clusters) get neither.
+  bool boxes = false;
+  std::size_t box_min_points = 10;
+  std::shared_ptr<const ObjectClassifier> classifier;  // loadClassifierOf
 };
 
 // What one frame produced, and what it cost.
@@ -62,6 +70,10 @@ Eigen::Isometry3d sensorToCommon(const SensorConfig& sensor);
 // kDefaultMaxPointsPerChunk points that also stay below half the message limit, the node's name
 // and its displacement settings.
 EdgeConfig edgeConfigFor(const TopologyConfig& topology, const NodeConfig& node);
+
+// The classifier the topology's `objects.classifier` names, loaded; none without one. Errors naming
+// the file when it is missing or not a model trained on today's features.
+Expected<std::shared_ptr<const ObjectClassifier>> loadClassifierOf(const TopologyConfig& topology);
 
 class EdgeNode {
  public:

@@ -34,11 +34,17 @@ Expected<std::unique_ptr<EdgeProcess>> EdgeProcess::create(const ServiceContext&
     if (!opened) return opened.error();
     journal = std::make_unique<DeliveryJournal>(std::move(*opened));
   }
-  return std::unique_ptr<EdgeProcess>(
-      new EdgeProcess(context, *parent, std::move(*schedule), std::move(*scans), std::move(journal)));
+  // A missing or corrupt model stops the edge here, before it ships anything.
+  EdgeConfig edge_config = edgeConfigFor(topology, node);
+  auto classifier = loadClassifierOf(topology);
+  if (!classifier) return invalidArgument("edge '" + node.name + "': " + classifier.error().message);
+  edge_config.classifier = std::move(*classifier);
+  return std::unique_ptr<EdgeProcess>(new EdgeProcess(context, *parent, std::move(edge_config), std::move(*schedule),
+                                                      std::move(*scans), std::move(journal)));
 }
 
-EdgeProcess::EdgeProcess(const ServiceContext& context, const NodeConfig& parent, EpochSchedule schedule,
+EdgeProcess::EdgeProcess(const ServiceContext& context, const NodeConfig& parent, EdgeConfig edge_config,
+                         EpochSchedule schedule,
                          std::unique_ptr<ScanProvider> scans, std::unique_ptr<DeliveryJournal> journal)
     : context_(context),
       parent_(parent),
@@ -46,7 +52,7 @@ EdgeProcess::EdgeProcess(const ServiceContext& context, const NodeConfig& parent
       tracker_(context.node.displacement ? context.topology.find(context.node.displacement->tracker) : nullptr),
       scans_(std::move(scans)),
       journal_(std::move(journal)),
-      edge_config_(edgeConfigFor(context.topology, context.node)),
+      edge_config_(std::move(edge_config)),
       link_(context.linkTo<ParentLinkConfig>(parent), context.parentLinkHooks(parent)),
       observer_(context.metrics, edge_config_.max_points_per_chunk, context.node.name),
       runner_(EdgeNode(edge_config_), *scans_, schedule, context.node.sensor->rate_hz, runnerHooks()) {

@@ -46,7 +46,7 @@ class EdgeProcess {
   int run();
 
  private:
-  EdgeProcess(const ServiceContext& context, const NodeConfig& parent, EpochSchedule schedule,
+  EdgeProcess(const ServiceContext& context, const NodeConfig& parent, EdgeConfig edge_config, EpochSchedule schedule,
               std::unique_ptr<ScanProvider> scans, std::unique_ptr<DeliveryJournal> journal);
   EdgeRunnerHooks runnerHooks();
   TrackerLinkHooks centroidLinkHooks();

@@ -46,7 +46,7 @@ TEST(ClassifierTraining, SimulatedSamplesCarryTheClassesOfTheSceneObjects) {
   for (const auto& s : set->samples) {
     EXPECT_TRUE(in_scene.count(s.object_class)) << objectClassName(s.object_class);
     sampled.insert(s.object_class);
-    // The simulator's intensity (a ring index) never reaches the features.
+    // The simulator models no reflectance: its intensity features are 0.
     EXPECT_EQ(s.features[static_cast<std::size_t>(Feature::kIntensityMean)], 0.0F);
   }
   EXPECT_EQ(sampled, in_scene);
@@ -74,7 +74,7 @@ TEST(ClassifierTraining, TheCommittedModelMeetsItsGoalsOnUnseenScenesAndOnKitti)
   for (const auto& o : *objects) {
     if (o.truth != ObjectClass::kCar || o.points_in_box < 50) continue;
     ASSERT_TRUE(o.features.has_value()) << o.frame << ": the car's points are noise";
-    const Classified c = classifier->classify(*o.features);
+    const ObjectLabel c = classifier->classify(*o.features);
     EXPECT_EQ(c.object_class, ObjectClass::kCar) << o.frame << " " << objectClassName(c.object_class);
     ++cars;
   }

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <random>
 #include <set>
 #include <string>
@@ -10,6 +12,7 @@
 
 #include <gtest/gtest.h>
 
+#include "common/classify/cluster_views.hpp"
 #include "common/config/displacement_node.hpp"
 #include "common/io/cloud_io.hpp"
 #include "common/perception/clustering.hpp"
@@ -17,6 +20,7 @@
 #include "common/perception/preprocess.hpp"
 #include "common/perception/virtual_lidar.hpp"
 #include "services/common/proto_convert.hpp"
+#include "tests/support/scratch_dir.hpp"
 
 namespace fogmap {
 namespace {
@@ -128,6 +132,84 @@ TEST(EdgeNode, MadcMapHasOneEllipsoidPerClusterOfThePreprocessedScan) {
   ASSERT_EQ(indices.size(), static_cast<std::size_t>(clustering.cluster_count));
   EXPECT_EQ(*indices.begin(), 0U);
   EXPECT_EQ(*indices.rbegin(), static_cast<std::uint32_t>(clustering.cluster_count - 1));
+}
+
+TEST(EdgeNode, WithObjectsEachClusterOfMinPointsCarriesItsBoxAndClassAndFragmentsNeither) {
+  EdgeConfig config = edgeConfig(Mode::kMadc);
+  config.madc.fragment_min_points = 3;
+  config.madc.clustering.min_points = 3;  // what edgeConfigFor sets: the edge keeps its fragments
+  config.boxes = true;
+  config.box_min_points = 10;
+  config.preprocess.sensor_to_common.translation() = Eigen::Vector3d(2.0, -1.0, 1.7);
+  TopologyConfig topology;
+  topology.objects.boxes = true;
+  topology.objects.classifier = fs::path(FOGMAP_SOURCE_DIR) / "data" / "models" / "lidar_classifier.yml.gz";
+  auto classifier = loadClassifierOf(topology);
+  ASSERT_TRUE(classifier.ok()) << classifier.error().message;
+  ASSERT_NE(*classifier, nullptr);
+  config.classifier = *classifier;
+
+  const EdgeOutput output = process(EdgeNode(config), realScan());
+  ASSERT_TRUE(output.map.has_value());
+  // The oracle: the scan's clusters, each box containing its cluster and anchored for the sensor.
+  const Cloud points = preprocessed(realScan(), config);
+  const Clustering clustering = euclideanClusters(points, config.madc.clustering);
+  const std::vector<Cloud> clusters = pointsByCluster(points, clustering);
+  const Eigen::Vector3d sensor = config.preprocess.sensor_to_common.translation();
+  std::size_t boxes = 0;
+  std::size_t fragments = 0;
+  std::set<ObjectClass> classes;
+  for (const MapObject& object : output.map->map.objects) {
+    const Ellipsoid& e = object.ellipsoids.at(0);
+    const Cloud& cluster = clusters.at(e.id.index);
+    ASSERT_EQ(e.point_count, cluster.size());
+    if (cluster.size() < 10) {
+      EXPECT_FALSE(e.box.has_value());
+      EXPECT_FALSE(e.label.has_value());
+      ++fragments;
+      continue;
+    }
+    ASSERT_TRUE(e.box.has_value());
+    ASSERT_TRUE(e.label.has_value());
+    ++boxes;
+    classes.insert(e.label->object_class);
+    EXPECT_GE(e.label->confidence, 0.0);
+    EXPECT_LE(e.label->confidence, 1.0);
+    const OrientedBox& b = *e.box;
+    EXPECT_EQ(b.anchor, b.anchorFor(sensor));
+    const Eigen::Vector2d u(std::cos(b.yaw), std::sin(b.yaw));
+    const Eigen::Vector2d v(-u.y(), u.x());
+    for (const Point& p : cluster) {
+      const Eigen::Vector2d d = Eigen::Vector2d(p.x, p.y) - b.centre.head<2>();
+      EXPECT_LE(std::abs(d.dot(u)), 0.5 * b.length + 1e-3);
+      EXPECT_LE(std::abs(d.dot(v)), 0.5 * b.width + 1e-3);
+      EXPECT_LE(std::abs(p.z - b.centre.z()), 0.5 * b.height + 1e-3);
+    }
+  }
+  EXPECT_GT(boxes, 10U);
+  EXPECT_GT(fragments, 0U);
+  EXPECT_TRUE(classes.count(ObjectClass::kCar)) << "the KITTI street has parked cars";
+}
+
+TEST(EdgeNode, AMissingOrCorruptClassifierIsAnErrorNamingTheFile) {
+  const test_support::ScratchDir scratch("edge-classifier");
+  TopologyConfig topology;
+  topology.objects.boxes = true;
+  topology.objects.classifier = scratch.path() / "absent.yml.gz";
+  auto missing = loadClassifierOf(topology);
+  ASSERT_FALSE(missing.ok());
+  EXPECT_NE(missing.error().message.find("objects.classifier"), std::string::npos) << missing.error().message;
+  EXPECT_NE(missing.error().message.find("absent.yml.gz"), std::string::npos) << missing.error().message;
+  topology.objects.classifier = scratch.path() / "corrupt.yml";
+  std::ofstream(*topology.objects.classifier) << "%YAML:1.0\nnot: a model\n";
+  auto corrupt = loadClassifierOf(topology);
+  ASSERT_FALSE(corrupt.ok());
+  EXPECT_NE(corrupt.error().message.find("corrupt.yml"), std::string::npos) << corrupt.error().message;
+  // Without a classifier: nothing to load.
+  topology.objects.classifier.reset();
+  auto none = loadClassifierOf(topology);
+  ASSERT_TRUE(none.ok());
+  EXPECT_EQ(*none, nullptr);
 }
 
 TEST(EdgeNode, BaselineChunksReassembleToThePreprocessedScan) {

@@ -53,6 +53,17 @@ TEST(EdgeProcess, AnEdgeWithoutAParentOrWithoutAPositiveRateIsRefusedNamingIt) {
   EXPECT_NE(refusal(missing).find("no-such-scans"), std::string::npos) << refusal(missing);
 }
 
+TEST(EdgeProcess, AnEdgeWhoseClassifierModelIsMissingStopsAtStartUpNamingTheFile) {
+  TopologyConfig topology = star();
+  topology.objects.boxes = true;
+  topology.objects.classifier = dataDir() / "no-such-model.yml.gz";
+  const std::string message = refusal(topology);
+  EXPECT_NE(message.find("edge 'edge-1'"), std::string::npos) << message;
+  EXPECT_NE(message.find("no-such-model.yml.gz"), std::string::npos) << message;
+  topology.objects.classifier = std::filesystem::path(FOGMAP_SOURCE_DIR) / "data" / "models" / "lidar_classifier.yml.gz";
+  EXPECT_EQ(refusal(topology), "created");
+}
+
 TEST(EdgeProcess, ShipsItsEpochsToItsParentUntilTheStopThenFlushesAndExitsZero) {
   const TopologyConfig topology = star();
   ServedAggregator root(topology, "sink");

@@ -210,6 +210,15 @@ Expected<sim::SceneMapping> sceneMapping(const Args& args, const sim::SceneMappi
     if (!n || *n < 1 || *n > 1000) return invalidArgument("--fragment-min-points must be off or in [1, 1000]");
     mapping.fragment_min_points = static_cast<std::size_t>(*n);
   }
+  const std::string objects = args.get("objects", "none");
+  if (objects != "none" && objects != "boxes" && objects != "classes") {
+    return invalidArgument("--objects must be none, boxes or classes, got '" + objects + "'");
+  }
+  if (args.has("classifier") && objects != "classes") return invalidArgument("--classifier goes with --objects classes");
+  mapping.objects.boxes = objects != "none";
+  if (objects == "classes") {
+    mapping.objects.classifier = std::filesystem::absolute(args.get("classifier", std::string(kDefaultClassifierModel)));
+  }
   return mapping;
 }
 

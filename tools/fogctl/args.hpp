@@ -70,8 +70,12 @@ Expected<RootConnection> rootConnection(const Args& args, const std::string& usa
 // --eps, --min-points and --threads, validated.
 Expected<ClusteringParams> clusteringParams(const Args& args);
 
-// --clustering exact|sensor and --fragment-min-points N|off (N from 1 to 1000): how a scene's edges
-// make their maps (demo --scene, topology --scene), over `defaults`.
+// The committed LiDAR classifier (fogctl train-classifier), from the project's folder.
+inline constexpr const char* kDefaultClassifierModel = "data/models/lidar_classifier.yml.gz";
+
+// --clustering exact|sensor, --fragment-min-points N|off (N from 1 to 1000) and --objects
+// none|boxes|classes with --classifier FILE: how a scene's edges make their maps (demo, topology
+// --scene), over `defaults`.
 Expected<sim::SceneMapping> sceneMapping(const Args& args, const sim::SceneMapping& defaults);
 inline constexpr const char* kSceneMappingUsage =
     "  --clustering exact|sensor   how the edges cluster: exact (PCL's Euclidean partition) or sensor (with\n"
@@ -80,7 +84,11 @@ inline constexpr const char* kSceneMappingUsage =
     "  --fragment-min-points N|off edges ship their clusters of at least N points (default for a scene: 1)\n"
     "                 as fragments, and min_points applies to a global object's points over all its\n"
     "                 sensors, at the root; off: an edge drops its clusters below min_points (the paper's\n"
-    "                 MAD-C, the default for recorded scans)\n";
+    "                 MAD-C, the default for recorded scans)\n"
+    "  --objects none|boxes|classes  what the edges say of each cluster of min_points beyond its\n"
+    "                 ellipsoid: nothing (default), its oriented box (L-shape fit, up to 16 bytes more an\n"
+    "                 ellipsoid on the wire), or its box and LiDAR class (topology section objects:)\n"
+    "  --classifier FILE           with --objects classes: the model (default data/models/lidar_classifier.yml.gz)\n";
 
 // Reads --input within --max-scan-bytes (--remove-ground: the points above the ground); non-finite
 // points are kept in place (they cluster as noise) when `keep_non_finite`, so that the cloud lines

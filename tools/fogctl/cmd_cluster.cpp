@@ -10,10 +10,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "common/classify/object_classifier.hpp"
+#include "common/classify/cluster_views.hpp"
 #include "common/io/cloud_io.hpp"
-#include "common/perception/box_fitting.hpp"
-#include "common/perception/object_features.hpp"
 #include "common/perception/clustering.hpp"
 #include "tools/fogctl/args.hpp"
 #include "tools/fogctl/commands.hpp"
@@ -23,35 +21,32 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-constexpr const char* kDefaultClassifier = "data/models/lidar_classifier.yml.gz";
 
 // One JSON object per cluster: its id (the label), class and confidence (with a classifier),
 // points, and oriented box fitted in the scan's frame with the sensor at its origin.
 Expected<nlohmann::ordered_json> objectsJson(const Cloud& cloud, const Clustering& clustering, const ObjectClassifier* classifier) {
-  std::vector<Cloud> clusters(static_cast<std::size_t>(std::max(clustering.cluster_count, 0)));
-  for (std::size_t i = 0; i < cloud.size(); ++i) {
-    if (clustering.labels[i] >= 0) clusters[static_cast<std::size_t>(clustering.labels[i])].push_back(cloud[i]);
-  }
+  const auto views = clusterViews(cloud, clustering, Eigen::Vector3d::Zero(), classifier);
+  if (!views) return views.error();
   auto objects = nlohmann::ordered_json::array();
-  for (std::size_t id = 0; id < clusters.size(); ++id) {
-    const auto box = fitOrientedBox(clusters[id], Eigen::Vector3d::Zero());
-    if (!box) return box.error();
+  for (std::size_t id = 0; id < views->size(); ++id) {
+    if (!(*views)[id]) continue;  // a label no point has
+    const ClusterView& view = *(*views)[id];
+    const OrientedBox& box = view.box;
     nlohmann::ordered_json object = {{"id", id}};
-    if (classifier != nullptr) {
-      const Classified c = classifier->classify(objectFeatures(clusters[id], *box, Eigen::Vector3d::Zero()));
-      object["class"] = std::string(objectClassName(c.object_class));
-      object["confidence"] = c.confidence;
+    if (view.label) {
+      object["class"] = std::string(objectClassName(view.label->object_class));
+      object["confidence"] = view.label->confidence;
     }
-    object.update(nlohmann::ordered_json{{"points", clusters[id].size()},
+    object.update(nlohmann::ordered_json{{"points", view.points},
                        {"box",
-                        {{"x", box->centre.x()},
-                         {"y", box->centre.y()},
-                         {"z", box->centre.z()},
-                         {"yaw", box->yaw},
-                         {"length", box->length},
-                         {"width", box->width},
-                         {"height", box->height}}},
-                       {"nearest", std::string(boxAnchorName(box->anchor))}});
+                        {{"x", box.centre.x()},
+                         {"y", box.centre.y()},
+                         {"z", box.centre.z()},
+                         {"yaw", box.yaw},
+                         {"length", box.length},
+                         {"width", box.width},
+                         {"height", box.height}}},
+                       {"nearest", std::string(boxAnchorName(box.anchor))}});
     objects.push_back(std::move(object));
   }
   return objects;
@@ -87,7 +82,7 @@ int runCluster(int argc, char** argv) {
     // The classifier: --classifier FILE (an error when it does not load), else the bundled model
     // when it is there, else no classes.
     std::optional<ObjectClassifier> classifier;
-    const std::string model = args->get("classifier", kDefaultClassifier);
+    const std::string model = args->get("classifier", kDefaultClassifierModel);
     if (args->has("classifier") || std::filesystem::exists(model)) {
       auto loaded = ObjectClassifier::load(model);
       if (!loaded) return fail(loaded.error());
@@ -122,7 +117,7 @@ Command clusterCommand() {
           "                       LiDAR-only class, the oriented box fitted by L-shape (metres, radians; yaw of the\n"
           "                       length axis in [-pi/2, pi/2)) in the scan's frame, and the face or corner nearest\n"
           "                       the sensor (at the frame's origin)\n"
-          "  --classifier FILE    the model for the classes (default " + std::string(kDefaultClassifier) + " when it\n"
+          "  --classifier FILE    the model for the classes (default " + std::string(kDefaultClassifierModel) + " when it\n"
           "                       exists, else no class; fogctl train-classifier makes it)\n"
           "  --method fogmap|pcl  fogmap's grid clustering or PCL's, the reference (default fogmap)\n"
           "  --remove-ground      remove the ground before clustering\n"

@@ -268,7 +268,7 @@ int runDemo(int argc, char** argv) {
   const auto args =
       Args::parse(argc, argv, 2,
                   {"input", "scene", "nodes", "topology", "frames", "report", "png", "base-port", "state", "alpha", "miss-rate",
-                   "association", "tracker-input", "track-frames", "tracks-png", "clustering", "fragment-min-points"},
+                   "association", "tracker-input", "track-frames", "tracks-png", "clustering", "fragment-min-points", "objects", "classifier"},
                   {});
   if (!args) return fail(args.error(), "fogctl demo");
   if (args->has("scene")) {
@@ -307,6 +307,7 @@ int runDemo(int argc, char** argv) {
     t.name = std::string(modeName(mode)) + "-" + t.name;
     t.madc.alpha = *alpha;
     t.madc.fragment_min_points = mapping->fragment_min_points;
+    t.objects = mapping->objects;
     for (auto& n : t.nodes) {
       if (n.sensor) n.sensor->frames = static_cast<std::uint64_t>(*frames);
     }
@@ -453,10 +454,11 @@ Command demoCommand() {
           "[--input DIR | --scene FILE] [--nodes 4] [--topology star|tree] [--frames 20] [--report FILE] [--png FILE]",
           "usage: fogctl demo [--input DIR] [--nodes 4] [--topology star|tree] [--frames 20] [--report FILE] [--png FILE]\n"
           "                   [--alpha 1.5] [--base-port 46000] [--state DIR] [--fragment-min-points N|off]\n"
+          "                   [--objects none|boxes|classes] [--classifier FILE]\n"
           "       fogctl demo --scene FILE [--topology star|tree] [--frames 10] [--report FILE] [--png FILE] [--alpha 1.5]\n"
           "                   [--base-port 46000] [--state DIR] [--miss-rate 0.3] [--association kalman|paper]\n"
           "                   [--tracker-input global_map|centroids] [--track-frames 100] [--tracks-png FILE]\n"
-          "                   [--clustering exact|sensor] [--fragment-min-points N|off]\n"
+          "                   [--clustering exact|sensor] [--fragment-min-points N|off] [--objects none|boxes|classes]\n"
           "Runs a local MAD-C cluster and the baseline over the same frames and compares them: bytes,\n"
           "latency, Rand index; writes a JSON report and a bird's-eye PNG (under --state, default .fogmap/demo).\n"
           "  --input DIR    recorded scans (default: the bundled KITTI frames), cut into --nodes virtual LiDARs\n"

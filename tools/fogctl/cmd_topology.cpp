@@ -101,13 +101,16 @@ int runTopology(int argc, char** argv) {
       argc, argv, 2,
       {"edges", "source", "scene", "base-port", "mode", "frames", "out", "fanout", "deadline-ms", "tls-ca", "association",
        "miss-rate", "box-jitter-px", "latency-ms", "cameras", "calib", "camera-rate-hz", "tracker-input", "clustering",
-       "fragment-min-points"},
+       "fragment-min-points", "objects", "classifier"},
       {"tracker"});
   if (!args) return fail(args.error());
   const bool from_scene = args->has("scene");
   if (!from_scene && (args->has("clustering") || args->has("fragment-min-points"))) {
     return fail(invalidArgument("--clustering and --fragment-min-points go with --scene (its LiDARs name their models)"));
   }
+  // Recorded scans take boxes and classes too: the mapping's other fields stay the scene's.
+  const auto objects = sceneMapping(*args, sim::SceneMapping{});
+  if (!objects) return fail(objects.error());
   std::string shape = from_scene ? "star" : "";  // a scene's topology is a star unless told
   if (args->positional().size() == 1) shape = args->positional()[0];
   if (args->positional().size() > 1 || (shape != "star" && shape != "tree")) {
@@ -175,7 +178,10 @@ int runTopology(int argc, char** argv) {
       if (!latency || !(*latency >= 0.0 && *latency <= 60000.0)) return fail(invalidArgument("--latency-ms must be in [0, 60000]"));
       options.truth = TruthReplayConfig{*miss, *jitter, *latency};
     }
-    // The topology names the scene relative to its own directory, as services resolve it.
+    // The topology names the scene and the classifier relative to its own directory, as services resolve them.
+    if (options.mapping.objects.classifier) {
+      options.mapping.objects.classifier = relativeTo(*options.mapping.objects.classifier, topology_dir);
+    }
     t = sim::sceneTopology(*scene, relativeTo(scene_file, topology_dir), options);
   } else {
     if (args->has("miss-rate") || args->has("box-jitter-px") || args->has("latency-ms")) {
@@ -193,6 +199,8 @@ int runTopology(int argc, char** argv) {
     const std::string source = args->get("source", "../data/kitti_raw_seq_a");
     t = shape == "star" ? makeStarTopology(static_cast<int>(*edges), source, static_cast<int>(*base))
                         : makeTreeTopology(static_cast<int>(*edges), source, static_cast<int>(*base), static_cast<int>(*fanout));
+    t.objects = objects->objects;
+    if (t.objects.classifier) t.objects.classifier = relativeTo(*t.objects.classifier, topology_dir);
     if (with_tracker) t.nodes.push_back(trackerNode(static_cast<int>(*base), tracking));
     if (args->has("cameras")) {
       const auto rate = args->getDouble("camera-rate-hz", 10.0);
@@ -277,6 +285,7 @@ Command topologyCommand() {
           "                   --latency-ms L (0); --tracker-input centroids: every edge streams the tracker\n"
           "                   the displacement centroids of its scans instead of the root's maps (global_map)\n"
           "  --clustering, --fragment-min-points   with --scene: how the edges make their maps (below)\n"
+          "  --objects, --classifier                the edges' boxes and classes (below; also for --source)\n"
           "  --fanout F       a tree's aggregators have at most F children (default 2)\n"
           "  --deadline-ms D  an aggregator's deadline per level (default 80)\n"
           "  --tls-ca FILE    mutual TLS on every link, certificates next to FILE (fogctl certs)\n" +

@@ -129,7 +129,7 @@ int runTrainClassifier(int argc, char** argv) {
     ConfusionMatrix kitti_confusion;
     std::printf("real KITTI objects of %s with at least 20 points in their box:\n", kitti.string().c_str());
     for (const auto& o : *objects) {
-      const auto found = o.features ? std::optional<Classified>(classifier->classify(*o.features)) : std::nullopt;
+      const auto found = o.features ? std::optional<ObjectLabel>(classifier->classify(*o.features)) : std::nullopt;
       std::printf("  %s %-10s %4zu points at %5.1f m: %s\n", o.frame.c_str(), o.type.c_str(), o.points_in_box, o.range_m,
                   found ? (std::string(objectClassName(found->object_class)) + " (" + std::to_string(found->confidence).substr(0, 4) +
                            "), cluster of " + std::to_string(o.cluster_points) + " points")

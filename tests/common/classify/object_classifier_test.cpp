@@ -50,7 +50,7 @@ TEST(ObjectClassifier, LearnsSeparableClassesAndClassifiesHeldOutSamples) {
   ASSERT_TRUE(classifier.ok()) << classifier.error().message;
   ConfusionMatrix confusion;
   for (const auto& s : test) {
-    const Classified c = classifier->classify(s.features);
+    const ObjectLabel c = classifier->classify(s.features);
     EXPECT_GE(c.confidence, 0.0);
     EXPECT_LE(c.confidence, 1.0);
     confusion.add(s.object_class, c.object_class);
@@ -60,7 +60,7 @@ TEST(ObjectClassifier, LearnsSeparableClassesAndClassifiesHeldOutSamples) {
   // A clear person: most of the trees agree.
   std::mt19937 rng(3);
   FeatureVector person = draw(ObjectClass::kPerson, rng);
-  const Classified p = classifier->classify(person);
+  const ObjectLabel p = classifier->classify(person);
   EXPECT_EQ(p.object_class, ObjectClass::kPerson);
   EXPECT_GT(p.confidence, 0.5);
 }
@@ -76,9 +76,9 @@ TEST(ObjectClassifier, ASavedModelLoadsAndClassifiesAlikeAndTrainingRepeats) {
   const auto loaded = ObjectClassifier::load(file);
   ASSERT_TRUE(loaded.ok()) << loaded.error().message;
   for (const auto& s : samples(20, 6)) {
-    const Classified a = first->classify(s.features);
-    const Classified b = loaded->classify(s.features);
-    const Classified c = second->classify(s.features);
+    const ObjectLabel a = first->classify(s.features);
+    const ObjectLabel b = loaded->classify(s.features);
+    const ObjectLabel c = second->classify(s.features);
     EXPECT_EQ(a.object_class, b.object_class);
     EXPECT_DOUBLE_EQ(a.confidence, b.confidence);
     EXPECT_EQ(a.object_class, c.object_class);

@@ -38,6 +38,7 @@ void expectSameTopology(const TopologyConfig& a, const TopologyConfig& b) {
   EXPECT_EQ(a.madc.clustering.min_points, b.madc.clustering.min_points);
   EXPECT_EQ(a.madc.clustering.threads, b.madc.clustering.threads);
   EXPECT_EQ(a.madc.fragment_min_points, b.madc.fragment_min_points);
+  EXPECT_EQ(a.objects, b.objects);
   EXPECT_DOUBLE_EQ(a.madc.alpha, b.madc.alpha);
   ASSERT_EQ(a.preprocess.crop.has_value(), b.preprocess.crop.has_value());
   if (a.preprocess.crop) {
@@ -125,6 +126,8 @@ void customize(TopologyConfig& t) {
   t.madc.clustering.threads = 4;
   t.madc.fragment_min_points = 3;
   t.madc.alpha = 2.25;
+  t.objects.boxes = true;
+  t.objects.classifier = "/models/forest.yml.gz";
   t.preprocess.voxel_leaf_m = 0.125;
   t.preprocess.ground->distance_threshold_m = 0.3;
   t.preprocess.ground->max_tilt_deg = 20.0;
@@ -289,6 +292,26 @@ TEST(Topology, ValidSmallTopologyAndBoundsAreAccepted) {
     ASSERT_TRUE(parsed.ok()) << threads << ": " << parsed.error().message;
     EXPECT_EQ(parsed->madc.clustering.threads, static_cast<std::size_t>(threads));
   }
+}
+
+TEST(Topology, ObjectsAskForBoxesAndAClassifierWhoseFileResolvesAgainstTheTopology) {
+  const std::string nodes = kNodes;
+  auto parsed = parseTopology("name: t\nnodes:\n" + nodes, "site");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  EXPECT_FALSE(parsed->objects.boxes);  // off by default: ellipsoids only
+  parsed = parseTopology("name: t\nobjects: {boxes: true}\nnodes:\n" + nodes, "site");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  EXPECT_TRUE(parsed->objects.boxes);
+  EXPECT_FALSE(parsed->objects.classifier.has_value());
+  // A classifier implies boxes.
+  parsed = parseTopology("name: t\nobjects: {classifier: models/forest.yml.gz}\nnodes:\n" + nodes, "site");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  EXPECT_TRUE(parsed->objects.boxes);
+  EXPECT_EQ(parsed->objects.classifier, std::filesystem::path("site/models/forest.yml.gz"));
+  expectRejectedWith("name: t\nobjects: {boxes: false, classifier: m.yml}\nnodes:\n" + nodes, {"objects.boxes", "classifier"});
+  expectRejected("name: t\nobjects: {classifier: ''}\nnodes:\n" + nodes, "objects.classifier");
+  expectRejected("name: t\nobjects: {boxes: maybe}\nnodes:\n" + nodes, "objects.boxes");
+  expectRejected("name: t\nobjects: {box: true}\nnodes:\n" + nodes, "box");
 }
 
 TEST(Topology, OutOfRangeValuesNameTheirField) {
