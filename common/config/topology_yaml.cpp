@@ -204,7 +204,7 @@ std::string toYaml(const TopologyConfig& t) {
           << "tentative_timeout_s" << YAML::Value << c.tentative_timeout_s << YAML::Key << "track_timeout_s"
           << YAML::Value << c.track_timeout_s << YAML::Key << "max_buffered_frames" << YAML::Value
           << c.max_buffered_frames << YAML::Key << "max_detection_wait_s" << YAML::Value << c.max_detection_wait_s
-          << YAML::EndMap;
+          << YAML::Key << "lidar_class_weight" << YAML::Value << c.lidar_class_weight << YAML::EndMap;
     }
     if (n.tls) {
       out << YAML::Key << "tls" << YAML::Value << YAML::BeginMap << YAML::Key << "cert" << YAML::Value

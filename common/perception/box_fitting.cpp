@@ -217,13 +217,15 @@ Expected<OrientedBox> fitOrientedBox(std::span<const Point> points, const std::o
   return box;
 }
 
-OrientedBox grownToPrior(const OrientedBox& box, const Eigen::Vector3d& sensor, const BoxPrior& prior) {
+OrientedBox grownToPrior(const OrientedBox& box, const Eigen::Vector3d& sensor, const BoxPrior& prior,
+                         std::optional<double> heading) {
   const double c = std::cos(box.yaw);
   const double s = std::sin(box.yaw);
   // The box's axes: e1 along its length (extent a), e2 across (extent b).
   Eigen::Vector2d e1(c, s), e2(-s, c);
   double a = box.length, b = box.width;
-  const bool long_edge_is_width = a < prior.length_m && a <= prior.max_width_m;
+  const bool long_edge_is_width = heading ? axisAngleBetween(box.yaw, *heading) > 0.25 * std::numbers::pi
+                                          : a < prior.length_m && a <= prior.max_width_m;
   // The object's length axis and width axis, with their extents.
   Eigen::Vector2d along = e1, across = e2;
   double length = a, width = b;
@@ -252,6 +254,29 @@ OrientedBox grownToPrior(const OrientedBox& box, const Eigen::Vector3d& sensor, 
   out.yaw = foldedYaw(std::atan2(length_axis.y(), length_axis.x()));
   out.anchor = out.anchorFor(sensor);
   return out;
+}
+
+OrientedBox grownFromAnchor(const OrientedBox& box, const BoxPrior& prior, std::optional<double> heading) {
+  Eigen::Vector3d sensor = box.centre;
+  if (box.anchor != BoxAnchor::kNone) {
+    const Eigen::Vector3d outward = box.anchorPoint() - box.centre;
+    if (outward.head<2>().norm() > 0.0) sensor = box.anchorPoint() + 1e3 * outward.normalized();
+  }
+  return grownToPrior(box, sensor, prior, heading);
+}
+
+std::optional<BoxPrior> vehiclePriorFor(const OrientedBox& box, const std::optional<ObjectLabel>& label) {
+  if (label) {
+    if (auto prior = vehiclePrior(label->object_class)) return prior;
+  }
+  if (box.length >= kVehicleMinLengthM) return vehiclePrior(ObjectClass::kCar);
+  return std::nullopt;
+}
+
+std::optional<BoxPrior> vehiclePrior(ObjectClass object_class) {
+  if (object_class == ObjectClass::kCar) return BoxPrior{};
+  if (object_class == ObjectClass::kTruckOrBus) return BoxPrior{8.0, 2.5, 3.0};
+  return std::nullopt;
 }
 
 }  // namespace fogmap

@@ -19,6 +19,7 @@
 
 #include "common/base/status.hpp"
 #include "common/geometry/cloud.hpp"
+#include "common/geometry/object_class.hpp"
 #include "common/geometry/oriented_box.hpp"
 
 namespace fogmap {
@@ -56,6 +57,25 @@ struct BoxPrior {
 // axis then takes max(extent, prior) and grows away from the sensor when the sensor lies beyond
 // the box on that axis (the near face stays), else on both sides alike. Yaw follows the length,
 // and the anchor is recomputed.
-OrientedBox grownToPrior(const OrientedBox& box, const Eigen::Vector3d& sensor, const BoxPrior& prior);
+// With a heading (radians; a tracked vehicle's direction of motion), the box's axis nearer the
+// heading is the length, whatever the extents say.
+OrientedBox grownToPrior(const OrientedBox& box, const Eigen::Vector3d& sensor, const BoxPrior& prior,
+                         std::optional<double> heading = std::nullopt);
+
+// grownToPrior where the sensor is not known but the box's anchor is (a view on the map): as if the
+// sensor lay far beyond the anchor, so the anchor face or corner stays; without an anchor (a box of
+// several sensors' views) each short axis grows on both sides alike.
+OrientedBox grownFromAnchor(const OrientedBox& box, const BoxPrior& prior, std::optional<double> heading = std::nullopt);
+
+// The typical box of a vehicle class: cars 4.4 x 1.8 m (at most 2.2 wide), trucks and buses
+// 8 x 2.5 m (at most 3); nothing for the other classes.
+std::optional<BoxPrior> vehiclePrior(ObjectClass object_class);
+
+// Boxes of at least this length are vehicles whatever their class says: a car's partial view is
+// classed otherwise now and then, and where it is measured must not jump with its class.
+inline constexpr double kVehicleMinLengthM = 1.5;
+// The prior of an object's box: its class's (vehiclePrior), or a car's for a box of at least
+// kVehicleMinLengthM; nothing for the others (people, poles: measured where their points are).
+std::optional<BoxPrior> vehiclePriorFor(const OrientedBox& box, const std::optional<ObjectLabel>& label);
 
 }  // namespace fogmap

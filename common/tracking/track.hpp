@@ -3,12 +3,15 @@
 // tracks (common/tracking/tracker.hpp fuses them; services/common/proto_convert carries them).
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include "common/camera/detection.hpp"
+#include "common/geometry/object_class.hpp"
+#include "common/geometry/oriented_box.hpp"
 
 namespace fogmap::tracking {
 
@@ -19,6 +22,10 @@ struct CloudObservation {
   // The points behind it (0: not known). When a step must shed measurements, the ones near no
   // track go by this, most points first (common/tracking/tracker.hpp).
   std::size_t point_count = 0;
+  // The LiDAR class of a global-map object whose edges classify (topology objects:), and its
+  // oriented box as its views give it (a vehicle's position is its box grown to its class's size).
+  std::optional<ObjectLabel> lidar_class;
+  std::optional<OrientedBox> box;
 };
 
 // One moving (or newly seen) object's points, summarised (displacement centroids, DESIGN.md 2.4).

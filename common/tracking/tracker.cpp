@@ -8,6 +8,7 @@
 #include <set>
 #include <utility>
 
+#include "common/perception/box_fitting.hpp"
 #include "common/tracking/assignment.hpp"
 
 namespace fogmap::tracking {
@@ -18,6 +19,16 @@ double seconds(std::int64_t ns) { return static_cast<double>(ns) * 1e-9; }
 std::int64_t nanoseconds(double s) { return static_cast<std::int64_t>(std::llround(s * 1e9)); }
 
 Eigen::Vector2d ground(const CloudObservation& o) { return o.position.head<2>(); }
+
+// A vehicle's measured point once its track moves: its box grown to its class's size with the
+// length along the track's direction of motion (a car's side seen in part is as long as its rear
+// is wide; the motion tells them apart). Nothing for other observations or a track too slow to say.
+std::optional<Eigen::Vector2d> headingAware(const CloudObservation& o, const Eigen::Vector2d& velocity) {
+  if (!o.box || velocity.norm() < kHeadingMinSpeedMps) return std::nullopt;
+  const auto prior = vehiclePriorFor(*o.box, o.lidar_class);
+  if (!prior) return std::nullopt;
+  return grownFromAnchor(*o.box, *prior, std::atan2(velocity.y(), velocity.x())).centre.head<2>();
+}
 
 // The measurement covariance on the ground plane, with a floor so that a tight cluster (or a
 // degenerate one) never makes the filter over-confident.
@@ -363,13 +374,23 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
   struct Measurement {
     Eigen::Vector2d position;
     Eigen::Matrix2d covariance;
-    std::map<std::string, double> votes;
+    std::map<std::string, double> votes;  // the cameras'
+    std::optional<ObjectLabel> lidar_class;
+    const CloudObservation* observation = nullptr;
   };
   std::vector<Measurement> measurements;
   measurements.reserve(frame.observations.size());
   for (const auto& o : frame.observations) {
-    measurements.push_back({ground(o), groundCovariance(o, config_.min_measurement_sigma_m), {}});
+    measurements.push_back({ground(o), groundCovariance(o, config_.min_measurement_sigma_m), {}, o.lidar_class, &o});
   }
+  // Labels: the cameras' detections vote with their scores, a LiDAR class with its confidence
+  // times lidar_class_weight (docs/tracking.md, "Labels").
+  const auto voteLidarClass = [&](const Measurement& meas, std::map<std::string, double>& votes) {
+    if (meas.lidar_class && config_.lidar_class_weight > 0.0) {
+      votes[std::string(objectClassName(meas.lidar_class->object_class))] +=
+          config_.lidar_class_weight * std::max(meas.lidar_class->confidence, 1e-6);
+    }
+  };
   for (const auto& message : detections) {
     const auto cam = std::find_if(cameras_.begin(), cameras_.end(), [&](const auto& c) { return c.name == message.camera; });
     for (const auto& detection : message.detections) {
@@ -381,7 +402,7 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
   }
 
   // Associate: the least total squared Mahalanobis distance, inside the gate, never across labels
-  // a camera has told apart.
+  // cameras have told apart.
   const double inf = std::numeric_limits<double>::infinity();
   std::vector<std::vector<double>> cost(tracks_.size(), std::vector<double>(measurements.size(), inf));
   std::vector<std::string> measured_label(measurements.size());
@@ -398,7 +419,11 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
     for (std::size_t m = 0; m < measurements.size(); ++m) {
       const auto& meas = measurements[m];
       if ((meas.position - predicted).squaredNorm() > config_.gate_chi2 * (track_spread + measurement_spread[m])) continue;
-      if (!measured_label[m].empty() && tracks_[t].label != kUnknownLabel && measured_label[m] != tracks_[t].label) continue;
+      // (A label only LiDAR classes gave, camera_confirmed false, does not gate: a camera may rename it.)
+      if (!measured_label[m].empty() && tracks_[t].camera_confirmed && tracks_[t].label != kUnknownLabel &&
+          measured_label[m] != tracks_[t].label) {
+        continue;
+      }
       const double d2 = filters_[t].mahalanobis2(meas.position, meas.covariance);
       if (d2 <= config_.gate_chi2) cost[t][m] = d2;
     }
@@ -416,7 +441,7 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
     }
     const auto& meas = measurements[*assignment[t]];
     used[*assignment[t]] = true;
-    filters_[t].update(meas.position, meas.covariance);
+    filters_[t].update(headingAware(*meas.observation, filters_[t].velocity()).value_or(meas.position), meas.covariance);
     track.last_update_ns = frame.time_ns;
     ++track.consecutive_hits;
     if (meas.votes.empty()) {
@@ -426,6 +451,7 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
       track.camera_confirmed = true;
       for (const auto& [label, score] : meas.votes) label_votes_[t][label] += score;
     }
+    voteLidarClass(meas, label_votes_[t]);
     if (track.camera_confirmed || track.consecutive_hits >= config_.confirm_hits) track.state = TrackState::kConfirmed;
   }
 
@@ -440,6 +466,7 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
       track.camera_confirmed = true;
       label_votes_.back() = meas.votes;
     }
+    voteLidarClass(meas, label_votes_.back());
     if (track.camera_confirmed || config_.confirm_hits <= 1) track.state = TrackState::kConfirmed;
   }
 

@@ -28,6 +28,10 @@
 
 namespace fogmap::tracking {
 
+// A vehicle's track moving at least this fast updates on its box grown along its direction of
+// motion (common/tracking/tracker.cpp, headingAware).
+inline constexpr double kHeadingMinSpeedMps = 1.0;
+
 struct StepStats {
   std::int64_t time_ns = 0;               // the fused LiDAR frame's sensor time
   std::size_t detections_fused = 0;       // detections whose overlay found an observation

@@ -37,6 +37,9 @@ Status validate(const TrackerConfig& c) {
     return invalidArgument("tracker: max_detection_wait_s must be in [0, 10] seconds");
   }
   if (!positive(c.shed_reach_m)) return invalidArgument("tracker: shed_reach_m must be positive");
+  if (!(std::isfinite(c.lidar_class_weight) && c.lidar_class_weight >= 0.0 && c.lidar_class_weight <= 10.0)) {
+    return invalidArgument("tracker: lidar_class_weight must be in [0, 10]");
+  }
   return {};
 }
 

@@ -35,6 +35,10 @@ struct TrackerConfig {
   // the step's budget, every track first keeps the observation nearest its predicted position within
   // this ground distance (m), then the others go by their points.
   double shed_reach_m = 2.0;
+  // A track's label is the best of its votes: each fused camera detection votes with its score,
+  // each LiDAR class (global maps of edges that classify) with its confidence times this weight, in
+  // [0, 10] (0: LiDAR classes do not label tracks). Below 1, a camera outvotes one LiDAR frame.
+  double lidar_class_weight = 0.5;
 };
 
 Status validate(const TrackerConfig& config);

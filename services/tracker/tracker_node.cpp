@@ -1,6 +1,8 @@
 #include "services/tracker/tracker_node.hpp"
 
 #include "common/geometry/map.hpp"
+#include "common/geometry/object_shape.hpp"
+#include "common/perception/box_fitting.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -47,7 +49,26 @@ tracking::CloudFrame observationsOf(const GlobalMapMessage& global, double alpha
       const Eigen::Vector3d d = e->center - mean;
       covariance += n * (e->shape / alpha2 + d * d.transpose());
     }
-    frame.observations.push_back({mean, covariance / total, static_cast<std::size_t>(total)});
+    tracking::CloudObservation observation{mean, covariance / total, static_cast<std::size_t>(total), std::nullopt, std::nullopt};
+    // Boxes and classes, where the edges give them: a vehicle is measured at the centre of its box
+    // grown to its class's size from the faces its sensors saw, not at the mean of the points of
+    // the faces they saw, which moves as they see other faces.
+    MapObject views;
+    for (const Ellipsoid* e : ellipsoids) views.ellipsoids.push_back(*e);
+    std::sort(views.ellipsoids.begin(), views.ellipsoids.end(), [](const Ellipsoid& a, const Ellipsoid& b) { return a.id < b.id; });
+    observation.lidar_class = objectLabel(views);
+    observation.box = objectBox(views);
+    if (observation.box) {
+      if (const auto prior = vehiclePriorFor(*observation.box, observation.lidar_class)) {
+        observation.position.head<2>() = grownFromAnchor(*observation.box, *prior).centre.head<2>();
+        // The box centre is known to the spread of its fit, not to the spread of the car's points.
+        const double sigma = kVehicleCentreSigmaM;
+        observation.covariance.topLeftCorner<2, 2>() = Eigen::Matrix2d::Identity() * sigma * sigma;
+        observation.covariance(0, 2) = observation.covariance(2, 0) = 0.0;
+        observation.covariance(1, 2) = observation.covariance(2, 1) = 0.0;
+      }
+    }
+    frame.observations.push_back(std::move(observation));
   }
   return frame;
 }

@@ -31,7 +31,11 @@ inline constexpr double kGroundMergeM = 0.3;
 // `ground_merge_m`, overlap are one obstacle (transitively); per obstacle, the point-weighted
 // centroid of its ellipsoids and the spread of its points (each ellipsoid's shape is alpha^2 Sigma,
 // grown by the aura; the aura is left in, a conservative measurement noise). `alpha` is the
-// topology's.
+// topology's. Where the edges fit boxes and classify (topology objects:), each obstacle also has
+// its views' class and box (objectLabel, objectBox, the box as the views give it); a vehicle
+// (vehiclePriorFor: by its class or its size) is then observed at the centre of its box grown to
+// its class's size from the faces seen (grownFromAnchor), kVehicleCentreSigmaM apart on the ground.
+inline constexpr double kVehicleCentreSigmaM = 0.3;
 tracking::CloudFrame observationsOf(const GlobalMapMessage& global, double alpha, double ground_merge_m = kGroundMergeM);
 
 // One published set of tracks.

@@ -223,6 +223,36 @@ TEST(BoxFitting, APriorGrowsTheUnseenSideAwayFromTheSensor) {
   EXPECT_TRUE(same.centre.isApprox(bus.centre));
 }
 
+TEST(BoxFitting, GrownFromItsAnchorAViewKeepsTheFaceItsSensorSaw) {
+  // The rear 1.2 m of a car along x, its rear face (x = 20) seen: the car runs on to x = 24.4.
+  OrientedBox rear;
+  rear.centre = Eigen::Vector3d(20.6, 3.0, 0.7);
+  rear.length = 1.8;  // across: the car's width
+  rear.width = 1.2;
+  rear.yaw = foldedYaw(kPi / 2);  // the fit's long edge runs along y
+  rear.anchor = rear.anchorFor(Eigen::Vector3d(0.0, 3.0, 1.7));
+  ASSERT_NE(rear.anchor, BoxAnchor::kNone);
+  const OrientedBox car = grownFromAnchor(rear, *vehiclePrior(ObjectClass::kCar));
+  EXPECT_NEAR(car.length, 4.4, 1e-9);
+  EXPECT_NEAR(car.width, 1.8, 1e-9);
+  EXPECT_LT(axisAngleBetween(car.yaw, 0.0), 1e-9);
+  EXPECT_NEAR(car.centre.x(), 20.0 + 2.2, 1e-6);  // the seen face stays at x = 20
+  EXPECT_NEAR(car.centre.y(), 3.0, 1e-6);
+  // The same as knowing the sensor.
+  const OrientedBox known = grownToPrior(rear, Eigen::Vector3d(0.0, 3.0, 1.7), *vehiclePrior(ObjectClass::kCar));
+  EXPECT_LT((known.centre - car.centre).norm(), 1e-6);
+  // Without an anchor (several sensors' views) a short axis grows on both sides alike.
+  OrientedBox middle = rear;
+  middle.anchor = BoxAnchor::kNone;
+  const OrientedBox both = grownFromAnchor(middle, *vehiclePrior(ObjectClass::kCar));
+  EXPECT_NEAR(both.centre.x(), 20.6, 1e-9);
+  EXPECT_NEAR(both.length, 4.4, 1e-9);
+  // Trucks and buses have their own size; people and poles none.
+  EXPECT_NEAR(vehiclePrior(ObjectClass::kTruckOrBus)->length_m, 8.0, 1e-12);
+  EXPECT_FALSE(vehiclePrior(ObjectClass::kPerson).has_value());
+  EXPECT_FALSE(vehiclePrior(ObjectClass::kPole).has_value());
+}
+
 TEST(BoxFitting, YawsFoldOntoHalfATurn) {
   EXPECT_DOUBLE_EQ(foldedYaw(0.25), 0.25);
   EXPECT_NEAR(foldedYaw(kPi + 0.25), 0.25, 1e-12);

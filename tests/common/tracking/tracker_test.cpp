@@ -352,6 +352,45 @@ TEST(KalmanAssociation, LidarAloneConfirmsAfterConfirmHitsWithAnUnknownLabelThat
   EXPECT_TRUE(tracker.tracks()[0].camera_confirmed);
 }
 
+CloudObservation classed(double x, double y, ObjectClass object_class, double confidence) {
+  CloudObservation o = at(x, y, 0.9);
+  o.lidar_class = ObjectLabel{object_class, confidence};
+  return o;
+}
+
+TEST(KalmanAssociation, WithoutCamerasTheLidarClassLabelsTheTrackAndACameraOutvotesAFewFrames) {
+  TrackerConfig config;
+  config.confirm_hits = 3;
+  auto lidar_only = makeTracker(config, {});
+  for (int k = 0; k < 5; ++k) lidar_only.addCloud(cloudAt(k * 100 * kMs, {classed(8.0 + 0.1 * k, 0, ObjectClass::kCar, 0.9)}));
+  ASSERT_EQ(lidar_only.tracks().size(), 1U);
+  EXPECT_EQ(lidar_only.tracks()[0].state, TrackState::kConfirmed);
+  EXPECT_EQ(lidar_only.tracks()[0].label, "car");
+  EXPECT_FALSE(lidar_only.tracks()[0].camera_confirmed);
+
+  // One frame's LiDAR vote weighs 0.5 x 0.9 = 0.45; a camera detection of score 0.8 outweighs it,
+  // and a second LiDAR frame (0.9 in all) outweighs the camera again.
+  const auto cam = forwardCamera("front");
+  auto fused = makeTracker(config, {cam});
+  fused.addCloud(cloudAt(0, {classed(8, 0, ObjectClass::kCar, 0.9)}));
+  EXPECT_EQ(fused.tracks()[0].label, "car");
+  camera::Detection seen = detectionOf(cam, {8, 0, 0.9}, "person");
+  seen.score = 0.8;
+  fused.addDetections(detectionsAt("front", 100 * kMs, {seen}));
+  fused.addCloud(cloudAt(100 * kMs, {at(8, 0, 0.9)}));
+  EXPECT_EQ(fused.tracks()[0].label, "person");
+  fused.addCloud(cloudAt(200 * kMs, {classed(8, 0, ObjectClass::kCar, 0.9)}));
+  EXPECT_EQ(fused.tracks()[0].label, "car");
+
+  // Weight 0: LiDAR classes never label a track.
+  config.lidar_class_weight = 0.0;
+  auto unlabelled = makeTracker(config, {});
+  for (int k = 0; k < 4; ++k) unlabelled.addCloud(cloudAt(k * 100 * kMs, {classed(8, 0, ObjectClass::kCar, 1.0)}));
+  EXPECT_EQ(unlabelled.tracks()[0].label, kUnknownLabel);
+  config.lidar_class_weight = 11.0;
+  EXPECT_FALSE(validate(config));
+}
+
 TEST(KalmanAssociation, UnobservedTracksAreLostThenDeletedAfterTheTimeoutAndTentativeOnesSooner) {
   const auto cam = forwardCamera("front");
   TrackerConfig config;

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <numbers>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -101,6 +102,42 @@ TEST(TrackerNode, ObjectsStackedOrTouchingOnTheGroundAreOneObstacleAndSeparateOn
   EXPECT_NEAR(xs[2], 16.2, 1e-9);
   // Without growing, the slices (whose footprints overlap) are still one; the car's halves are two.
   EXPECT_EQ(observationsOf(g, 1.5, 0.0).observations.size(), 4U);
+}
+
+TEST(TrackerNode, AVehicleIsObservedAtTheCentreOfItsBoxGrownFromTheFaceSeenAndAPersonAtItsPoints) {
+  // A car whose rear face (x = 20) one LiDAR saw: points over its rear 1.2 m; a person at (5, -3).
+  Ellipsoid rear = ellipsoidAt(1, 0, {20.6, 3.0, 0.7}, Eigen::Vector3d(0.4, 1.0, 0.3).asDiagonal(), 120);
+  OrientedBox box;
+  box.centre = Eigen::Vector3d(20.6, 3.0, 0.7);
+  box.length = 1.8;
+  box.width = 1.2;
+  box.yaw = -std::numbers::pi / 2;
+  box.anchor = box.anchorFor(Eigen::Vector3d(0.0, 3.0, 1.7));
+  rear.box = box;
+  rear.label = ObjectLabel{ObjectClass::kCar, 0.8};
+  Ellipsoid person = ellipsoidAt(1, 1, {5.0, -3.0, 0.9}, Eigen::Vector3d(0.05, 0.05, 0.3).asDiagonal(), 40);
+  OrientedBox person_box;
+  person_box.centre = Eigen::Vector3d(5.1, -3.0, 0.9);
+  person_box.length = 0.5;
+  person_box.width = 0.4;
+  person_box.height = 1.7;
+  person.box = person_box;
+  person.label = ObjectLabel{ObjectClass::kPerson, 0.9};
+  GlobalMapMessage g;
+  g.map = localMap({rear, person});
+  const auto frame = observationsOf(g, 1.5);
+  ASSERT_EQ(frame.observations.size(), 2U);
+  const auto& car = frame.observations[0].position.x() > 10 ? frame.observations[0] : frame.observations[1];
+  const auto& walker = frame.observations[0].position.x() > 10 ? frame.observations[1] : frame.observations[0];
+  EXPECT_NEAR(car.position.x(), 22.2, 1e-6);  // rear face at 20, 4.4 m long
+  EXPECT_NEAR(car.position.y(), 3.0, 1e-6);
+  EXPECT_NEAR(car.covariance(0, 0), kVehicleCentreSigmaM * kVehicleCentreSigmaM, 1e-12);
+  ASSERT_TRUE(car.lidar_class.has_value());
+  EXPECT_EQ(car.lidar_class->object_class, ObjectClass::kCar);
+  ASSERT_TRUE(car.box.has_value());
+  EXPECT_NEAR(car.box->length, 1.8, 1e-9);  // as the view gives it
+  EXPECT_LT((walker.position - Eigen::Vector3d(5.0, -3.0, 0.9)).norm(), 1e-12);  // its points' mean
+  EXPECT_EQ(walker.lidar_class->object_class, ObjectClass::kPerson);
 }
 
 TEST(TrackerNode, LateRevisionsAreNotFusedTwice) {
