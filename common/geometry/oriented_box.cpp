@@ -1,5 +1,6 @@
 #include "common/geometry/oriented_box.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -73,6 +74,25 @@ std::array<Eigen::Vector2d, 4> OrientedBox::footprint() const {
   const Eigen::Vector2d across = 0.5 * width * Eigen::Vector2d(-std::sin(yaw), std::cos(yaw));
   const Eigen::Vector2d c = centre.head<2>();
   return {c + along + across, c - along + across, c - along - across, c + along - across};
+}
+
+bool footprintsOverlap(const OrientedBox& a, const OrientedBox& b) {
+  const auto corners_a = a.footprint();
+  const auto corners_b = b.footprint();
+  for (const OrientedBox* box : {&a, &b}) {
+    for (const Eigen::Vector2d axis : {Eigen::Vector2d(std::cos(box->yaw), std::sin(box->yaw)),
+                                       Eigen::Vector2d(-std::sin(box->yaw), std::cos(box->yaw))}) {
+      double a_lo = corners_a[0].dot(axis), a_hi = a_lo, b_lo = corners_b[0].dot(axis), b_hi = b_lo;
+      for (int k = 1; k < 4; ++k) {
+        a_lo = std::min(a_lo, corners_a[k].dot(axis));
+        a_hi = std::max(a_hi, corners_a[k].dot(axis));
+        b_lo = std::min(b_lo, corners_b[k].dot(axis));
+        b_hi = std::max(b_hi, corners_b[k].dot(axis));
+      }
+      if (a_hi < b_lo || b_hi < a_lo) return false;
+    }
+  }
+  return true;
 }
 
 }  // namespace fogmap

@@ -44,6 +44,9 @@ struct OrientedBox {
   std::array<Eigen::Vector2d, 4> footprint() const;
 };
 
+// True when the two boxes' footprints overlap (touching counts): separating axes of both.
+bool footprintsOverlap(const OrientedBox& a, const OrientedBox& b);
+
 // Yaw folded into [-pi/2, pi/2) (a box's axis is the same turned by pi).
 double foldedYaw(double yaw);
 // The smallest angle between two box axes, in [0, pi/2].

@@ -413,18 +413,31 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
   // a cheap test that leaves the exact one to the few pairs that may pass it.
   std::vector<double> measurement_spread(measurements.size());
   for (std::size_t m = 0; m < measurements.size(); ++m) measurement_spread[m] = measurements[m].covariance.trace();
+  // A vehicle seen by a moving track is measured where its box, grown along the track's motion,
+  // puts it (headingAware): for each such pair within reach, its own measured point.
+  std::map<std::pair<std::size_t, std::size_t>, Eigen::Vector2d> along_motion;
+  const auto measuredFor = [&](std::size_t t, std::size_t m) -> const Eigen::Vector2d& {
+    const auto it = along_motion.find({t, m});
+    return it == along_motion.end() ? measurements[m].position : it->second;
+  };
   for (std::size_t t = 0; t < tracks_.size(); ++t) {
     const Eigen::Vector2d predicted = filters_[t].position();
     const double track_spread = filters_[t].covariance().topLeftCorner<2, 2>().trace();
+    const Eigen::Vector2d velocity = filters_[t].velocity();
     for (std::size_t m = 0; m < measurements.size(); ++m) {
       const auto& meas = measurements[m];
-      if ((meas.position - predicted).squaredNorm() > config_.gate_chi2 * (track_spread + measurement_spread[m])) continue;
+      if (meas.observation->box && velocity.norm() >= kHeadingMinSpeedMps &&
+          (meas.position - predicted).norm() <= kHeadingReachM) {
+        if (const auto point = headingAware(*meas.observation, velocity)) along_motion[{t, m}] = *point;
+      }
+      const Eigen::Vector2d& position = measuredFor(t, m);
+      if ((position - predicted).squaredNorm() > config_.gate_chi2 * (track_spread + measurement_spread[m])) continue;
       // (A label only LiDAR classes gave, camera_confirmed false, does not gate: a camera may rename it.)
       if (!measured_label[m].empty() && tracks_[t].camera_confirmed && tracks_[t].label != kUnknownLabel &&
           measured_label[m] != tracks_[t].label) {
         continue;
       }
-      const double d2 = filters_[t].mahalanobis2(meas.position, meas.covariance);
+      const double d2 = filters_[t].mahalanobis2(position, meas.covariance);
       if (d2 <= config_.gate_chi2) cost[t][m] = d2;
     }
   }
@@ -441,7 +454,7 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
     }
     const auto& meas = measurements[*assignment[t]];
     used[*assignment[t]] = true;
-    filters_[t].update(headingAware(*meas.observation, filters_[t].velocity()).value_or(meas.position), meas.covariance);
+    filters_[t].update(measuredFor(t, *assignment[t]), meas.covariance);
     track.last_update_ns = frame.time_ns;
     ++track.consecutive_hits;
     if (meas.votes.empty()) {

@@ -31,6 +31,9 @@ namespace fogmap::tracking {
 // A vehicle's track moving at least this fast updates on its box grown along its direction of
 // motion (common/tracking/tracker.cpp, headingAware).
 inline constexpr double kHeadingMinSpeedMps = 1.0;
+// ... when its box, grown as the extents say, lies within this ground distance of the prediction
+// (a wrong guess of which side is the length moves a car's centre by at most about 2.2 m).
+inline constexpr double kHeadingReachM = 4.0;
 
 struct StepStats {
   std::int64_t time_ns = 0;               // the fused LiDAR frame's sensor time

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <map>
+#include <optional>
 #include <utility>
 
 namespace fogmap {
@@ -16,7 +17,15 @@ tracking::CloudFrame observationsOf(const GlobalMapMessage& global, double alpha
   tracking::CloudFrame frame;
   frame.time_ns = global.header.sensor_time_ns;
   const auto& objects = global.map.objects;
-  // Obstacles: union-find over the objects whose ground footprints (grown) overlap.
+  // Each object's vehicle box where it has one: its box grown to its class's size from the faces seen.
+  std::vector<std::optional<OrientedBox>> vehicle(objects.size());
+  for (std::size_t i = 0; i < objects.size(); ++i) {
+    const auto box = objectBox(objects[i]);
+    if (!box) continue;
+    if (const auto prior = vehiclePriorFor(*box, objectLabel(objects[i]))) vehicle[i] = grownFromAnchor(*box, *prior);
+  }
+  // Obstacles: union-find over the objects whose ground footprints (grown) overlap, and over the
+  // parts of one vehicle (each grown to a whole vehicle, they overlap: a car cut in two is one car).
   DisjointSets sets(objects.size());
   for (std::size_t i = 0; i < objects.size(); ++i) {
     for (std::size_t j = i + 1; j < objects.size(); ++j) {
@@ -24,7 +33,8 @@ tracking::CloudFrame observationsOf(const GlobalMapMessage& global, double alpha
       const Box& b = objects[j].box;
       const bool apart = a.min.x() > b.max.x() + ground_merge_m || b.min.x() > a.max.x() + ground_merge_m ||
                          a.min.y() > b.max.y() + ground_merge_m || b.min.y() > a.max.y() + ground_merge_m;
-      if (!apart) sets.unite(i, j);
+      const bool one_vehicle = vehicle[i] && vehicle[j] && footprintsOverlap(*vehicle[i], *vehicle[j]);
+      if (!apart || one_vehicle) sets.unite(i, j);
     }
   }
   std::map<std::size_t, std::vector<const Ellipsoid*>> obstacles;

@@ -35,6 +35,8 @@ inline constexpr double kGroundMergeM = 0.3;
 // its views' class and box (objectLabel, objectBox, the box as the views give it); a vehicle
 // (vehiclePriorFor: by its class or its size) is then observed at the centre of its box grown to
 // its class's size from the faces seen (grownFromAnchor), kVehicleCentreSigmaM apart on the ground.
+// Objects whose vehicle boxes (so grown) overlap are one obstacle too: the parts of a car that the
+// map holds as two objects.
 inline constexpr double kVehicleCentreSigmaM = 0.3;
 tracking::CloudFrame observationsOf(const GlobalMapMessage& global, double alpha, double ground_merge_m = kGroundMergeM);
 

@@ -97,6 +97,17 @@ TEST(ObjectBox, EqualPointCountsTakeTheAxisOfTheSmallestId) {
   EXPECT_DOUBLE_EQ(box->yaw, -0.2);  // node 1 sorts first
 }
 
+TEST(ObjectBox, FootprintsOverlapByTheirSeparatingAxes) {
+  const OrientedBox a = boxAt(0, 0, 4.0, 2.0, 0.0);
+  EXPECT_TRUE(footprintsOverlap(a, boxAt(3.9, 0, 4.0, 2.0, 0.0)));
+  EXPECT_FALSE(footprintsOverlap(a, boxAt(4.1, 0, 4.0, 2.0, 0.0)));
+  // A 1 m square turned 45 degrees off a's corner (2, 1): its axis-aligned bounds overlap a's, but
+  // its own diagonal axis separates them at (2.4, 1.4); at (2.3, 1.3) they overlap.
+  EXPECT_FALSE(footprintsOverlap(a, boxAt(2.4, 1.4, 1.0, 1.0, kPi / 4)));
+  EXPECT_TRUE(footprintsOverlap(a, boxAt(2.3, 1.3, 1.0, 1.0, kPi / 4)));
+  EXPECT_TRUE(footprintsOverlap(a, boxAt(0, 0, 0.5, 0.5, 0.3)));  // inside
+}
+
 // ---- a global object's class --------------------------------------------------------------------
 
 TEST(ObjectLabel, ViewsVoteWithConfidenceTimesPoints) {

@@ -3,6 +3,8 @@
 // non-crossing paths, a camera that stops, and track life cycles.
 #include "common/tracking/tracker.hpp"
 
+#include "common/perception/box_fitting.hpp"
+
 #include <cmath>
 #include <functional>
 #include <map>
@@ -389,6 +391,46 @@ TEST(KalmanAssociation, WithoutCamerasTheLidarClassLabelsTheTrackAndACameraOutvo
   EXPECT_EQ(unlabelled.tracks()[0].label, kUnknownLabel);
   config.lidar_class_weight = 11.0;
   EXPECT_FALSE(validate(config));
+}
+
+// A car 4.4 x 1.8 m driving along +x at 5 m/s, seen from far behind on its left: its rear face and
+// the rear 2 m of its left side (the rest hidden). As the tracker node measures it without a
+// heading, the 2 m side reads as a rear face's width and the car as turned across: 1.8 m off.
+CloudObservation rearLeftView(double centre_x) {
+  OrientedBox seen;
+  seen.centre = Eigen::Vector3d(centre_x - 1.2, 0.0, 0.7);
+  seen.length = 2.0;
+  seen.width = 1.8;
+  seen.yaw = 0.0;
+  seen.anchor = BoxAnchor::kRearLeft;
+  CloudObservation o = at(0, 0, 0.7);
+  o.box = seen;
+  o.lidar_class = ObjectLabel{ObjectClass::kCar, 0.9};
+  o.position.head<2>() = grownFromAnchor(seen, *vehiclePrior(ObjectClass::kCar)).centre.head<2>();
+  o.covariance = Eigen::Vector3d(0.09, 0.09, 0.09).asDiagonal();
+  return o;
+}
+
+TEST(KalmanAssociation, AMovingCarIsUpdatedOnItsBoxGrownAlongItsMotionAndKeepsOneTrack) {
+  const CloudObservation first = rearLeftView(10.0);
+  ASSERT_GT((first.position.head<2>() - Eigen::Vector2d(10.0, 0.0)).norm(), 1.5) << "the guess without motion is off";
+  auto tracker = makeTracker(TrackerConfig{}, {});
+  std::set<std::uint64_t> ids;
+  for (int k = 0; k < 40; ++k) {
+    const double x = 10.0 + 0.5 * k;  // 5 m/s at 10 Hz
+    tracker.addCloud(cloudAt(k * 100 * kMs, {rearLeftView(x)}));
+    for (const auto& track : tracker.tracks()) {
+      if (track.state != TrackState::kTentative) ids.insert(track.id);
+    }
+    if (k == 39) {
+      ASSERT_EQ(tracker.tracks().size(), 1U);
+      const Track& car = tracker.tracks()[0];
+      EXPECT_LT((car.position - Eigen::Vector2d(x, 0.0)).norm(), 0.15) << car.position.transpose() << " at " << x;
+      EXPECT_NEAR(car.velocity.x(), 5.0, 0.2);
+      EXPECT_EQ(car.label, "car");
+    }
+  }
+  EXPECT_EQ(ids.size(), 1U);
 }
 
 TEST(KalmanAssociation, UnobservedTracksAreLostThenDeletedAfterTheTimeoutAndTentativeOnesSooner) {

@@ -140,6 +140,36 @@ TEST(TrackerNode, AVehicleIsObservedAtTheCentreOfItsBoxGrownFromTheFaceSeenAndAP
   EXPECT_EQ(walker.lidar_class->object_class, ObjectClass::kPerson);
 }
 
+TEST(TrackerNode, TheTwoPartsOfACarTheMapHoldsApartAreOneObservationAtTheCarsCentre) {
+  // A car 4.4 x 1.8 m at (20, 3) along x, cut by its sensors into a rear part (x 17.8 to 19.3) and
+  // a front part (x 20.8 to 22.2), 1.5 m apart: two objects on the map, one car.
+  const auto part = [](std::uint32_t node, double x0, double x1, BoxAnchor anchor) {
+    Ellipsoid e = ellipsoidAt(node, 0, {0.5 * (x0 + x1), 3.0, 0.7}, Eigen::Vector3d(0.3, 0.8, 0.3).asDiagonal(), 60);
+    OrientedBox box;
+    box.centre = Eigen::Vector3d(0.5 * (x0 + x1), 3.0, 0.7);
+    box.length = 1.8;
+    box.width = x1 - x0;
+    box.yaw = -std::numbers::pi / 2;
+    box.anchor = anchor;
+    e.box = box;
+    e.label = ObjectLabel{ObjectClass::kCar, 0.7};
+    return e;
+  };
+  // One sensor behind the car (x < 17.8), one ahead of it (x > 22.2): each part's anchor is the
+  // face toward its sensor.
+  Ellipsoid rear = part(1, 17.8, 19.3, BoxAnchor::kNone);
+  rear.box->anchor = rear.box->anchorFor(Eigen::Vector3d(0.0, 3.0, 1.7));
+  Ellipsoid front = part(2, 20.8, 22.2, BoxAnchor::kNone);
+  front.box->anchor = front.box->anchorFor(Eigen::Vector3d(40.0, 3.0, 1.7));
+  GlobalMapMessage g;
+  g.map = localMap({rear, front});
+  ASSERT_EQ(g.map.objects.size(), 2U);
+  const auto frame = observationsOf(g, 1.5);
+  ASSERT_EQ(frame.observations.size(), 1U);
+  EXPECT_NEAR(frame.observations[0].position.x(), 20.0, 0.05);
+  EXPECT_NEAR(frame.observations[0].position.y(), 3.0, 0.05);
+}
+
 TEST(TrackerNode, LateRevisionsAreNotFusedTwice) {
   auto tracker = tracking::Tracker::create({}, {});
   ASSERT_TRUE(tracker.ok());
