@@ -21,7 +21,7 @@ namespace fogmap {
 struct ClusterView {
   std::size_t points = 0;
   OrientedBox box;
-  std::optional<ObjectLabel> label;  // with a classifier
+  std::optional<ObjectLabel> label{};  // with a classifier
 };
 
 // The points of each cluster of `clustering` (labels over `points`), in point order.

@@ -112,7 +112,7 @@ struct NodeConfig {
 // loaded by each edge at start-up; a missing or corrupt one stops the edge, naming it.
 struct ObjectsConfig {
   bool boxes = false;
-  std::optional<std::filesystem::path> classifier;  // resolved against the topology's folder
+  std::optional<std::filesystem::path> classifier{};  // resolved against the topology's folder
   bool operator==(const ObjectsConfig&) const = default;
 };
 
@@ -125,7 +125,7 @@ struct TopologyConfig {
   bool baseline_ships_raw = false;
   MadcParams madc;                     // eps, min points, alpha
   PreprocessConfig preprocess;         // crop and ground (the pose comes from each sensor)
-  ObjectsConfig objects;               // boxes and classes at the edges (off: ellipsoids only)
+  ObjectsConfig objects{};             // boxes and classes at the edges (off: ellipsoids only)
   // An aggregator with L levels of aggregators below it emits epoch k at k period_ms + L deadline_ms
   // (common/base/epochs.hpp).
   double deadline_ms = 80.0;

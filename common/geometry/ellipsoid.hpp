@@ -78,8 +78,8 @@ struct Ellipsoid {
   // for it (docs/design.md "Oriented boxes"): the oriented box fitted on the cluster's points, with
   // the face or corner nearest the sensor, and the LiDAR classifier's class. MERGE carries both
   // through untouched; a global object's box and class are functions of its views' (object_shape.hpp).
-  std::optional<OrientedBox> box;
-  std::optional<ObjectLabel> label;
+  std::optional<OrientedBox> box{};
+  std::optional<ObjectLabel> label{};
 
   std::uint32_t node() const { return id.node; }
   bool operator==(const Ellipsoid&) const = default;

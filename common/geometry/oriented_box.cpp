@@ -80,7 +80,7 @@ bool footprintsOverlap(const OrientedBox& a, const OrientedBox& b) {
   const auto corners_a = a.footprint();
   const auto corners_b = b.footprint();
   for (const OrientedBox* box : {&a, &b}) {
-    for (const Eigen::Vector2d axis : {Eigen::Vector2d(std::cos(box->yaw), std::sin(box->yaw)),
+    for (const Eigen::Vector2d& axis : {Eigen::Vector2d(std::cos(box->yaw), std::sin(box->yaw)),
                                        Eigen::Vector2d(-std::sin(box->yaw), std::cos(box->yaw))}) {
       double a_lo = corners_a[0].dot(axis), a_hi = a_lo, b_lo = corners_b[0].dot(axis), b_hi = b_lo;
       for (int k = 1; k < 4; ++k) {

@@ -24,7 +24,7 @@ namespace fogmap::sim {
 struct SceneMapping {
   ClusteringMode clustering = ClusteringMode::kSensor;
   std::optional<std::size_t> fragment_min_points = 1;
-  ObjectsConfig objects;  // boxes and classes at the edges (off: ellipsoids only)
+  ObjectsConfig objects{};  // boxes and classes at the edges (off: ellipsoids only)
 };
 
 struct SceneTopologyOptions {

@@ -24,8 +24,8 @@ struct CloudObservation {
   std::size_t point_count = 0;
   // The LiDAR class of a global-map object whose edges classify (topology objects:), and its
   // oriented box as its views give it (a vehicle's position is its box grown to its class's size).
-  std::optional<ObjectLabel> lidar_class;
-  std::optional<OrientedBox> box;
+  std::optional<ObjectLabel> lidar_class{};
+  std::optional<OrientedBox> box{};
 };
 
 // One moving (or newly seen) object's points, summarised (displacement centroids, DESIGN.md 2.4).

@@ -1,6 +1,7 @@
 #include "services/common/proto_convert.hpp"
 
 #include <algorithm>
+#include <cassert>
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -188,8 +189,8 @@ void toProto(const Map& map, std::uint64_t epoch, EllipsoidWire wire, WireObject
         packed.push_back(std::move(fresh));
       }
       PackedBlock& block = packed[chosen];
-      const bool written = appendCompactView(e, block.views);  // viewFitsCompact(e) holds
-      (void)written;
+      [[maybe_unused]] const bool view_written = appendCompactView(e, block.views);
+      assert(view_written);  // viewFitsCompact(e) was checked above
       block.any_view = block.any_view || hasView(e);
       block.object_of.push_back(o);
       block.own_objects = block.own_objects && lone;

@@ -43,7 +43,7 @@ struct EdgeConfig {
   // ellipsoid. Fragments (smaller clusters) get neither.
   bool boxes = false;
   std::size_t box_min_points = 10;
-  std::shared_ptr<const ObjectClassifier> classifier;  // loadClassifierOf
+  std::shared_ptr<const ObjectClassifier> classifier{};  // loadClassifierOf
 };
 
 // What one frame produced, and what it cost.
