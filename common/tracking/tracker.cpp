@@ -375,20 +375,20 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
     Eigen::Vector2d position;
     Eigen::Matrix2d covariance;
     std::map<std::string, double> votes;  // the cameras'
-    std::optional<ObjectLabel> lidar_class;
-    const CloudObservation* observation = nullptr;
+    const CloudObservation* observation = nullptr;  // its box and LiDAR class
   };
   std::vector<Measurement> measurements;
   measurements.reserve(frame.observations.size());
   for (const auto& o : frame.observations) {
-    measurements.push_back({ground(o), groundCovariance(o, config_.min_measurement_sigma_m), {}, o.lidar_class, &o});
+    measurements.push_back({ground(o), groundCovariance(o, config_.min_measurement_sigma_m), {}, &o});
   }
   // Labels: the cameras' detections vote with their scores, a LiDAR class with its confidence
   // times lidar_class_weight (docs/tracking.md, "Labels").
   const auto voteLidarClass = [&](const Measurement& meas, std::map<std::string, double>& votes) {
-    if (meas.lidar_class && config_.lidar_class_weight > 0.0) {
-      votes[std::string(objectClassName(meas.lidar_class->object_class))] +=
-          config_.lidar_class_weight * std::max(meas.lidar_class->confidence, 1e-6);
+    const auto& lidar_class = meas.observation->lidar_class;
+    if (lidar_class && config_.lidar_class_weight > 0.0) {
+      votes[std::string(objectClassName(lidar_class->object_class))] +=
+          config_.lidar_class_weight * std::max(lidar_class->confidence, 1e-6);
     }
   };
   for (const auto& message : detections) {

@@ -17,12 +17,19 @@ tracking::CloudFrame observationsOf(const GlobalMapMessage& global, double alpha
   tracking::CloudFrame frame;
   frame.time_ns = global.header.sensor_time_ns;
   const auto& objects = global.map.objects;
-  // Each object's vehicle box where it has one: its box grown to its class's size from the faces seen.
-  std::vector<std::optional<OrientedBox>> vehicle(objects.size());
+  // Each object's box and class (where its edges give them) and its vehicle box: its box grown to
+  // its class's size from the faces seen. Computed once per object; an obstacle of one object (the
+  // common case) reuses them.
+  struct Seen {
+    std::optional<OrientedBox> box;
+    std::optional<ObjectLabel> label;
+    std::optional<OrientedBox> vehicle;
+  };
+  std::vector<Seen> seen(objects.size());
   for (std::size_t i = 0; i < objects.size(); ++i) {
-    const auto box = objectBox(objects[i]);
-    if (!box) continue;
-    if (const auto prior = vehiclePriorFor(*box, objectLabel(objects[i]))) vehicle[i] = grownFromAnchor(*box, *prior);
+    seen[i] = {objectBox(objects[i]), objectLabel(objects[i]), std::nullopt};
+    if (!seen[i].box) continue;
+    if (const auto prior = vehiclePriorFor(*seen[i].box, seen[i].label)) seen[i].vehicle = grownFromAnchor(*seen[i].box, *prior);
   }
   // Obstacles: union-find over the objects whose ground footprints (grown) overlap, and over the
   // parts of one vehicle (each grown to a whole vehicle, they overlap: a car cut in two is one car).
@@ -33,13 +40,15 @@ tracking::CloudFrame observationsOf(const GlobalMapMessage& global, double alpha
       const Box& b = objects[j].box;
       const bool apart = a.min.x() > b.max.x() + ground_merge_m || b.min.x() > a.max.x() + ground_merge_m ||
                          a.min.y() > b.max.y() + ground_merge_m || b.min.y() > a.max.y() + ground_merge_m;
-      const bool one_vehicle = vehicle[i] && vehicle[j] && footprintsOverlap(*vehicle[i], *vehicle[j]);
+      const bool one_vehicle = seen[i].vehicle && seen[j].vehicle && footprintsOverlap(*seen[i].vehicle, *seen[j].vehicle);
       if (!apart || one_vehicle) sets.unite(i, j);
     }
   }
   std::map<std::size_t, std::vector<const Ellipsoid*>> obstacles;
+  std::map<std::size_t, std::vector<std::size_t>> members;  // the objects of each obstacle
   for (std::size_t i = 0; i < objects.size(); ++i) {
     for (const Ellipsoid& e : objects[i].ellipsoids) obstacles[sets.find(i)].push_back(&e);
+    members[sets.find(i)].push_back(i);
   }
   const double alpha2 = alpha * alpha;
   for (const auto& [root, ellipsoids] : obstacles) {
@@ -63,11 +72,17 @@ tracking::CloudFrame observationsOf(const GlobalMapMessage& global, double alpha
     // Boxes and classes, where the edges give them: a vehicle is measured at the centre of its box
     // grown to its class's size from the faces its sensors saw, not at the mean of the points of
     // the faces they saw, which moves as they see other faces.
-    MapObject views;
-    for (const Ellipsoid* e : ellipsoids) views.ellipsoids.push_back(*e);
-    std::sort(views.ellipsoids.begin(), views.ellipsoids.end(), [](const Ellipsoid& a, const Ellipsoid& b) { return a.id < b.id; });
-    observation.lidar_class = objectLabel(views);
-    observation.box = objectBox(views);
+    const std::vector<std::size_t>& parts = members.at(root);
+    if (parts.size() == 1) {
+      observation.lidar_class = seen[parts[0]].label;
+      observation.box = seen[parts[0]].box;
+    } else if (std::any_of(parts.begin(), parts.end(), [&](std::size_t i) { return seen[i].box || seen[i].label; })) {
+      MapObject views;  // the obstacle's views together, in canonical order
+      for (const Ellipsoid* e : ellipsoids) views.ellipsoids.push_back(*e);
+      std::sort(views.ellipsoids.begin(), views.ellipsoids.end(), [](const Ellipsoid& a, const Ellipsoid& b) { return a.id < b.id; });
+      observation.lidar_class = objectLabel(views);
+      observation.box = objectBox(views);
+    }
     if (observation.box) {
       if (const auto prior = vehiclePriorFor(*observation.box, observation.lidar_class)) {
         observation.position.head<2>() = grownFromAnchor(*observation.box, *prior).centre.head<2>();
