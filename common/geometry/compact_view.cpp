@@ -73,14 +73,16 @@ bool viewFitsCompact(const Ellipsoid& e) {
 }
 
 bool appendCompactView(const Ellipsoid& e, std::string& out) {
-  if (!viewFitsCompact(e)) return false;
+  std::optional<BoxFields> fields;
+  if (e.box && !(fields = quantiseBox(*e.box, e.center))) return false;
+  if (e.label && !labelFits(*e.label)) return false;
   unsigned flags = 0;
   if (e.box) flags |= kBoxBit | (static_cast<unsigned>(e.box->anchor) << kAnchorShift);
   if (e.label) flags |= (static_cast<unsigned>(e.label->object_class) + 1U) << kClassShift;
   out.push_back(static_cast<char>(flags));
   if (e.label) out.push_back(static_cast<char>(static_cast<unsigned>(std::round(e.label->confidence * 255.0))));
-  if (e.box) {
-    const BoxFields f = *quantiseBox(*e.box, e.center);
+  if (fields) {
+    const BoxFields& f = *fields;
     for (const std::int16_t c : f.centre) putU16(static_cast<std::uint16_t>(c), out);
     for (const std::uint16_t s : f.sides) putU16(s, out);
     putU16(f.yaw, out);
