@@ -141,12 +141,35 @@ TEST(FaultsJudge, ALostMapAnUnpublishedEpochAndAnEpochPublishedOutOfOrderFailThe
     ASSERT_NE(checkNamed(r, failed), nullptr) << failed;
     EXPECT_FALSE(checkNamed(r, failed)->passed) << failed;
   }
-  for (const char* held : {"the root was never silent for more than 4 periods", "no map applied twice",
+  for (const char* held : {"the root was never silent for longer than a period and its deadline", "no map applied twice",
                            "every global map equals the specification", "no process died unless killed"}) {
     ASSERT_NE(checkNamed(r, held), nullptr) << held;
     EXPECT_TRUE(checkNamed(r, held)->passed) << held << ": " << checkNamed(r, held)->detail;
   }
   EXPECT_FALSE(r.passed());
+}
+
+// The longest silence the schedule allows is a period plus the root's deadline (160 ms here), and
+// 100 ms of slack: epochs published whole 5 ms after they began, then from 1005 on at their
+// deadline (a child gone quiet) is a silence of 255 ms and holds; 300 ms after it does not.
+TEST(FaultsJudge, TheRootMaySilentlyWaitForItsDeadlineButNoLonger) {
+  const std::string name = "the root was never silent for longer than a period and its deadline";
+  FaultObservation waited = loaded(1000, 1009);
+  for (std::uint64_t e = 1000; e <= 1009; ++e) publish(waited, e, {1, 2, 3, 4}, {}, e >= 1005 ? 160 : 5);
+  for (std::uint32_t edge = 1; edge <= 4; ++edge) journal(waited, edge, 1000, 1009, Outcome::kApplied);
+  const FaultReport held = judgeFaults(treeOfFour(), planOf(FaultScenario::kSoak), epochs(), waited);
+  EXPECT_NEAR(held.max_silence_ms, 255.0, 1e-9) << "1004 at +5 ms, 1005 at its deadline +160 ms";
+  ASSERT_NE(checkNamed(held, name), nullptr);
+  EXPECT_TRUE(checkNamed(held, name)->passed) << checkNamed(held, name)->detail;
+
+  FaultObservation stalled = loaded(1000, 1009);
+  for (std::uint64_t e = 1000; e <= 1009; ++e) publish(stalled, e, {1, 2, 3, 4}, {}, e >= 1005 ? 460 : 5);
+  for (std::uint32_t edge = 1; edge <= 4; ++edge) journal(stalled, edge, 1000, 1009, Outcome::kApplied);
+  const FaultReport failed = judgeFaults(treeOfFour(), planOf(FaultScenario::kSoak), epochs(), stalled);
+  EXPECT_NEAR(failed.max_silence_ms, 555.0, 1e-9);
+  ASSERT_NE(checkNamed(failed, name), nullptr);
+  EXPECT_FALSE(checkNamed(failed, name)->passed);
+  EXPECT_NE(checkNamed(failed, name)->detail.find("bound 360"), std::string::npos) << checkNamed(failed, name)->detail;
 }
 
 TEST(FaultsJudge, AKilledAggregatorsSubtreeIsNoticedItsLossesCountedApartAndTheRootRecovers) {
