@@ -9,6 +9,7 @@
 #include "common/config/camera_node.hpp"
 #include "common/config/tracker_node.hpp"
 #include "harness/launcher.hpp"
+#include "services/common/endpoint.hpp"
 
 namespace fogmap::harness {
 namespace {
@@ -44,8 +45,6 @@ Expected<std::string> inContainer(const fs::path& path, const fs::path& project_
   }
   return relative == "." ? std::string(kMountPoint) : std::string(kMountPoint) + "/" + relative.generic_string();
 }
-
-std::string endpoint(const NodeConfig& node, std::uint16_t port) { return node.host + ":" + std::to_string(port); }
 
 // The lines of a bash command that exits 0 when `host:port` answers `path` with HTTP 200, for
 // images without curl (bash's /dev/tcp).
@@ -122,7 +121,7 @@ Expected<std::string> composeFile(const TopologyConfig& topology, const ComposeO
     out << "    network_mode: host\n";
     out << "    restart: unless-stopped\n";
     out << "    stop_grace_period: 10s\n";
-    out << "    environment:\n      FOGMAP_METRICS: \"" << endpoint(node, node.metrics_port) << "\"\n";
+    out << "    environment:\n      FOGMAP_METRICS: \"" << endpoint(node.host, node.metrics_port) << "\"\n";
     out << "    volumes:\n      - .:" << kMountPoint << ":ro\n";
     if (node.camera && isDevice(node.camera->source)) {
       // A V4L2 camera: the device node, readable by the image's user through the video group.
@@ -180,7 +179,7 @@ std::string prometheusConfig(const TopologyConfig& topology, const PrometheusOpt
   out << "  - job_name: fogmap\n";
   out << "    static_configs:\n";
   for (const NodeConfig& node : topology.nodes) {
-    out << "      - targets: ['" << endpoint(node, node.metrics_port) << "']\n";
+    out << "      - targets: ['" << endpoint(node.host, node.metrics_port) << "']\n";
     out << "        labels: {instance: " << node.name << ", role: " << serviceName(node.role) << "}\n";
   }
   return out.str();

@@ -1,12 +1,14 @@
 #include "harness/epoch_latency.hpp"
 
+#include "common/base/clock.hpp"
+
 namespace fogmap::harness {
 
 std::optional<double> endToEndLatencyMs(const GlobalMapMessage& global) {
   // An epoch no node contributed to carries no sensor time (0): its "latency" would be the time
   // since 1970.
   if (global.header.sensor_time_ns <= 0) return std::nullopt;
-  return static_cast<double>(global.published_time_ns - global.header.sensor_time_ns) / 1e6;
+  return nsToMs(global.published_time_ns - global.header.sensor_time_ns);
 }
 
 EpochLatencies epochLatencies(const std::map<std::uint64_t, GlobalMapMessage>& epochs) {

@@ -8,12 +8,11 @@
 #include <string>
 #include <vector>
 
+#include "common/base/clock.hpp"
 #include "harness/cluster_run.hpp"
 
 namespace fogmap::harness {
 namespace {
-
-double ms(std::int64_t ns) { return static_cast<double>(ns) / 1e6; }
 
 // Maps acknowledged in the subtree of a killed or stopped aggregator, for these epochs, count as
 // lost in the fault: by it before it was killed, or by the aggregators below it, whose uploads
@@ -152,7 +151,7 @@ FaultReport judgeFaults(const TopologyConfig& topology, const FaultPlan& plan, c
     if (p.revision != 0 || p.epoch > last_loaded || p.epoch < seen.judged_from || p.published_ns < seen.start_ns) continue;
     first_published = std::min(first_published.value_or(p.epoch), p.epoch);
     first_times.push_back(p.published_ns);
-    if (p.contributing.size() == sensors.size()) e2e.push_back(ms(p.published_ns - p.sensor_ns));
+    if (p.contributing.size() == sensors.size()) e2e.push_back(nsToMs(p.published_ns - p.sensor_ns));
   }
   if (first_published) {
     report.epochs_in_window = last_loaded - *first_published + 1;
@@ -164,7 +163,7 @@ FaultReport judgeFaults(const TopologyConfig& topology, const FaultPlan& plan, c
   }
   std::sort(first_times.begin(), first_times.end());
   for (std::size_t i = 1; i < first_times.size(); ++i) {
-    report.max_silence_ms = std::max(report.max_silence_ms, ms(first_times[i] - first_times[i - 1]));
+    report.max_silence_ms = std::max(report.max_silence_ms, nsToMs(first_times[i] - first_times[i - 1]));
   }
   report.e2e_p50_ms = percentile(e2e, 0.5);
   report.e2e_p99_ms = percentile(e2e, 0.99);
@@ -176,7 +175,7 @@ FaultReport judgeFaults(const TopologyConfig& topology, const FaultPlan& plan, c
     for (const Publication& p : pubs) {
       if (p.revision != 0 || p.published_ns < at) continue;
       if (std::any_of(below.begin(), below.end(), [&](std::uint32_t s) { return p.missing.contains(s); })) {
-        notice = std::min(notice.value_or(1e18), ms(p.published_ns - at));
+        notice = std::min(notice.value_or(1e18), nsToMs(p.published_ns - at));
       }
     }
     report.missing_notice_ms.push_back(notice.value_or(-1.0));
@@ -186,10 +185,10 @@ FaultReport judgeFaults(const TopologyConfig& topology, const FaultPlan& plan, c
     const std::int64_t at = restart.ready_ns;
     std::optional<double> rejoin;
     for (const Publication& p : pubs) {
-      if (p.published_ns >= at && p.contributing.contains(id)) rejoin = std::min(rejoin.value_or(1e18), ms(p.published_ns - at));
+      if (p.published_ns >= at && p.contributing.contains(id)) rejoin = std::min(rejoin.value_or(1e18), nsToMs(p.published_ns - at));
     }
     report.rejoin_ms.push_back(rejoin.value_or(-1.0));
-    report.restart_startup_ms.push_back(ms(restart.ready_ns - restart.commanded_ns));
+    report.restart_startup_ms.push_back(nsToMs(restart.ready_ns - restart.commanded_ns));
   }
   if (faults.heal_ns) {
     const std::int64_t heal_ns = *faults.heal_ns;
@@ -214,7 +213,7 @@ FaultReport judgeFaults(const TopologyConfig& topology, const FaultPlan& plan, c
       recovered = e;
     }
     if (recovered) {
-      report.recovery_ms = ms(schedule.startNs(*recovered) - heal_ns) + report.root_deadline_ms;
+      report.recovery_ms = nsToMs(schedule.startNs(*recovered) - heal_ns) + report.root_deadline_ms;
       report.epochs_after_recovery = last_loaded - *recovered + 1;
     }
   }

@@ -35,8 +35,6 @@ using SteadyClock = std::chrono::steady_clock;
 
 constexpr std::chrono::milliseconds kTick{20};
 
-double ms(std::int64_t ns) { return static_cast<double>(ns) / 1e6; }
-
 // Everything the root published, judged as it arrives: the subscriber reads, a checker thread
 // runs the oracle so that a slow check never makes the root drop maps for this subscriber.
 class Observer {
@@ -209,7 +207,6 @@ double metricOf(const NodeConfig& node, const std::string& name) {
   return text ? sumMetric(*text, name) : 0.0;
 }
 
-
 // The edge's journal files (a restarted edge starts a new one) read in directory order.
 Expected<EdgeJournal> readEdgeJournal(const std::filesystem::path& journal_dir, const NodeConfig& edge) {
   EdgeJournal journal{edge.id, edge.name, {}};
@@ -369,7 +366,7 @@ Expected<FaultObservation> observeFaults(const std::filesystem::path& dir, const
           // machine, and that delay is the harness's, not the cluster's.
           const double at_s = metricOf(*topology.find(child), "fogmap_link_last_stall_time_seconds");
           const std::int64_t at_ns = at_s > 0 ? static_cast<std::int64_t>(at_s * 1e9) : systemNowNs();
-          seen.child_notice_ms = ms(at_ns - stopped_at.begin()->second);
+          seen.child_notice_ms = nsToMs(at_ns - stopped_at.begin()->second);
           break;
         }
       }

@@ -9,6 +9,7 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include "common/base/clock.hpp"
 #include "common/base/epochs.hpp"
 #include "common/certs/certs.hpp"
 #include "common/geometry/map.hpp"
@@ -53,7 +54,7 @@ Expected<double> sceneTimeOfEpoch(const sim::Scene& scene, const TopologyConfig&
 std::vector<double> endToEndMs(const RunResult& run) {
   std::vector<double> out;
   for (const auto& [e, g] : run.epochs) {
-    if (completeEpoch(g)) out.push_back(static_cast<double>(g.published_time_ns - g.header.sensor_time_ns) / 1e6);
+    if (completeEpoch(g)) out.push_back(nsToMs(g.published_time_ns - g.header.sensor_time_ns));
   }
   return out;
 }
@@ -403,6 +404,13 @@ Json motReport(const tracking::MotReport& r) {
   j["loc_error_mean_m"] = jsonNumber(r.localization.mean_m);
   j["loc_error_p95_m"] = jsonNumber(r.localization.p95_m);
   j["loc_error_max_m"] = jsonNumber(r.localization.max_m);
+  // Vehicles: the angle between the truth's heading and the track's, over the matches where the
+  // track has one (people have none: the keys are left out).
+  if (r.heading_error_deg.count > 0) {
+    j["yaw_matches"] = r.heading_error_deg.count;
+    j["yaw_error_mean_deg"] = jsonNumber(r.heading_error_deg.mean_m);
+    j["yaw_error_max_deg"] = jsonNumber(r.heading_error_deg.max_m);
+  }
   return j;
 }
 
@@ -424,8 +432,12 @@ std::string sceneTrackingText(const PublishedScores& s, const SceneTrackingOptio
       << "   false positives " << c.false_positives << "   tracks confirmed " << s.scores.tracks_confirmed << "\n";
   for (const auto& [label, r] : s.scores.by_label) {
     out << "    " << label << ": MOTA " << fixedText(r.clear.mota, 3) << ", ID switches " << r.clear.id_switches << ", IDF1 "
-        << fixedText(r.identity.idf1, 3) << ", error mean " << fixedText(r.localization.mean_m, 3) << " m (tracks labelled " << label
-        << " only)\n";
+        << fixedText(r.identity.idf1, 3) << ", error mean " << fixedText(r.localization.mean_m, 3) << " m";
+    if (r.heading_error_deg.count > 0) {
+      out << ", yaw error mean " << fixedText(r.heading_error_deg.mean_m, 1) << " deg (max " << fixedText(r.heading_error_deg.max_m, 1)
+          << ", " << r.heading_error_deg.count << " matches)";
+    }
+    out << " (tracks labelled " << label << " only)\n";
   }
   out << "    sensor time to published tracks: p50 " << fixedText(s.latency_p50_ms, 1) << " ms   p95 " << fixedText(s.latency_p95_ms, 1)
       << " ms   max " << fixedText(s.latency_max_ms, 1) << " ms\n";
@@ -462,8 +474,13 @@ Json sceneTrackingReport(const PublishedScores& s, const SceneTrackingOptions& o
   j["e2e_p50_ms"] = jsonNumber(s.latency_p50_ms);
   j["e2e_p95_ms"] = jsonNumber(s.latency_p95_ms);
   j["e2e_max_ms"] = jsonNumber(s.latency_max_ms);
-  j["by_label"] = Json::object();
-  for (const auto& [label, report] : s.scores.by_label) j["by_label"][label] = motReport(report);
+  if (mot.heading_error_deg.count > 0) {
+    j["yaw_matches"] = mot.heading_error_deg.count;
+    j["yaw_error_mean_deg"] = jsonNumber(mot.heading_error_deg.mean_m);
+  }
+  // Per class: the truth of that class against the tracks labelled with it.
+  j["per_class"] = Json::object();
+  for (const auto& [label, report] : s.scores.by_label) j["per_class"][label] = motReport(report);
   return j;
 }
 

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <set>
 
+#include "common/base/clock.hpp"
+#include "common/geometry/object_class.hpp"
 #include "harness/cluster_run.hpp"
 #include "services/edge_cluster/edge_runner.hpp"
 
@@ -21,13 +23,17 @@ bool isHypothesis(const tracking::Track& track) { return track.state != tracking
 TrackingFrame trackingFrame(const sim::Scene& scene, double time_s, std::span<const tracking::Track> tracks) {
   TrackingFrame frame;
   for (const auto* o : movingObjects(scene)) {
-    frame.mot.truth.push_back({static_cast<std::int64_t>(o->id), sim::poseAt(*o, time_s).xy});
+    const sim::ObjectPose pose = sim::poseAt(*o, time_s);
+    // A vehicle's heading is scored (its box's length lies along its path); a person has none.
+    const auto object_class = parseObjectClass(o->label);
+    const bool vehicle = object_class && isVehicle(*object_class);
+    frame.mot.truth.push_back({static_cast<std::int64_t>(o->id), pose.xy, vehicle ? std::optional<double>(pose.yaw_rad) : std::nullopt});
     frame.truth_labels.push_back(o->label);
   }
   for (const auto& track : tracks) {
     if (!isHypothesis(track)) continue;
     if (track.state == tracking::TrackState::kConfirmed) frame.confirmed.push_back(track.id);
-    frame.mot.hypotheses.push_back({static_cast<std::int64_t>(track.id), track.position});
+    frame.mot.hypotheses.push_back({static_cast<std::int64_t>(track.id), track.position, track.heading_rad});
     frame.hypothesis_labels.push_back(track.label);
   }
   return frame;
@@ -112,7 +118,7 @@ Expected<PublishedScores> scorePublishedTracks(const sim::Scene& scene, const Ep
   std::vector<double> latency_ms;
   for (std::size_t i = window->first; i < window->second; ++i) {
     scored.push_back(trackingFrame(scene, times[i], lists[i].tracks));
-    latency_ms.push_back(static_cast<double>(lists[i].published_time_ns - lists[i].lidar_time_ns) / 1e6);
+    latency_ms.push_back(nsToMs(lists[i].published_time_ns - lists[i].lidar_time_ns));
   }
   auto scores = scoreTracking(scored, config);
   if (!scores) return scores.error();

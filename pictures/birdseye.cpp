@@ -20,16 +20,16 @@ using drawing::bgr;
 using drawing::fixedLength;
 using drawing::fixedPoint;
 using drawing::kFixed;
+using drawing::kFrameColour;
+using drawing::kMutedTextColour;
 using drawing::kShift;
+using drawing::kTextColour;
 using drawing::multiplesIn;
 using drawing::Pen;
 
 constexpr double kFillAlpha = 0.18;  // objects' ellipses are tinted this much with their colour
-const cv::Scalar kGridColour(225, 225, 225);
+const cv::Scalar kMapGridColour(225, 225, 225);
 const cv::Scalar kOriginColour(185, 185, 185);
-const cv::Scalar kFrameColour(90, 90, 90);
-const cv::Scalar kTextColour(30, 30, 30);
-const cv::Scalar kMutedTextColour(90, 90, 90);
 const cv::Scalar kRangeColour(200, 140, 140);  // BGR: a faint slate blue
 
 // The map's transform: common-frame metres to image pixels (x right, y up), continuous coordinates
@@ -212,12 +212,12 @@ Counts drawMap(cv::Mat& plot, const Projection& proj, const BirdseyeScene& scene
   const double step = layout.grid_m;
   for (const double v : multiplesIn(lo.x(), hi.x(), step)) {
     const bool origin = std::abs(v) < step * 1e-6;
-    cv::line(plot, fixedPoint(local.pixel({v, lo.y()})), fixedPoint(local.pixel({v, hi.y()})), origin ? kOriginColour : kGridColour, 1,
+    cv::line(plot, fixedPoint(local.pixel({v, lo.y()})), fixedPoint(local.pixel({v, hi.y()})), origin ? kOriginColour : kMapGridColour, 1,
              cv::LINE_AA, kShift);
   }
   for (const double v : multiplesIn(lo.y(), hi.y(), step)) {
     const bool origin = std::abs(v) < step * 1e-6;
-    cv::line(plot, fixedPoint(local.pixel({lo.x(), v})), fixedPoint(local.pixel({hi.x(), v})), origin ? kOriginColour : kGridColour, 1,
+    cv::line(plot, fixedPoint(local.pixel({lo.x(), v})), fixedPoint(local.pixel({hi.x(), v})), origin ? kOriginColour : kMapGridColour, 1,
              cv::LINE_AA, kShift);
   }
   std::vector<std::vector<std::vector<cv::Point>>> ellipses(scene.objects.size());
@@ -299,6 +299,18 @@ Counts drawMap(cv::Mat& plot, const Projection& proj, const BirdseyeScene& scene
     const Eigen::Vector2d at = local.pixel(track.position);
     if (at.x() < 0 || at.y() < 0 || at.x() >= plot.cols || at.y() >= plot.rows) continue;
     ++counts.tracks_in_view;
+    if (track.heading_rad && std::isfinite(*track.heading_rad)) {
+      // The heading as a tick of 2.5 marker radii from the centre, under the marker, white-edged
+      // (its label keeps off that side).
+      const Eigen::Vector2d ahead =
+          local.pixel(track.position + Eigen::Vector2d(std::cos(*track.heading_rad), std::sin(*track.heading_rad))) - at;
+      if (ahead.norm() > 0.0) {
+        const Eigen::Vector2d tip = at + ahead.normalized() * 2.5 * marker;
+        const int line = std::max(1, static_cast<int>(std::lround(marker / 3.5)));
+        cv::line(plot, fixedPoint(at), fixedPoint(tip), cv::Scalar(255, 255, 255), line + 3, cv::LINE_AA, kShift);
+        cv::line(plot, fixedPoint(at), fixedPoint(tip), bgr(birdseyeTrackColour(track.id)), line, cv::LINE_AA, kShift);
+      }
+    }
     drawTrackMarker(plot, at, marker, birdseyeTrackColour(track.id), track.confirmed);
   }
   // Their ids and labels, confirmed tracks first: each on the first free side of its marker, ahead
@@ -326,6 +338,13 @@ Counts drawMap(cv::Mat& plot, const Projection& proj, const BirdseyeScene& scene
       const Eigen::Vector2d step = at - local.pixel(track->trail.back());
       if (step.norm() > 0.5) ahead = step.normalized();
     }
+    // A vehicle's heading tick takes the side it points to: the label goes beside it instead.
+    std::optional<Eigen::Vector2d> front;
+    if (track->heading_rad && std::isfinite(*track->heading_rad)) {
+      const Eigen::Vector2d step =
+          local.pixel(track->position + Eigen::Vector2d(std::cos(*track->heading_rad), std::sin(*track->heading_rad))) - at;
+      if (step.norm() > 0.0) front = step.normalized();
+    }
     const double gap = marker + 3.0 * unit;
     std::vector<std::pair<double, cv::Point>> sides;  // (preference, baseline start)
     for (const auto& [direction, corner] : std::array<std::pair<Eigen::Vector2d, cv::Point2d>, 4>{{
@@ -335,7 +354,8 @@ Counts drawMap(cv::Mat& plot, const Projection& proj, const BirdseyeScene& scene
              {{0, -1}, {at.x() - size.width / 2.0, at.y() - gap}},
          }}) {
       const bool fits = corner.x >= 2 && corner.x + size.width <= plot.cols - 2 && corner.y - size.height >= 2 && corner.y <= plot.rows - 2;
-      sides.emplace_back(direction.dot(ahead) + (fits ? 10.0 : 0.0),
+      const double covers_tick = front ? 2.0 * std::max(0.0, direction.dot(*front)) : 0.0;
+      sides.emplace_back(direction.dot(ahead) - covers_tick + (fits ? 10.0 : 0.0),
                          cv::Point(static_cast<int>(std::lround(corner.x)), static_cast<int>(std::lround(corner.y))));
     }
     std::stable_sort(sides.begin(), sides.end(), [](const auto& a, const auto& b) { return a.first > b.first; });

@@ -45,6 +45,7 @@ struct BirdseyeTrack {
   Eigen::Vector2d position = Eigen::Vector2d::Zero();  // common frame
   std::vector<Eigen::Vector2d> trail;   // its earlier positions, oldest first
   bool confirmed = true;                // else lost (coasting on its motion model): drawn hollow
+  std::optional<double> heading_rad{};  // a vehicle's: a tick from its marker the way its front points
 };
 
 // What to draw. Points and objects are views: what they refer to must outlive drawBirdseye.

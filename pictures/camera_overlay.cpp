@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "common/camera/pinhole.hpp"
+#include "common/geometry/object_shape.hpp"
 #include "pictures/drawing.hpp"
 
 namespace fogmap::pictures {
@@ -26,6 +27,42 @@ cv::Scalar depthColour(double depth_m) {
   cv::cvtColor(hsv, rgb, cv::COLOR_HSV2BGR);
   const cv::Vec3b c = rgb.at<cv::Vec3b>(0, 0);
   return {static_cast<double>(c[0]), static_cast<double>(c[1]), static_cast<double>(c[2])};
+}
+
+// A box's 12 edges: bottom face 0-3, top face 4-7 (camera::boxCorners' order, and boxCorners below).
+constexpr std::array<std::array<int, 2>, 12> kEdges{{{0, 1}, {1, 2}, {2, 3}, {3, 0}, {4, 5}, {5, 6},
+                                                     {6, 7}, {7, 4}, {0, 4}, {1, 5}, {2, 6}, {3, 7}}};
+
+// An oriented box's corners: the footprint counter-clockwise at the bottom, then at the top.
+std::array<Eigen::Vector3d, 8> boxCorners(const OrientedBox& box) {
+  const auto footprint = box.footprint();
+  std::array<Eigen::Vector3d, 8> corners;
+  for (std::size_t k = 0; k < 4; ++k) {
+    corners[k] = {footprint[k].x(), footprint[k].y(), box.centre.z() - box.height / 2.0};
+    corners[k + 4] = {footprint[k].x(), footprint[k].y(), box.centre.z() + box.height / 2.0};
+  }
+  return corners;
+}
+
+// Draws the edges of a box whose corners (rectified camera frame) lie in front of the camera; returns
+// the top left of the drawn corners' bounding rectangle (the place for its caption, as a label's
+// is at its 2D box), or nothing when no edge is drawn.
+std::optional<cv::Point> drawWireframe(cv::Mat& frame, const Eigen::Matrix<double, 3, 4>& projection,
+                                       const std::array<Eigen::Vector3d, 8>& rectified, const cv::Scalar& colour) {
+  std::array<std::optional<Eigen::Vector2d>, 8> px;
+  for (std::size_t k = 0; k < 8; ++k) px[k] = camera::projectPoint(projection, rectified[k], 0.1);
+  std::optional<cv::Point> top;
+  for (const auto& [a, b] : kEdges) {
+    const auto& pa = px[static_cast<std::size_t>(a)];
+    const auto& pb = px[static_cast<std::size_t>(b)];
+    if (!pa || !pb) continue;
+    cv::line(frame, drawing::fixedPoint(*pa), drawing::fixedPoint(*pb), colour, 2, cv::LINE_AA, drawing::kShift);
+    for (const auto& p : {*pa, *pb}) {
+      const cv::Point at(static_cast<int>(p.x()), static_cast<int>(p.y()));
+      top = top ? cv::Point(std::min(top->x, at.x), std::min(top->y, at.y)) : at;
+    }
+  }
+  return top;
 }
 
 const Rgb kBoxColour{0, 200, 70};
@@ -50,32 +87,41 @@ Expected<OverlayCounts> writeCameraOverlay(const std::filesystem::path& image, c
     ++counts.points_drawn;
   }
 
-  // A box's 12 edges: bottom face 0-3, top face 4-7.
-  constexpr std::array<std::array<int, 2>, 12> kEdges{{{0, 1}, {1, 2}, {2, 3}, {3, 0}, {4, 5}, {5, 6},
-                                                       {6, 7}, {7, 4}, {0, 4}, {1, 5}, {2, 6}, {3, 7}}};
   const drawing::Pen pen{0.5, 1};
   for (const auto& label : layers.labels) {
     if (label.type == "DontCare") continue;
-    const auto corners = camera::boxCorners(label);
-    std::array<std::optional<Eigen::Vector2d>, 8> px;
-    for (std::size_t k = 0; k < 8; ++k) px[k] = camera::projectPoint(p2, corners[k], 0.1);
-    bool any = false;
-    for (const auto& [a, b] : kEdges) {
-      if (!px[static_cast<std::size_t>(a)] || !px[static_cast<std::size_t>(b)]) continue;
-      cv::line(frame, fixedPoint(*px[static_cast<std::size_t>(a)]), fixedPoint(*px[static_cast<std::size_t>(b)]), bgr(kBoxColour), 2,
-               cv::LINE_AA, drawing::kShift);
-      any = true;
-    }
-    if (!any) continue;
+    if (!drawWireframe(frame, p2, camera::boxCorners(label), bgr(kBoxColour))) continue;
     ++counts.boxes_drawn;
     pen.writeOnMap(frame, label.type, cv::Point(static_cast<int>(label.box.left), std::max(12, static_cast<int>(label.box.top) - 4)),
                    bgr(kBoxColour));
   }
 
+  std::array<std::size_t, kObjectClassCount + 1> boxes_by_class{};  // the last: no class
   if (!layers.objects.empty()) {
     const auto cam = camera::pinholeCamera(calibration, 2, frame.cols, frame.rows);
     if (!cam) return Error{cam.error().code, "overlay: " + cam.error().message};
     for (const MapObject& object : layers.objects) {
+      // An object with an oriented box: its wireframe in its class's colour, captioned.
+      if (const auto oriented = objectBox(object)) {
+        const auto label = objectLabel(object);
+        std::array<Eigen::Vector3d, 8> rectified;
+        const auto corners = boxCorners(*oriented);
+        for (std::size_t k = 0; k < 8; ++k) rectified[k] = calibration.velodyneToRectified(corners[k]);
+        const cv::Scalar colour = bgr(label ? birdseyeClassColour(label->object_class) : kObjectColour);
+        const auto top = drawWireframe(frame, p2, rectified, colour);
+        if (!top) continue;
+        char caption[48];
+        if (label) {
+          std::snprintf(caption, sizeof caption, "%s %.2f", std::string(objectClassName(label->object_class)).c_str(), label->confidence);
+        } else {
+          std::snprintf(caption, sizeof caption, "no class");
+        }
+        pen.writeOnMap(frame, caption, cv::Point(top->x, std::max(12, top->y - 4)), colour);
+        ++counts.objects_drawn;
+        ++counts.object_boxes_drawn;
+        ++boxes_by_class[label ? static_cast<std::size_t>(label->object_class) : kObjectClassCount];
+        continue;
+      }
       std::optional<camera::Box2d> box;
       for (const Ellipsoid& e : object.ellipsoids) {
         const auto b = camera::projectEllipsoid(*cam, e.center, e.shape, 1.0);
@@ -110,8 +156,19 @@ Expected<OverlayCounts> writeCameraOverlay(const std::filesystem::path& image, c
   if (!layers.labels.empty()) rows.emplace_back("labelled 3D boxes, projected: " + std::to_string(counts.boxes_drawn), bgr(kBoxColour));
   if (!layers.detections.empty()) rows.emplace_back("2D detections: " + std::to_string(counts.detections_drawn), bgr(kDetectionColour));
   if (!layers.objects.empty()) {
-    rows.emplace_back("map objects: the box of each one's ellipsoids projected, " + std::to_string(counts.objects_drawn),
-                      bgr(kObjectColour));
+    // One row per class drawn: its colour and how many boxes.
+    for (std::size_t k = 0; k <= kObjectClassCount; ++k) {
+      if (boxes_by_class[k] == 0) continue;
+      const bool classed = k < kObjectClassCount;
+      const std::string name = classed ? std::string(objectClassName(static_cast<ObjectClass>(k))) : std::string("no class");
+      rows.emplace_back("map objects' oriented boxes, LiDAR class " + name + ": " + std::to_string(boxes_by_class[k]),
+                        bgr(classed ? birdseyeClassColour(static_cast<ObjectClass>(k)) : kObjectColour));
+    }
+    if (counts.objects_drawn > counts.object_boxes_drawn || counts.objects_drawn == 0) {
+      rows.emplace_back("map objects: the box of each one's ellipsoids projected, " +
+                            std::to_string(counts.objects_drawn - counts.object_boxes_drawn),
+                        bgr(kObjectColour));
+    }
   }
   int width = 0;
   for (const auto& [text, colour] : rows) width = std::max(width, pen.size(text).width);

@@ -19,6 +19,11 @@ inline constexpr int kShift = 4;
 inline constexpr double kFixed = 1 << kShift;
 inline constexpr double kFar = 1 << 20;  // pixel coordinates are clamped here, far outside any picture
 
+// The ink every picture shares (BGR): frames, text, and text that steps back (captions, units).
+inline const cv::Scalar kFrameColour(90, 90, 90);
+inline const cv::Scalar kTextColour(30, 30, 30);
+inline const cv::Scalar kMutedTextColour(90, 90, 90);
+
 // `c` as an OpenCV colour (blue, green, red).
 cv::Scalar bgr(const Rgb& c);
 

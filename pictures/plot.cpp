@@ -17,19 +17,19 @@ using drawing::bgr;
 using drawing::fixedLength;
 using drawing::fixedPoint;
 using drawing::kFar;
+using drawing::kFrameColour;
+using drawing::kMutedTextColour;
 using drawing::kShift;
+using drawing::kTextColour;
 using drawing::multiplesIn;
 using drawing::niceStep;
 using drawing::Pen;
 
 constexpr int kMarkerCount = 6;
-const cv::Scalar kGridColour(228, 228, 228);
+const cv::Scalar kPlotGridColour(228, 228, 228);
 const cv::Scalar kMinorGridColour(245, 245, 245);
-const cv::Scalar kFrameColour(90, 90, 90);
 const cv::Scalar kLegendFrameColour(200, 200, 200);
 const cv::Scalar kLegendFillColour(251, 251, 251);
-const cv::Scalar kTextColour(30, 30, 30);
-const cv::Scalar kMutedTextColour(90, 90, 90);
 const cv::Scalar kWhite(255, 255, 255);
 
 // Sizes grow with the picture; 900 x 560 is the unit.
@@ -546,10 +546,10 @@ Status drawLinePlot(const std::filesystem::path& png, const PlotSpec& spec, int 
     cv::line(image, fixedPoint({left_edge, row_of(v)}), fixedPoint({right_edge, row_of(v)}), kMinorGridColour, 1, cv::LINE_AA, kShift);
   }
   for (const double v : l.y_ticks) {
-    cv::line(image, fixedPoint({left_edge, row_of(v)}), fixedPoint({right_edge, row_of(v)}), kGridColour, 1, cv::LINE_AA, kShift);
+    cv::line(image, fixedPoint({left_edge, row_of(v)}), fixedPoint({right_edge, row_of(v)}), kPlotGridColour, 1, cv::LINE_AA, kShift);
   }
   for (const double v : l.x_ticks) {
-    cv::line(image, fixedPoint({col_of(v), static_cast<double>(l.plot_top_px)}), fixedPoint({col_of(v), static_cast<double>(bottom)}), kGridColour, 1,
+    cv::line(image, fixedPoint({col_of(v), static_cast<double>(l.plot_top_px)}), fixedPoint({col_of(v), static_cast<double>(bottom)}), kPlotGridColour, 1,
              cv::LINE_AA, kShift);
   }
 

@@ -47,6 +47,7 @@ std::vector<BirdseyeTrack> birdseyeTracks(std::span<const harness::PublishedTrac
     drawn.label = track.label;
     drawn.position = track.position;
     drawn.confirmed = track.state == tracking::TrackState::kConfirmed;
+    drawn.heading_rad = track.heading_rad;
     for (std::size_t i = first; i < index; ++i) {
       for (const auto& earlier : lists[i].tracks) {
         if (earlier.id == track.id) drawn.trail.push_back(earlier.position);

@@ -15,4 +15,7 @@ std::int64_t systemNowNs();
 // timeouts within one process, where a stepped unix clock would fake or hide a stall.
 std::int64_t steadyNowNs();
 
+// A duration in nanoseconds as milliseconds, for reports.
+inline double nsToMs(std::int64_t ns) { return static_cast<double>(ns) / 1e6; }
+
 }  // namespace fogmap

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/base/angles.hpp"
+
 namespace fogmap {
 
 Eigen::Vector3d rpyDegrees(const Eigen::Matrix3d& r) {
@@ -16,7 +18,7 @@ Eigen::Vector3d rpyDegrees(const Eigen::Matrix3d& r) {
     yaw = std::atan2(-r(0, 1), r(1, 1));
   }
   Eigen::Vector3d out(roll, pitch, yaw);
-  out *= 180.0 / M_PI;
+  out *= kRadToDeg;
   for (int i = 0; i < 3; ++i) {
     if (std::abs(out[i]) < 1e-9) out[i] = 0.0;
   }
@@ -60,7 +62,7 @@ Expected<Eigen::Isometry3d> YamlFields::pose(const YAML::Node& node, const std::
   if (!t) return t.error();
   const auto rpy = vec3(node, "rpy_deg", where, Eigen::Vector3d::Zero());
   if (!rpy) return rpy.error();
-  const Eigen::Vector3d r = *rpy * (M_PI / 180.0);
+  const Eigen::Vector3d r = *rpy * kDegToRad;
   pose.linear() = (Eigen::AngleAxisd(r.z(), Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(r.y(), Eigen::Vector3d::UnitY()) *
                    Eigen::AngleAxisd(r.x(), Eigen::Vector3d::UnitX()))
                       .toRotationMatrix();

@@ -11,6 +11,8 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
+#include "common/base/little_endian.hpp"
+
 namespace fogmap {
 
 namespace {
@@ -117,23 +119,6 @@ std::optional<CompactFields> quantise(const Ellipsoid& e, const CompactOrigin& o
   return fields;
 }
 
-void putU16(std::uint16_t v, std::string& out) {
-  out.push_back(static_cast<char>(v & 0xFFU));
-  out.push_back(static_cast<char>(v >> 8U));
-}
-
-std::uint64_t getBytes(std::string_view bytes, std::size_t offset, std::size_t count) {
-  std::uint64_t v = 0;
-  for (std::size_t i = 0; i < count; ++i) {
-    v |= std::uint64_t{static_cast<unsigned char>(bytes[offset + i])} << (8 * i);
-  }
-  return v;
-}
-
-std::uint16_t getU16(std::string_view bytes, std::size_t offset) {
-  return static_cast<std::uint16_t>(getBytes(bytes, offset, 2));
-}
-
 }  // namespace
 
 CompactOrigin compactOriginNear(const Eigen::Vector3d& p) {
@@ -155,11 +140,11 @@ bool compactCentreFits(const Eigen::Vector3d& centre, const CompactOrigin& origi
 bool appendCompact(const Ellipsoid& e, const CompactOrigin& origin, std::string& out) {
   const std::optional<CompactFields> fields = quantise(e, origin);
   if (!fields) return false;
-  for (const std::int16_t c : fields->centre_cm) putU16(static_cast<std::uint16_t>(c), out);
-  for (const std::uint16_t a : fields->semi_axes_mm) putU16(a, out);
-  for (int i = 0; i < 6; ++i) out.push_back(static_cast<char>((fields->orientation >> (8 * i)) & 0xFFU));
-  putU16(fields->point_count, out);
-  putU16(fields->index, out);
+  for (const std::int16_t c : fields->centre_cm) putU16(out, static_cast<std::uint16_t>(c));
+  for (const std::uint16_t a : fields->semi_axes_mm) putU16(out, a);
+  putLittleEndian(out, fields->orientation, 6);
+  putU16(out, fields->point_count);
+  putU16(out, fields->index);
   return true;
 }
 
@@ -176,7 +161,7 @@ Expected<Ellipsoid> decodeCompact(std::string_view record, const CompactOrigin& 
     return invalidArgument("compact ellipsoid " + toString(e.id) + ": " + what);
   };
 
-  const std::uint64_t word = getBytes(record, kOrientationOffset, 6);
+  const std::uint64_t word = getLittleEndian(record, kOrientationOffset, 6);
   if ((word >> kReservedBit) & 1U) return refuse("orientation: the reserved bit 47 is set");
   Eigen::Vector3d semi_axes;
   for (int i = 0; i < 3; ++i) {

@@ -5,6 +5,8 @@
 #include <numbers>
 #include <optional>
 
+#include "common/base/little_endian.hpp"
+
 namespace fogmap {
 
 namespace {
@@ -55,16 +57,6 @@ bool labelFits(const ObjectLabel& label) {
          label.confidence <= 1.0;
 }
 
-void putU16(std::uint16_t v, std::string& out) {
-  out.push_back(static_cast<char>(v & 0xFFU));
-  out.push_back(static_cast<char>(v >> 8U));
-}
-
-std::uint16_t getU16(std::string_view bytes, std::size_t offset) {
-  return static_cast<std::uint16_t>(static_cast<unsigned char>(bytes[offset]) |
-                                    (static_cast<unsigned>(static_cast<unsigned char>(bytes[offset + 1])) << 8U));
-}
-
 }  // namespace
 
 bool viewFitsCompact(const Ellipsoid& e) {
@@ -83,9 +75,9 @@ bool appendCompactView(const Ellipsoid& e, std::string& out) {
   if (e.label) out.push_back(static_cast<char>(static_cast<unsigned>(std::round(e.label->confidence * 255.0))));
   if (fields) {
     const BoxFields& f = *fields;
-    for (const std::int16_t c : f.centre) putU16(static_cast<std::uint16_t>(c), out);
-    for (const std::uint16_t s : f.sides) putU16(s, out);
-    putU16(f.yaw, out);
+    for (const std::int16_t c : f.centre) putU16(out, static_cast<std::uint16_t>(c));
+    for (const std::uint16_t s : f.sides) putU16(out, s);
+    putU16(out, f.yaw);
   }
   return true;
 }

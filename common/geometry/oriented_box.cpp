@@ -29,6 +29,9 @@ double foldedYaw(double yaw) {
 }
 
 double axisAngleBetween(double yaw_a, double yaw_b) { return std::abs(std::remainder(yaw_a - yaw_b, std::numbers::pi)); }
+double headingAngleBetween(double heading_a, double heading_b) {
+  return std::abs(std::remainder(heading_a - heading_b, 2.0 * std::numbers::pi));
+}
 
 Eigen::Vector3d OrientedBox::anchorPoint() const {
   double u = 0.0;  // along length

@@ -51,5 +51,7 @@ bool footprintsOverlap(const OrientedBox& a, const OrientedBox& b);
 double foldedYaw(double yaw);
 // The smallest angle between two box axes, in [0, pi/2].
 double axisAngleBetween(double yaw_a, double yaw_b);
+// The smallest angle between two headings (directions, unlike axes), in [0, pi].
+double headingAngleBetween(double heading_a, double heading_b);
 
 }  // namespace fogmap

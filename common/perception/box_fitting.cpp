@@ -7,14 +7,14 @@
 #include <string>
 #include <vector>
 
+#include "common/base/angles.hpp"
 #include "common/base/text.hpp"
 
 namespace fogmap {
 namespace {
 
-constexpr double kDegToRad = std::numbers::pi / 180.0;
 // Lanes of the score's loops: independent accumulators the compiler maps onto vector registers.
-constexpr std::size_t kLanes = 8;
+constexpr std::size_t kScoreLanes = 8;
 
 // The points' (x, y) relative to their mean, in float: the search's input.
 struct Footprint {
@@ -26,17 +26,17 @@ struct Footprint {
 // Pass 2 projects with the same operations, so every distance to an extent is at least 0.
 float scoreAt(const Footprint& f, float c, float s, float d0) {
   const std::size_t n = f.x.size();
-  const std::size_t blocks = n / kLanes * kLanes;
+  const std::size_t blocks = n / kScoreLanes * kScoreLanes;
   const float* x = f.x.data();
   const float* y = f.y.data();
   constexpr float inf = std::numeric_limits<float>::infinity();
-  float min1[kLanes], max1[kLanes], min2[kLanes], max2[kLanes];
-  std::fill(min1, min1 + kLanes, inf);
-  std::fill(min2, min2 + kLanes, inf);
-  std::fill(max1, max1 + kLanes, -inf);
-  std::fill(max2, max2 + kLanes, -inf);
-  for (std::size_t i = 0; i < blocks; i += kLanes) {
-    for (std::size_t l = 0; l < kLanes; ++l) {
+  float min1[kScoreLanes], max1[kScoreLanes], min2[kScoreLanes], max2[kScoreLanes];
+  std::fill(min1, min1 + kScoreLanes, inf);
+  std::fill(min2, min2 + kScoreLanes, inf);
+  std::fill(max1, max1 + kScoreLanes, -inf);
+  std::fill(max2, max2 + kScoreLanes, -inf);
+  for (std::size_t i = 0; i < blocks; i += kScoreLanes) {
+    for (std::size_t l = 0; l < kScoreLanes; ++l) {
       const float a = c * x[i + l] + s * y[i + l];
       const float b = c * y[i + l] - s * x[i + l];
       min1[l] = a < min1[l] ? a : min1[l];
@@ -46,7 +46,7 @@ float scoreAt(const Footprint& f, float c, float s, float d0) {
     }
   }
   float lo1 = inf, hi1 = -inf, lo2 = inf, hi2 = -inf;
-  for (std::size_t l = 0; l < kLanes; ++l) {
+  for (std::size_t l = 0; l < kScoreLanes; ++l) {
     lo1 = std::min(lo1, min1[l]);
     hi1 = std::max(hi1, max1[l]);
     lo2 = std::min(lo2, min2[l]);
@@ -60,9 +60,9 @@ float scoreAt(const Footprint& f, float c, float s, float d0) {
     lo2 = std::min(lo2, b);
     hi2 = std::max(hi2, b);
   }
-  float sum[kLanes] = {};
-  for (std::size_t i = 0; i < blocks; i += kLanes) {
-    for (std::size_t l = 0; l < kLanes; ++l) {
+  float sum[kScoreLanes] = {};
+  for (std::size_t i = 0; i < blocks; i += kScoreLanes) {
+    for (std::size_t l = 0; l < kScoreLanes; ++l) {
       const float a = c * x[i + l] + s * y[i + l];
       const float b = c * y[i + l] - s * x[i + l];
       const float d1 = std::min(hi1 - a, a - lo1);
@@ -72,7 +72,7 @@ float scoreAt(const Footprint& f, float c, float s, float d0) {
     }
   }
   float total = 0.0F;
-  for (std::size_t l = 0; l < kLanes; ++l) total += sum[l];
+  for (std::size_t l = 0; l < kScoreLanes; ++l) total += sum[l];
   for (std::size_t i = blocks; i < n; ++i) {
     const float a = c * x[i] + s * y[i];
     const float b = c * y[i] - s * x[i];

@@ -17,6 +17,7 @@
 #include <pcl/sample_consensus/ransac.h>
 #include <pcl/sample_consensus/sac_model_perpendicular_plane.h>
 
+#include "common/base/angles.hpp"
 #include "common/base/text.hpp"
 
 namespace fogmap {
@@ -91,7 +92,7 @@ Expected<std::optional<Eigen::Vector4d>> fitPriorPlane(std::span<const Point> po
   pcl::SampleConsensusModelPerpendicularPlane<pcl::PointXYZ>::Ptr model(
       new pcl::SampleConsensusModelPerpendicularPlane<pcl::PointXYZ>(cloud));
   model->setAxis(Eigen::Vector3f::UnitZ());
-  model->setEpsAngle(params.max_tilt_deg * std::numbers::pi / 180.0);
+  model->setEpsAngle(params.max_tilt_deg * kDegToRad);
   pcl::RandomSampleConsensus<pcl::PointXYZ> ransac(model, params.distance_threshold_m);
   ransac.setMaxIterations(params.max_iterations);
   // A view of walls only (a virtual LiDAR facing a building) has no ground to remove.

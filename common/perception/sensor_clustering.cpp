@@ -1,4 +1,5 @@
 #include "common/perception/sensor_clustering.hpp"
+#include "common/base/angles.hpp"
 #include "common/perception/radix_sort.hpp"
 
 #include <algorithm>
@@ -17,7 +18,6 @@
 namespace fogmap {
 namespace {
 
-constexpr double kDegToRad = std::numbers::pi / 180.0;
 // The range image is sorted as 64-bit words: cell (ring x bins + bin) above, point index below.
 constexpr int kIndexBits = 32;
 constexpr std::uint64_t kIndexMask = 0xFFFFFFFFU;

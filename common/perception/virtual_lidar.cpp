@@ -4,6 +4,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "common/base/angles.hpp"
+
 namespace fogmap {
 namespace {
 
@@ -15,7 +17,7 @@ double sectorCentreDeg(const SectorSplit& split) { return (split.index + 0.5) * 
 
 // Azimuth in [0, 360) degrees.
 double azimuthDeg(const Point& p) {
-  double azimuth = std::atan2(static_cast<double>(p.y), static_cast<double>(p.x)) * 180.0 / std::numbers::pi;
+  double azimuth = std::atan2(static_cast<double>(p.y), static_cast<double>(p.x)) * kRadToDeg;
   if (azimuth < 0.0) azimuth += kFullTurnDeg;
   // A tiny negative angle plus 360 can round to 360 itself, which is the start of sector 0.
   if (azimuth >= kFullTurnDeg) azimuth -= kFullTurnDeg;
@@ -41,7 +43,7 @@ bool inView(double azimuth_deg, const SectorSplit& split) {
 
 Eigen::Isometry3d sectorPose(const SectorSplit& split) {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.rotate(Eigen::AngleAxisd(sectorCentreDeg(split) * std::numbers::pi / 180.0, Eigen::Vector3d::UnitZ()));
+  pose.rotate(Eigen::AngleAxisd(sectorCentreDeg(split) * kDegToRad, Eigen::Vector3d::UnitZ()));
   return pose;
 }
 

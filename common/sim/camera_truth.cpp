@@ -4,29 +4,17 @@
 #include <cmath>
 #include <limits>
 
+#include "common/base/angles.hpp"
+#include "common/sim/counter_random.hpp"
+
 namespace fogmap::sim {
 namespace {
 
-constexpr double kDegToRad = M_PI / 180.0;
 // Points around a cylinder's rim: the box of a 32-gon falls short of the true silhouette by at
 // most r (1 - cos(pi / 32)), half a percent of the radius.
 constexpr int kRimPoints = 32;
 // Nearer than this to the camera's plane a point has no usable pixel (PinholeCamera::project).
 constexpr double kNearM = 0.1;
-
-// SplitMix64's finaliser: one well-mixed 64-bit value per counter, so draws need no state.
-std::uint64_t mix(std::uint64_t x) {
-  x += 0x9E3779B97F4A7C15ULL;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
-  return x ^ (x >> 31);
-}
-
-std::uint64_t nameHash(const std::string& name) {
-  std::uint64_t h = 0xCBF29CE484222325ULL;  // FNV-1a 64
-  for (const unsigned char c : name) h = (h ^ c) * 0x100000001B3ULL;
-  return h;
-}
 
 // In [0, 1) from the top 53 bits.
 double unit(std::uint64_t bits) { return static_cast<double>(bits >> 11) * 0x1.0p-53; }

@@ -5,10 +5,10 @@
 
 #include <Eigen/Geometry>
 
+#include "common/base/angles.hpp"
+
 namespace fogmap::sim {
 namespace {
-
-constexpr double kDegToRad = M_PI / 180.0;
 
 // > 0 when o -> a -> b turns counter-clockwise.
 double cross(const Eigen::Vector2d& o, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {

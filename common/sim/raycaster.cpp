@@ -8,10 +8,11 @@
 #include <functional>
 #include <thread>
 
+#include "common/base/angles.hpp"
+#include "common/sim/counter_random.hpp"
+
 namespace fogmap::sim {
 namespace {
-
-constexpr double kDegToRad = M_PI / 180.0;
 
 // A vertical capped cylinder in scene coordinates.
 struct Cylinder {
@@ -109,21 +110,8 @@ void cylinderOccluded(const RTCOccludedFunctionNArguments* args) {
   }
 }
 
-// Counter-based random numbers: the same (seed, frame, lidar, ray) gives the same draws on any thread.
-std::uint64_t mix(std::uint64_t x) {
-  x += 0x9E3779B97F4A7C15ULL;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
-  return x ^ (x >> 31);
-}
+// Counter-based random numbers (counter_random.hpp): the same (seed, frame, lidar, ray) gives the same draws on any thread.
 double unitUniform(std::uint64_t bits) { return (static_cast<double>(bits >> 11) + 0.5) * 0x1.0p-53; }
-
-std::uint64_t nameHash(const std::string& name) {
-  std::uint64_t h = 1469598103934665603ULL;  // FNV-1a
-  for (const unsigned char c : name) h = (h ^ c) * 1099511628211ULL;
-  return h;
-}
-
 
 }  // namespace
 

@@ -7,13 +7,13 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "common/base/angles.hpp"
 #include "common/config/yaml_fields.hpp"
 #include "common/perception/lidar_models.hpp"
 
 namespace fogmap::sim {
 namespace {
 
-constexpr double kDegToRad = M_PI / 180.0;
 const YamlFields kFields("scene");
 
 Error bad(const std::string& where, const std::string& what) { return kFields.bad(where, what); }

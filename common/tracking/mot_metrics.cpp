@@ -10,6 +10,8 @@
 #include <unordered_map>
 #include <unordered_set>
 
+#include "common/base/angles.hpp"
+#include "common/geometry/oriented_box.hpp"
 #include "common/tracking/assignment.hpp"
 
 namespace fogmap::tracking {
@@ -37,6 +39,7 @@ Status validateObjects(const std::vector<MotObject>& objects, std::size_t frame,
     const std::string where =
         "mot metrics: frame " + std::to_string(frame) + ": " + kind + " id " + std::to_string(object.id);
     if (!object.position.allFinite()) return invalidArgument(where + " has a non-finite position");
+    if (object.heading_rad && !std::isfinite(*object.heading_rad)) return invalidArgument(where + " has a non-finite heading");
     if (!seen.insert(object.id).second) return invalidArgument(where + " appears twice");
   }
   return {};
@@ -116,6 +119,11 @@ ClearMot clearMotOf(std::span<const MotFrame> frames, const MotConfig& config) {
         ++out.matches;
         out.total_distance_m += d;
         out.match_distances_m.push_back(d);
+        const auto& truth_heading = frame.truth[t].heading_rad;
+        const auto& hyp_heading = frame.hypotheses[*match[t]].heading_rad;
+        if (truth_heading && hyp_heading) {
+          out.match_heading_errors_deg.push_back(headingAngleBetween(*truth_heading, *hyp_heading) * kRadToDeg);
+        }
         const auto last = last_match.find(truth_id);
         if (!kept[t] && last != last_match.end() && last->second != hyp_id) ++out.id_switches;
         last_match[truth_id] = hyp_id;
@@ -239,6 +247,10 @@ Expected<MotReport> evaluateMot(std::span<const MotFrame> frames, const MotConfi
   Expected<ErrorStats> stats = errorStats(report.clear.match_distances_m);
   if (!stats) return stats.error();
   report.localization = stats.value();
+  // The headings are finite (validated), so are their angles.
+  Expected<ErrorStats> headings = errorStats(report.clear.match_heading_errors_deg);
+  if (!headings) return headings.error();
+  report.heading_error_deg = headings.value();
   return report;
 }
 

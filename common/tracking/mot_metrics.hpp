@@ -10,6 +10,7 @@
 // matches, ...) are NaN.
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <utility>
 #include <vector>
@@ -24,6 +25,9 @@ namespace fogmap::tracking {
 struct MotObject {
   std::int64_t id = 0;
   Eigen::Vector2d position = Eigen::Vector2d::Zero();  // m, ground plane
+  // Where its front points (rad), when it has one: vehicles in the truth, vehicle tracks. Scored
+  // over the matches where both have one; it never decides a match.
+  std::optional<double> heading_rad{};
 };
 
 struct MotFrame {
@@ -61,6 +65,9 @@ struct ClearMot {
   std::size_t partially_tracked = 0;   // between
   std::size_t mostly_lost = 0;         // <= 20 %
   std::vector<double> match_distances_m;  // every match's distance, frame by frame
+  // Of the matches where both have a heading: the angle between the two headings, in degrees
+  // within [0, 180], frame by frame.
+  std::vector<double> match_heading_errors_deg;
 };
 
 struct IdScores {
@@ -79,10 +86,13 @@ struct MotReport {
   ClearMot clear;
   IdScores identity;
   ErrorStats localization;  // over ClearMot's matches
+  // Over ClearMot's matches where both have a heading; in degrees, although the fields say _m.
+  ErrorStats heading_error_deg;
 };
 
 // Ok, or an invalid-argument error naming the first problem: a threshold that is not positive and
-// finite, or the frame and id of a non-finite position or an id that appears twice in a frame.
+// finite, or the frame and id of a non-finite position or heading or an id that appears twice in a
+// frame.
 Status validateMotInput(std::span<const MotFrame> frames, const MotConfig& config);
 
 // CLEAR MOT over the frames in order: keeps last frame's still valid correspondences, matches the

@@ -77,9 +77,10 @@ struct Track {
   std::int64_t last_update_ns = 0;
   bool camera_confirmed = false;  // a camera detection was fused into it at least once
   int consecutive_hits = 0;
+  // A vehicle's heading (rad, in [-pi, pi], where its front points), from the boxes of the
+  // observations that updated it (Tracker, "vehicleHeading"); none for people and other objects,
+  // and for a vehicle not yet seen with a box.
+  std::optional<double> heading_rad{};
 };
 
-
-
-// What one step did: the counters the service exports.
 }  // namespace fogmap::tracking

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <numbers>
 #include <numeric>
 #include <set>
 #include <utility>
@@ -30,6 +31,28 @@ std::optional<Eigen::Vector2d> headingAware(const CloudObservation& o, const Eig
   return grownFromAnchor(*o.box, *prior, std::atan2(velocity.y(), velocity.x())).centre.head<2>();
 }
 
+// Of the two directions along `axis`, the one nearer `toward`.
+double alongNearer(double axis, double toward) {
+  return headingAngleBetween(axis, toward) <= 0.5 * std::numbers::pi ? std::remainder(axis, 2.0 * std::numbers::pi)
+                                                                     : std::remainder(axis + std::numbers::pi, 2.0 * std::numbers::pi);
+}
+
+}  // namespace
+
+std::optional<double> vehicleHeading(const CloudObservation& o, const Eigen::Vector2d& velocity, std::optional<double> previous) {
+  if (!o.box) return previous;
+  if (!vehiclePriorFor(*o.box, o.lidar_class)) return std::nullopt;
+  const double axis = o.box->yaw;
+  if (velocity.norm() >= kHeadingMinSpeedMps) {
+    const double motion = std::atan2(velocity.y(), velocity.x());
+    const double along = alongNearer(axis, motion);
+    return headingAngleBetween(along, motion) <= kHeadingAxisTrustRad ? along : motion;
+  }
+  return previous ? alongNearer(axis, *previous) : std::remainder(axis, 2.0 * std::numbers::pi);
+}
+
+namespace {
+
 // The measurement covariance on the ground plane, with a floor so that a tight cluster (or a
 // degenerate one) never makes the filter over-confident.
 Eigen::Matrix2d groundCovariance(const CloudObservation& o, double min_sigma_m) {
@@ -51,7 +74,6 @@ std::string bestLabel(const std::map<std::string, double>& votes) {
 }
 
 }  // namespace
-
 
 std::optional<std::size_t> overlay(const std::vector<CloudObservation>& observations, const camera::PinholeCamera& camera,
                                    const camera::Box2d& box, const Eigen::Vector3d& sensor_position) {
@@ -455,6 +477,7 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
     const auto& meas = measurements[*assignment[t]];
     used[*assignment[t]] = true;
     filters_[t].update(measuredFor(t, *assignment[t]), meas.covariance);
+    track.heading_rad = vehicleHeading(*meas.observation, filters_[t].velocity(), track.heading_rad);
     track.last_update_ns = frame.time_ns;
     ++track.consecutive_hits;
     if (meas.votes.empty()) {
@@ -474,6 +497,7 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
     if (used[m]) continue;
     const auto& meas = measurements[m];
     Track& track = spawn(meas.position, meas.covariance, frame.time_ns);
+    track.heading_rad = vehicleHeading(*meas.observation, Eigen::Vector2d::Zero(), std::nullopt);
     ++stats.tracks_created;
     if (!meas.votes.empty()) {
       track.camera_confirmed = true;

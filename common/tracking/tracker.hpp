@@ -14,6 +14,7 @@
 //    while unobserved, deleted after a timeout; the label is the vote of the fused detections.
 #include <cstdint>
 #include <map>
+#include <numbers>
 #include <optional>
 #include <string>
 #include <vector>
@@ -34,6 +35,16 @@ inline constexpr double kHeadingMinSpeedMps = 1.0;
 // ... when its box, grown as the extents say, lies within this ground distance of the prediction
 // (a wrong guess of which side is the length moves a car's centre by at most about 2.2 m).
 inline constexpr double kHeadingReachM = 4.0;
+
+// A vehicle track's heading after an update by observation `o` (Track::heading_rad): the axis of
+// its box (a vehicle's: vehiclePriorFor), turned to the track's direction of motion when it moves at
+// least kHeadingMinSpeedMps, else to its `previous` heading, else as fitted. An axis more than
+// kHeadingAxisTrustRad off the motion (a car seen end-on, whose rear reads as its length) gives
+// way to the motion's direction. An observation without a box (objects off, a fragment) leaves the
+// previous heading; one whose box is no vehicle's (a person's, two people side by side for a while)
+// clears it.
+inline constexpr double kHeadingAxisTrustRad = std::numbers::pi / 4.0;
+std::optional<double> vehicleHeading(const CloudObservation& o, const Eigen::Vector2d& velocity, std::optional<double> previous);
 
 struct StepStats {
   std::int64_t time_ns = 0;               // the fused LiDAR frame's sensor time

@@ -40,6 +40,9 @@ enum class EllipsoidWire { kCompact, kExact };
 // equals the header epoch.
 // Points travel as little-endian float32 (intensity is not transmitted).
 v1::Map toProto(const MapMessage& message, EllipsoidWire wire = EllipsoidWire::kCompact);
+// A position as float64 x, y, z.
+void toProto(const Eigen::Vector3d& v, v1::Vec3* out);
+Eigen::Vector3d fromProto(const v1::Vec3& v);
 v1::PointChunk toProto(const PointChunk& chunk);
 v1::GlobalMap toProto(const GlobalMapMessage& message, EllipsoidWire wire = EllipsoidWire::kCompact);
 v1::Geofence toProto(const Geofence& fence);

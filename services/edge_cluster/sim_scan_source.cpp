@@ -5,6 +5,7 @@
 #include <sstream>
 #include <utility>
 
+#include "common/base/angles.hpp"
 #include "common/config/yaml_fields.hpp"
 
 namespace fogmap {
@@ -104,7 +105,7 @@ Status checkLidarPose(const Eigen::Isometry3d& topology_pose, const sim::LidarCo
   if (offset_m <= tolerance && angle_rad <= tolerance) return {};
   std::ostringstream why;
   why << "the topology's pose " << describePose(topology_pose) << " differs from the pose of LiDAR '" << lidar.name
-      << "' in the scene " << describePose(lidar.pose) << " by " << offset_m << " m and " << angle_rad * 180.0 / M_PI
+      << "' in the scene " << describePose(lidar.pose) << " by " << offset_m << " m and " << angle_rad * kRadToDeg
       << " degrees (at most " << tolerance << " m and rad): its points would land in the wrong place; give the sensor "
       << "the scene's pose (fogctl topology --scene writes it)";
   return invalidArgument(why.str());

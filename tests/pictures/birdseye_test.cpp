@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <limits>
+#include <numbers>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -220,6 +221,29 @@ TEST(Birdseye, TracksDrawAsMarkersWithTheirTrailsIdsAndLabels) {
   };
   EXPECT_GT(legend_ink(image), legend_ink(without) + 300);
   EXPECT_TRUE(colourAt(without, at, kBirdseyeBackground, 0)) << "without tracks nothing is drawn there";
+}
+
+TEST(Birdseye, AVehicleTracksHeadingIsATickFromItsMarkerTheWayItsFrontPoints) {
+  const ScratchDir scratch("heading");
+  // One confirmed track at (1, -8) heading west (pi), and the same track without a heading.
+  KnownScene with_heading;
+  with_heading.scene.tracks = {{5, "car", {1, -8}, {}, true, std::numbers::pi}};
+  KnownScene without;
+  without.scene.tracks = {{5, "car", {1, -8}, {}, true}};
+  const fs::path a = scratch.path() / "heading.png";
+  const fs::path b = scratch.path() / "no-heading.png";
+  ASSERT_TRUE(drawBirdseye(a, with_heading.scene, 1000).ok());
+  ASSERT_TRUE(drawBirdseye(b, without.scene, 1000).ok());
+  const cv::Mat image = cv::imread(a.string(), cv::IMREAD_COLOR);
+  const cv::Mat bare = cv::imread(b.string(), cv::IMREAD_COLOR);
+  const BirdseyeLayout layout = birdseyeLayout(with_heading.scene, 1000);
+  const cv::Point at = pixelOf(layout, with_heading.scene, {1, -8});
+  // The marker's radius is 7 px at this size and the tick 2.5 radii long: 14 px west of the centre
+  // lies on the tick, in the track's colour; without a heading that pixel is the map's background.
+  const cv::Point west = at + cv::Point(-14, 0);
+  EXPECT_TRUE(colourAt(image, west, birdseyeTrackColour(5), 60)) << "the tick, west of the marker";
+  EXPECT_TRUE(colourAt(bare, west, kBirdseyeBackground, 0)) << "no tick without a heading";
+  EXPECT_TRUE(colourAt(image, at + cv::Point(-14, 8), kBirdseyeBackground, 0)) << "a tick, not a band";
 }
 
 TEST(Birdseye, TrackLabelsDoNotCoverEachOther) {

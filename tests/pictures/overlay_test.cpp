@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include "common/geometry/oriented_box.hpp"
 #include "common/io/cloud_io.hpp"
 #include "tests/support/scratch_dir.hpp"
 
@@ -31,6 +32,31 @@ int changedPixels(const cv::Mat& a, const cv::Mat& b, int x0, int y0, int x1, in
     for (int x = std::max(0, x0); x < std::min(a.cols, x1); ++x) changed += a.at<cv::Vec3b>(y, x) != b.at<cv::Vec3b>(y, x) ? 1 : 0;
   }
   return changed;
+}
+
+// KITTI object frame 000000: its calibration and its one labelled pedestrian.
+struct Pedestrian {
+  camera::KittiCalibration calibration;
+  camera::KittiLabel label;
+};
+Pedestrian pedestrianOfFrame0() {
+  const auto calibration = camera::parseKittiCalibration(readText(kData / "kitti_object/calib/000000.txt"));
+  EXPECT_TRUE(calibration.ok()) << calibration.error().message;
+  const auto labels = camera::parseKittiLabels(readText(kData / "kitti_object/label_2/000000.txt"));
+  EXPECT_TRUE(labels.ok() && labels->size() == 1U);
+  return {calibration.ok() ? *calibration : camera::KittiCalibration{}, labels.ok() && !labels->empty() ? labels->front() : camera::KittiLabel{}};
+}
+
+// Frame 000000 with `objects` drawn over it into `out`: what was counted, the image before and after.
+struct Drawn {
+  OverlayCounts counts;
+  cv::Mat before, after;
+};
+Drawn drawObjectsOnFrame0(const camera::KittiCalibration& calibration, const std::vector<MapObject>& objects, const fs::path& out) {
+  const fs::path image = kData / "kitti_object/image_2/000000.png";
+  const auto counts = writeCameraOverlay(image, calibration, OverlayLayers{.objects = objects}, out);
+  EXPECT_TRUE(counts.ok()) << counts.error().message;
+  return {counts.ok() ? *counts : OverlayCounts{}, cv::imread(image.string()), cv::imread(out.string())};
 }
 
 TEST(CameraOverlay, APedestriansProjectedBoxIsDrawnOnItsAnnotatedBoxAndNowhereFar) {
@@ -73,15 +99,11 @@ TEST(CameraOverlay, LidarPointsAreDrawnWhereTheyProjectAndCounted) {
 
 TEST(CameraOverlay, AnObjectsEllipsoidLandsOnItsAnnotatedImageBox) {
   test_support::ScratchDir dir("overlay-objects");
-  const auto calibration = camera::parseKittiCalibration(readText(kData / "kitti_object/calib/000000.txt"));
-  ASSERT_TRUE(calibration.ok()) << calibration.error().message;
-  const auto labels = camera::parseKittiLabels(readText(kData / "kitti_object/label_2/000000.txt"));
-  ASSERT_TRUE(labels.ok() && labels->size() == 1U);
-  const camera::KittiLabel& person = labels->front();
+  const auto [calibration, person] = pedestrianOfFrame0();
   // The ellipsoid inscribed in the pedestrian's labelled 3D box, moved to the Velodyne frame (the
   // frame of a map an edge makes of the scan): rectified = A velodyne + b.
-  const Eigen::Matrix3d a = calibration->rectification * calibration->velodyne_to_camera.linear();
-  const Eigen::Vector3d b = calibration->rectification * calibration->velodyne_to_camera.translation();
+  const Eigen::Matrix3d a = calibration.rectification * calibration.velodyne_to_camera.linear();
+  const Eigen::Vector3d b = calibration.rectification * calibration.velodyne_to_camera.translation();
   const double h = person.size_hwl.x(), w = person.size_hwl.y(), l = person.size_hwl.z();
   const Eigen::Vector3d centre_rect = person.location - Eigen::Vector3d(0.0, h / 2.0, 0.0);
   const Eigen::Matrix3d yaw = Eigen::AngleAxisd(person.rotation_y, Eigen::Vector3d::UnitY()).toRotationMatrix();
@@ -91,15 +113,10 @@ TEST(CameraOverlay, AnObjectsEllipsoidLandsOnItsAnnotatedImageBox) {
   e.shape = a.inverse() * shape_rect * a.inverse().transpose();
   MapObject object;
   object.ellipsoids = {e};
-  const std::vector<MapObject> objects{object};
 
-  const fs::path image = kData / "kitti_object/image_2/000000.png";
-  const fs::path out = dir.path() / "objects.png";
-  const auto counts = writeCameraOverlay(image, *calibration, OverlayLayers{.objects = objects}, out);
-  ASSERT_TRUE(counts.ok()) << counts.error().message;
-  EXPECT_EQ(counts->objects_drawn, 1U);
-  const cv::Mat before = cv::imread(image.string());
-  const cv::Mat after = cv::imread(out.string());
+  const auto [counts, before, after] = drawObjectsOnFrame0(calibration, {object}, dir.path() / "objects.png");
+  EXPECT_EQ(counts.objects_drawn, 1U);
+  EXPECT_EQ(counts.object_boxes_drawn, 0U);
   // The annotated box is 712 .. 811 x 143 .. 308; the inscribed ellipsoid's outline lies inside it,
   // touching it at the top and bottom (its height is the box's).
   const auto& box = person.box;
@@ -112,6 +129,47 @@ TEST(CameraOverlay, AnObjectsEllipsoidLandsOnItsAnnotatedImageBox) {
             30)
       << "the bottom edge";
   EXPECT_EQ(changedPixels(before, after, 900, 100, before.cols, before.rows), 0) << "nothing far from it";
+}
+
+TEST(CameraOverlay, AnObjectsOrientedBoxIsDrawnOnItsAnnotatedBoxInItsClasssColour) {
+  test_support::ScratchDir dir("overlay-object-box");
+  const auto [calibration, person] = pedestrianOfFrame0();
+  // The pedestrian's labelled box in the Velodyne frame, as an edge's box (length along yaw, the
+  // yaw folded onto the box's axis), on one ellipsoid classed person.
+  const camera::VelodyneBox velodyne = camera::labelBoxInVelodyne(person, calibration);
+  OrientedBox box;
+  box.centre = velodyne.centre;
+  box.length = std::max(velodyne.length, velodyne.width);
+  box.width = std::min(velodyne.length, velodyne.width);
+  box.height = velodyne.height;
+  box.yaw = foldedYaw(velodyne.length >= velodyne.width ? velodyne.yaw : velodyne.yaw + M_PI / 2.0);
+  Ellipsoid e;
+  e.center = velodyne.centre;
+  e.shape = Eigen::Matrix3d::Identity() * 0.04;
+  e.point_count = 40;
+  e.box = box;
+  e.label = ObjectLabel{ObjectClass::kPerson, 0.9};
+  MapObject object;
+  object.ellipsoids = {e};
+
+  const auto [counts, before, after] = drawObjectsOnFrame0(calibration, {object}, dir.path() / "object-box.png");
+  EXPECT_EQ(counts.objects_drawn, 1U);
+  EXPECT_EQ(counts.object_boxes_drawn, 1U);
+  // The same box as the label's wireframe: it lands on the annotated 712 .. 811 x 143 .. 308.
+  const auto& b = person.box;
+  EXPECT_GT(changedPixels(before, after, static_cast<int>(b.left) - 6, static_cast<int>(b.top) - 6, static_cast<int>(b.right) + 6,
+                          static_cast<int>(b.bottom) + 6),
+            400);
+  EXPECT_EQ(changedPixels(before, after, 900, 100, before.cols, before.rows), 0) << "nothing far from it";
+  // Its lines are in the person colour (BGR 60, 20, 220): many pixels there have exactly it.
+  int person_coloured = 0;
+  for (int y = static_cast<int>(b.top) - 6; y < static_cast<int>(b.bottom) + 6; ++y) {
+    for (int x = static_cast<int>(b.left) - 6; x < static_cast<int>(b.right) + 6; ++x) {
+      const cv::Vec3b c = after.at<cv::Vec3b>(y, x);
+      person_coloured += (c == cv::Vec3b(60, 20, 220)) ? 1 : 0;
+    }
+  }
+  EXPECT_GT(person_coloured, 100);
 }
 
 TEST(CameraOverlay, UnreadableImagesAndUnwritableOutputsAreNamed) {

@@ -1532,5 +1532,32 @@ TEST(ProtoConvert, CentroidFramesWithBadSizesOrValuesAreRejectedNamingTheField) 
       << too_many.error().message;
 }
 
+TEST(ProtoConvert, ATracksHeadingTravelsWhenItHasOneAndIsRefusedOutOfRange) {
+  tracking::Track track;
+  track.id = 7;
+  track.label = "car";
+  track.state = tracking::TrackState::kConfirmed;
+  track.position = {3.0, -4.0};
+  track.covariance = Eigen::Matrix2d::Identity();
+  const auto without = fromProto(toProto(track));
+  ASSERT_TRUE(without.ok()) << without.error().message;
+  EXPECT_FALSE(without->heading_rad.has_value()) << "a person's track has none, and none is sent";
+  EXPECT_FALSE(toProto(track).has_heading());
+
+  track.heading_rad = -3.0;
+  const auto with = fromProto(toProto(track));
+  ASSERT_TRUE(with.ok()) << with.error().message;
+  ASSERT_TRUE(with->heading_rad.has_value());
+  EXPECT_EQ(*with->heading_rad, -3.0);
+
+  for (const double bad : {4.0, -3.5, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    v1::Track wire = toProto(track);
+    wire.set_heading(bad);
+    const auto refused = fromProto(wire);
+    ASSERT_FALSE(refused.ok()) << bad;
+    EXPECT_NE(refused.error().message.find("track 7: heading"), std::string::npos) << refused.error().message;
+  }
+}
+
 }  // namespace
 }  // namespace fogmap

@@ -8,6 +8,7 @@
 #include <thread>
 
 #include "common/certs/certs.hpp"
+#include "common/classify/object_classifier.hpp"
 #include "common/config/topology_parse.hpp"
 #include "common/io/cloud_io.hpp"
 #include "common/perception/preprocess.hpp"
@@ -220,6 +221,14 @@ Expected<sim::SceneMapping> sceneMapping(const Args& args, const sim::SceneMappi
     mapping.objects.classifier = std::filesystem::absolute(args.get("classifier", std::string(kDefaultClassifierModel)));
   }
   return mapping;
+}
+
+Expected<std::shared_ptr<const ObjectClassifier>> classifierFlag(const Args& args) {
+  const std::string model = args.get("classifier", kDefaultClassifierModel);
+  if (!args.has("classifier") && !std::filesystem::exists(model)) return std::shared_ptr<const ObjectClassifier>();
+  auto loaded = ObjectClassifier::load(model);
+  if (!loaded) return loaded.error();
+  return std::shared_ptr<const ObjectClassifier>(std::make_shared<ObjectClassifier>(std::move(*loaded)));
 }
 
 }  // namespace fogmap::cli

@@ -20,6 +20,10 @@ namespace grpc {
 class ChannelCredentials;
 }  // namespace grpc
 
+namespace fogmap {
+class ObjectClassifier;
+}
+
 namespace fogmap::cli {
 
 class Args {
@@ -72,6 +76,10 @@ Expected<ClusteringParams> clusteringParams(const Args& args);
 
 // The committed LiDAR classifier (fogctl train-classifier), from the project's folder.
 inline constexpr const char* kDefaultClassifierModel = "data/models/lidar_classifier.yml.gz";
+
+// The classifier of --classifier FILE (an error naming the file when it does not load), else the
+// bundled model when it is there, else none (nullptr): objects then get boxes without classes.
+Expected<std::shared_ptr<const ObjectClassifier>> classifierFlag(const Args& args);
 
 // --clustering exact|sensor, --fragment-min-points N|off (N from 1 to 1000) and --objects
 // none|boxes|classes with --classifier FILE: how a scene's edges make their maps (demo, topology

@@ -2,9 +2,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <filesystem>
 #include <fstream>
-#include <optional>
 #include <string>
 #include <vector>
 
@@ -20,7 +18,6 @@ namespace fogmap::cli {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
 
 // One JSON object per cluster: its id (the label), class and confidence (with a classifier),
 // points, and oriented box fitted in the scan's frame with the sensor at its origin.
@@ -79,16 +76,9 @@ int runCluster(int argc, char** argv) {
     if (!out) return fail(ioError("writing labels to " + args->get("labels") + " failed"));
   }
   if (args->has("objects")) {
-    // The classifier: --classifier FILE (an error when it does not load), else the bundled model
-    // when it is there, else no classes.
-    std::optional<ObjectClassifier> classifier;
-    const std::string model = args->get("classifier", kDefaultClassifierModel);
-    if (args->has("classifier") || std::filesystem::exists(model)) {
-      auto loaded = ObjectClassifier::load(model);
-      if (!loaded) return fail(loaded.error());
-      classifier = std::move(*loaded);
-    }
-    const auto objects = objectsJson(*cloud, clustering, classifier ? &*classifier : nullptr);
+    const auto classifier = classifierFlag(*args);
+    if (!classifier) return fail(classifier.error());
+    const auto objects = objectsJson(*cloud, clustering, classifier->get());
     if (!objects) return fail(objects.error());
     std::ofstream out(args->get("objects"));
     if (!out) return fail(ioError("cannot write objects to " + args->get("objects")));

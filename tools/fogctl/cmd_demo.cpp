@@ -11,6 +11,7 @@
 #include <optional>
 
 #include "common/config/topology.hpp"
+#include "common/base/clock.hpp"
 #include "common/config/topology_presets.hpp"
 #include "common/config/tracker_node.hpp"
 #include "common/scoring/rand_index.hpp"
@@ -382,7 +383,7 @@ int runDemo(int argc, char** argv) {
     std::printf("%12lu %5zu %8zu %8zu %12zu %14zu %7.0fx %9.3f %9.1f %8.4f %8.4f%s\n", static_cast<unsigned long>(e), e % n_scans,
                 m.map.objects.size(), b.map.objects.size(), view.madc_bytes, view.baseline_bytes,
                 static_cast<double>(view.baseline_bytes) / static_cast<double>(std::max<std::size_t>(view.madc_bytes, 1)),
-                m.merge_seconds * 1e3, static_cast<double>(m.published_time_ns - m.header.sensor_time_ns) / 1e6,
+                m.merge_seconds * 1e3, nsToMs(m.published_time_ns - m.header.sensor_time_ns),
                 a.ok ? a.clusters.rand_index : 0.0, a.ok ? a.clusters.adjusted_rand_index : 0.0,
                 a.ok ? "" : ("  (" + a.problem + ")").c_str());
     last = &m;

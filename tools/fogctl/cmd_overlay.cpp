@@ -9,6 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "common/camera/detector.hpp"
+#include "common/classify/object_classifier.hpp"
 #include "common/config/topology.hpp"
 #include "common/config/topology_presets.hpp"
 #include "common/io/cloud_io.hpp"
@@ -32,14 +33,17 @@ Expected<std::string> readText(const std::string& path) {
 }
 
 // The map an edge makes of the scan with the ready-made KITTI topology's settings (crop, ground
-// 1.73 m below the sensor, MAD-C eps 0.35 m, 10 points, alpha 1.5), in the scan's frame.
-Expected<std::vector<MapObject>> edgeMapOf(const Cloud& scan) {
+// 1.73 m below the sensor, MAD-C eps 0.35 m, 10 points, alpha 1.5), in the scan's frame: each
+// cluster's oriented box, fitted from the sensor at the origin, and with a classifier its class.
+Expected<std::vector<MapObject>> edgeMapOf(const Cloud& scan, std::shared_ptr<const ObjectClassifier> classifier) {
   const TopologyConfig kitti = makeStarTopology(1, "scan", 1);
   EdgeConfig config;
   config.node = 1;
   config.mode = Mode::kMadc;
   config.madc = kitti.madc;
   config.preprocess = kitti.preprocess;
+  config.boxes = true;
+  config.classifier = std::move(classifier);
   EdgeNode edge(config);
   auto output = edge.processFrame(scan, 0, 0);
   if (!output) return output.error();
@@ -49,7 +53,7 @@ Expected<std::vector<MapObject>> edgeMapOf(const Cloud& scan) {
 
 int runOverlay(int argc, char** argv) {
   const std::string who = "fogctl overlay";
-  const auto args = Args::parse(argc, argv, 2, {"image", "calib", "labels", "scan", "hog-upscale", "out"}, {"hog", "objects"});
+  const auto args = Args::parse(argc, argv, 2, {"image", "calib", "labels", "scan", "hog-upscale", "classifier", "out"}, {"hog", "objects"});
   if (!args) return fail(args.error(), who);
   for (const char* flag : {"image", "calib", "out"}) {
     if (!args->has(flag)) {
@@ -77,7 +81,9 @@ int runOverlay(int argc, char** argv) {
   std::vector<MapObject> objects;
   if (args->has("objects")) {
     if (!args->has("scan")) return fail(invalidArgument("--objects draws the map of the --scan: give --scan too"), who);
-    auto map = edgeMapOf(points);
+    auto classifier = classifierFlag(*args);
+    if (!classifier) return fail(classifier.error(), who);
+    auto map = edgeMapOf(points, std::move(*classifier));
     if (!map) return fail(Error{map.error().code, args->get("scan") + ": " + map.error().message}, who);
     objects = std::move(*map);
   }
@@ -112,15 +118,18 @@ int runOverlay(int argc, char** argv) {
 Command overlayCommand() {
   return {"overlay",
           "--image IMG --calib CALIB --out PNG [--labels FILE] [--scan FILE [--objects]] [--hog]   draw on a camera frame",
-          "usage: fogctl overlay --image IMG --calib CALIB --out PNG [--labels FILE] [--scan FILE [--objects]] [--hog]\n"
-          "                      [--hog-upscale 1.5]\n"
+          "usage: fogctl overlay --image IMG --calib CALIB --out PNG [--labels FILE] [--scan FILE [--objects [--classifier FILE]]]\n"
+          "                      [--hog [--hog-upscale 1.5]]\n"
           "Draws over a camera frame (KITTI camera 2) what fogmap knows: a LiDAR scan's points projected into\n"
           "the image (coloured by depth), the 3D boxes of a label_2 file as wireframes, and with --hog the\n"
           "people OpenCV's HOG detector finds; writes PNG. For checking a calibration and a detector by eye.\n"
           "  --calib FILE   KITTI calibration (P2, R0_rect, Tr_velo_to_cam)\n"
           "  --labels FILE  KITTI label_2 objects; --scan FILE  a Velodyne scan (.bin, .pcd)\n"
           "  --objects      instead of the scan's points, the map an edge makes of it (the ready-made KITTI\n"
-          "                 topology's crop, ground and MAD-C): each object the box of its projected ellipsoids\n",
+          "                 topology's crop, ground and MAD-C): each object's oriented 3D box as a wireframe in\n"
+          "                 its LiDAR class's colour, with the class and confidence\n"
+          "  --classifier FILE  the LiDAR classifier (default: the bundled data/models/lidar_classifier.yml.gz\n"
+          "                 when it is there; without one the boxes have no class)\n",
           runOverlay};
 }
 

@@ -4,6 +4,7 @@
 #include <filesystem>
 
 #include "common/io/cloud_io.hpp"
+#include "common/base/angles.hpp"
 #include "common/perception/virtual_lidar.hpp"
 #include "tools/fogctl/args.hpp"
 #include "tools/fogctl/commands.hpp"
@@ -37,7 +38,7 @@ int runSplit(int argc, char** argv) {
     const Cloud view = sectorView(scan->points, split);
     const auto file = out / (stem + "_view" + std::to_string(k) + ".bin");
     if (const Status s = writeKittiBin(file, view); !s) return fail(s.error());
-    const double yaw = std::atan2(sectorPose(split).rotation()(1, 0), sectorPose(split).rotation()(0, 0)) * 180.0 / M_PI;
+    const double yaw = std::atan2(sectorPose(split).rotation()(1, 0), sectorPose(split).rotation()(0, 0)) * kRadToDeg;
     std::printf("- view: %d\n  file: %s\n  points: %zu\n  pose: {translation_m: [0, 0, 0], rpy_deg: [0, 0, %.3f]}\n", k,
                 file.c_str(), view.size(), yaw);
   }

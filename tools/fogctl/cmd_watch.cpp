@@ -15,6 +15,8 @@
 #include <grpcpp/grpcpp.h>
 
 #include "fogmap/v1/fogmap.grpc.pb.h"
+#include "common/base/angles.hpp"
+#include "common/base/clock.hpp"
 #include "harness/epoch_latency.hpp"
 #include "harness/launcher.hpp"
 #include "services/common/grpc_options.hpp"
@@ -96,7 +98,7 @@ void printGlobalMap(const v1::GlobalMap& message, long shown) {
 }
 
 void printTrackList(const v1::TrackList& message) {
-  const double e2e_ms = static_cast<double>(message.published_time_ns() - message.lidar_time_ns()) / 1e6;
+  const double e2e_ms = nsToMs(message.published_time_ns() - message.lidar_time_ns());
   std::printf("tracks %d  association %s  e2e %.1f ms\n", message.tracks_size(), message.association().c_str(), e2e_ms);
   for (const auto& proto : message.tracks()) {
     const auto track = fromProto(proto);
@@ -104,10 +106,12 @@ void printTrackList(const v1::TrackList& message) {
       std::fprintf(stderr, "fogctl: malformed track: %s\n", track.error().message.c_str());
       continue;
     }
-    std::printf("  track %4lu  %-10s %-9s at (%7.2f, %7.2f) m  velocity (%5.2f, %5.2f) m/s  sigma %.2f m%s\n",
+    char heading[32] = "";
+    if (track->heading_rad) std::snprintf(heading, sizeof heading, "  heading %.0f deg", *track->heading_rad * kRadToDeg);
+    std::printf("  track %4lu  %-10s %-9s at (%7.2f, %7.2f) m  velocity (%5.2f, %5.2f) m/s  sigma %.2f m%s%s\n",
                 static_cast<unsigned long>(track->id), track->label.c_str(), tracking::trackStateName(track->state),
                 track->position.x(), track->position.y(), track->velocity.x(), track->velocity.y(),
-                std::sqrt(std::max(0.0, track->covariance.trace() / 2.0)), track->camera_confirmed ? "  camera" : "");
+                std::sqrt(std::max(0.0, track->covariance.trace() / 2.0)), heading, track->camera_confirmed ? "  camera" : "");
   }
   std::fflush(stdout);
 }

@@ -7,7 +7,9 @@
 #include <functional>
 #include <limits>
 #include <map>
+#include <numbers>
 #include <numeric>
+#include <optional>
 #include <random>
 #include <string>
 #include <utility>
@@ -473,6 +475,43 @@ TEST(MotInput, SameIdAsTruthAndHypothesisIsAllowed) {
   const std::vector<MotFrame> frames{MotFrame{{at(1, 0, 0)}, {at(1, 0, 0)}}};
   EXPECT_TRUE(validateMotInput(frames, {}).ok());
   EXPECT_DOUBLE_EQ(clearOf(frames).mota, 1.0);
+}
+
+// Headings are scored over the matches where both truth and track have one, as the angle between
+// them in [0, 180] degrees; they never decide a match.
+TEST(MotHeadings, TheAngleBetweenHeadingsIsScoredOverMatchesWhereBothHaveOne) {
+  const double deg = std::numbers::pi / 180.0;
+  const auto with = [](MotObject o, std::optional<double> heading) {
+    o.heading_rad = heading;
+    return o;
+  };
+  std::vector<MotFrame> frames;
+  // A car (truth 1, heading 170 deg) tracked by 10 with -170 deg: 20 degrees apart across +-180.
+  // A person (truth 2, no heading) tracked by 20 with one: not scored. Truth 3 (heading 0) tracked
+  // by 30 with 90 deg, then without a heading.
+  frames.push_back(MotFrame{{with(at(1, 0, 0), 170 * deg), at(2, 5, 0), with(at(3, 10, 0), 0.0)},
+                            {with(at(10, 0.1, 0), -170 * deg), with(at(20, 5, 0), 1.0), with(at(30, 10, 0), 90 * deg)}});
+  frames.push_back(MotFrame{{with(at(1, 1, 0), 170 * deg), at(2, 5, 1), with(at(3, 10, 1), 0.0)},
+                            {with(at(10, 1, 0), 175 * deg), at(20, 5, 1), at(30, 10, 1)}});
+  const auto report = evaluateMot(frames);
+  ASSERT_TRUE(report.ok()) << report.error().message;
+  EXPECT_EQ(report->clear.matches, 6U);
+  ASSERT_EQ(report->clear.match_heading_errors_deg.size(), 3U);
+  EXPECT_NEAR(report->clear.match_heading_errors_deg[0], 20.0, 1e-9);
+  EXPECT_NEAR(report->clear.match_heading_errors_deg[1], 90.0, 1e-9);
+  EXPECT_NEAR(report->clear.match_heading_errors_deg[2], 5.0, 1e-9);
+  EXPECT_EQ(report->heading_error_deg.count, 3U);
+  EXPECT_NEAR(report->heading_error_deg.mean_m, 115.0 / 3.0, 1e-9);
+  EXPECT_NEAR(report->heading_error_deg.max_m, 90.0, 1e-9);
+  EXPECT_EQ(report->clear.mota, 1.0) << "a wrong heading is no miss";
+
+  // A heading opposite the truth's is the largest error, 180 degrees; a non-finite one is refused.
+  const auto opposite = evaluateMot(std::vector<MotFrame>{MotFrame{{with(at(1, 0, 0), 0.5)}, {with(at(9, 0, 0), 0.5 - std::numbers::pi)}}});
+  ASSERT_TRUE(opposite.ok());
+  EXPECT_NEAR(opposite->heading_error_deg.max_m, 180.0, 1e-9);
+  const auto bad = evaluateMot(std::vector<MotFrame>{MotFrame{{at(1, 0, 0)}, {with(at(9, 0, 0), std::numeric_limits<double>::quiet_NaN())}}});
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("hypothesis id 9 has a non-finite heading"), std::string::npos) << bad.error().message;
 }
 
 }  // namespace

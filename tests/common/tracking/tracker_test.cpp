@@ -8,6 +8,8 @@
 #include <cmath>
 #include <functional>
 #include <map>
+#include <numbers>
+#include <optional>
 #include <random>
 #include <set>
 
@@ -477,7 +479,6 @@ TEST(KalmanAssociation, TwoCamerasSeeingOneObjectMakeOneTrackWhereThePaperMakesT
   }
 }
 
-
 // --- asynchronous fusion ---------------------------------------------------------------------------
 
 TEST(AsynchronousFusion, ALidarFrameWaitsForTheDetectionsThatArriveAfterItThenFusesThem) {
@@ -612,6 +613,65 @@ TEST(LoadShedding, PeopleKeepTheirTrackIdsThroughAFloodOfClutterWithMorePoints) 
   }
   EXPECT_EQ(shed, 40U * (1006U - 64U));
   EXPECT_EQ(tracker.counters().measurements_shed, shed);
+}
+
+// A vehicle track's heading (vehicleHeading): its box's axis, turned to the track's motion, or to
+// its previous heading when it stands; the motion itself when the axis is across it.
+TEST(VehicleHeading, TheBoxAxisPointsTheWayTheTrackMovesOrKeepsItsLastDirection) {
+  CloudObservation car;
+  car.box = OrientedBox{Eigen::Vector3d(10, 0, 0.8), 4.4, 1.8, 1.5, 0.1};
+  car.lidar_class = ObjectLabel{ObjectClass::kCar, 0.9};
+  const double pi = std::numbers::pi;
+  // Moving along +x and along -x: the axis, or the axis turned by pi.
+  EXPECT_NEAR(*vehicleHeading(car, {5.0, 0.0}, std::nullopt), 0.1, 1e-12);
+  EXPECT_NEAR(*vehicleHeading(car, {-5.0, 0.0}, std::nullopt), 0.1 - pi, 1e-12);
+  // Too slow to say (below kHeadingMinSpeedMps): the direction nearer the previous heading, else as fitted.
+  EXPECT_NEAR(*vehicleHeading(car, {0.2, 0.0}, 3.0), 0.1 - pi, 1e-12);
+  EXPECT_NEAR(*vehicleHeading(car, {0.2, 0.0}, std::nullopt), 0.1, 1e-12);
+  // An axis across the motion (more than 45 degrees off: a car seen end-on): the motion's direction.
+  car.box->yaw = -pi / 2.0 + 0.2;
+  EXPECT_NEAR(*vehicleHeading(car, {0.0, -4.0}, std::nullopt), -pi / 2.0 + 0.2, 1e-12) << "within 45 degrees: the axis";
+  EXPECT_NEAR(*vehicleHeading(car, {4.0, 0.0}, std::nullopt), 0.0, 1e-12) << "across: the motion";
+  // No box: the previous heading stays, whatever it was; a box no vehicle's (a person's) clears it.
+  CloudObservation person;
+  person.box = OrientedBox{Eigen::Vector3d(3, 0, 0.9), 0.6, 0.5, 1.8, 0.0};
+  person.lidar_class = ObjectLabel{ObjectClass::kPerson, 0.8};
+  EXPECT_FALSE(vehicleHeading(person, {3.0, 0.0}, std::nullopt).has_value());
+  EXPECT_FALSE(vehicleHeading(person, {3.0, 0.0}, 1.25).has_value());
+  EXPECT_EQ(vehicleHeading(CloudObservation{}, {3.0, 0.0}, 1.25), std::optional<double>(1.25));
+}
+
+// Through the tracker: a car driving along -x with its box seen every frame gets a track whose
+// heading points along -x; a person's track has none.
+TEST(VehicleHeading, ACarsTrackCarriesItsHeadingAndAPersonsNone) {
+  auto tracker = makeTracker(TrackerConfig{}, {});
+  const double pi = std::numbers::pi;
+  for (int f = 0; f < 20; ++f) {
+    const double t = 0.1 * f;
+    CloudFrame frame;
+    frame.time_ns = static_cast<std::int64_t>(std::llround(t * 1e9));
+    CloudObservation car;
+    car.position = {30.0 - 8.0 * t, 0.0, 0.8};
+    car.box = OrientedBox{car.position, 4.4, 1.8, 1.5, 0.02};
+    car.lidar_class = ObjectLabel{ObjectClass::kCar, 0.9};
+    car.point_count = 200;
+    CloudObservation person;
+    person.position = {0.0, 10.0 + 1.2 * t, 0.9};
+    person.box = OrientedBox{person.position, 0.6, 0.5, 1.8, 0.3};
+    person.lidar_class = ObjectLabel{ObjectClass::kPerson, 0.8};
+    person.point_count = 40;
+    frame.observations = {car, person};
+    tracker.addCloud(frame);
+  }
+  ASSERT_EQ(tracker.tracks().size(), 2U);
+  for (const Track& track : tracker.tracks()) {
+    if (track.position.x() > 5.0) {
+      ASSERT_TRUE(track.heading_rad.has_value());
+      EXPECT_NEAR(std::abs(*track.heading_rad), pi - 0.02, 1e-9) << "along -x, the box's axis turned by pi";
+    } else {
+      EXPECT_FALSE(track.heading_rad.has_value());
+    }
+  }
 }
 
 }  // namespace
