@@ -48,7 +48,8 @@ std::optional<double> vehicleHeading(const CloudObservation& o, const Eigen::Vec
     const double along = alongNearer(axis, motion);
     return headingAngleBetween(along, motion) <= kHeadingAxisTrustRad ? along : motion;
   }
-  return previous ? alongNearer(axis, *previous) : std::remainder(axis, 2.0 * std::numbers::pi);
+  if (!previous) return std::nullopt;  // standing, never seen moving: which end is the front is not known
+  return alongNearer(axis, *previous);
 }
 
 namespace {
@@ -497,7 +498,6 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
     if (used[m]) continue;
     const auto& meas = measurements[m];
     Track& track = spawn(meas.position, meas.covariance, frame.time_ns);
-    track.heading_rad = vehicleHeading(*meas.observation, Eigen::Vector2d::Zero(), std::nullopt);
     ++stats.tracks_created;
     if (!meas.votes.empty()) {
       track.camera_confirmed = true;

@@ -38,7 +38,8 @@ inline constexpr double kHeadingReachM = 4.0;
 
 // A vehicle track's heading after an update by observation `o` (Track::heading_rad): the axis of
 // its box (a vehicle's: vehiclePriorFor), turned to the track's direction of motion when it moves at
-// least kHeadingMinSpeedMps, else to its `previous` heading, else as fitted. An axis more than
+// least kHeadingMinSpeedMps, else to its `previous` heading; none for a vehicle never seen moving (a
+// box's axis does not tell its front from its back). An axis more than
 // kHeadingAxisTrustRad off the motion (a car seen end-on, whose rear reads as its length) gives
 // way to the motion's direction. An observation without a box (objects off, a fragment) leaves the
 // previous heading; one whose box is no vehicle's (a person's, two people side by side for a while)

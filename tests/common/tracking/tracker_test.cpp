@@ -625,9 +625,10 @@ TEST(VehicleHeading, TheBoxAxisPointsTheWayTheTrackMovesOrKeepsItsLastDirection)
   // Moving along +x and along -x: the axis, or the axis turned by pi.
   EXPECT_NEAR(*vehicleHeading(car, {5.0, 0.0}, std::nullopt), 0.1, 1e-12);
   EXPECT_NEAR(*vehicleHeading(car, {-5.0, 0.0}, std::nullopt), 0.1 - pi, 1e-12);
-  // Too slow to say (below kHeadingMinSpeedMps): the direction nearer the previous heading, else as fitted.
+  // Too slow to say (below kHeadingMinSpeedMps): the direction nearer the previous heading; without
+  // one, none (a standing car's front is not known from its box).
   EXPECT_NEAR(*vehicleHeading(car, {0.2, 0.0}, 3.0), 0.1 - pi, 1e-12);
-  EXPECT_NEAR(*vehicleHeading(car, {0.2, 0.0}, std::nullopt), 0.1, 1e-12);
+  EXPECT_FALSE(vehicleHeading(car, {0.2, 0.0}, std::nullopt).has_value());
   // An axis across the motion (more than 45 degrees off: a car seen end-on): the motion's direction.
   car.box->yaw = -pi / 2.0 + 0.2;
   EXPECT_NEAR(*vehicleHeading(car, {0.0, -4.0}, std::nullopt), -pi / 2.0 + 0.2, 1e-12) << "within 45 degrees: the axis";
