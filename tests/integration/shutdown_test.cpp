@@ -169,8 +169,12 @@ class Subscriber {
 };
 
 // A raw child: one stream that speaks for `node`, one map a few milliseconds (a fast sensor),
-// each for the current epoch and carrying one ellipsoid of its own index, written and answered in
-// lock step until the stream ends. Records every answer.
+// each carrying one ellipsoid of its own index, written and answered in lock step until the stream
+// ends. Records every answer. Each map is for the epoch after the current one (a clock a period
+// ahead, well inside the admission window): an epoch is emitted as soon as every child reported,
+// which the edges do a few milliseconds after it begins, so maps for the current epoch would mostly
+// be answered LATE, and how many are APPLIED would depend on the machine's speed. An epoch that has
+// not begun is never emitted before the drain, so every map is APPLIED while the node runs.
 class RawChild {
  public:
   RawChild(const std::string& target, std::uint32_t node, const EpochSchedule& schedule)
@@ -210,6 +214,11 @@ class RawChild {
     std::lock_guard lock(mutex_);
     return late_or_refused_;
   }
+  std::string summary() const {
+    std::lock_guard lock(mutex_);
+    return std::to_string(uploads_) + " uploads: " + std::to_string(applied_.size()) + " applied, " +
+           std::to_string(late_or_refused_) + " late or refused, " + std::to_string(unanswered_) + " unanswered";
+  }
 
  private:
   void run() {
@@ -217,7 +226,7 @@ class RawChild {
     constexpr auto kPace = 5ms;
     auto next = Clock::now();
     for (std::uint64_t i = 0; i < kMaxUploads; ++i) {
-      const std::uint64_t epoch = schedule_.epochAt(systemNowNs());
+      const std::uint64_t epoch = schedule_.epochAt(systemNowNs()) + 1;
       const auto index = static_cast<std::uint32_t>(kFirstRawIndex + i);
       Ellipsoid e;
       e.id = {node_, epoch, index};
@@ -321,7 +330,7 @@ TEST(Shutdown, RootExitsWithinItsDeadlineAndPublishesEveryAppliedUploadFirst) {
     Subscriber subscriber(target(root), 1);
     RawChild raw(target(root), 1, *schedule);  // speaks for edge 1, next to edge 1's own stream
     // Uploads applied and epochs published, then the signal: mid-stream for everyone.
-    ASSERT_TRUE(raw.waitForApplied(200, 20s));
+    ASSERT_TRUE(raw.waitForApplied(200, 20s)) << raw.summary();
     ASSERT_TRUE(subscriber.waitFor([](const auto& epochs, const auto&) { return epochs.size() >= 3; }, 20s));
     root_exit = terminate(nodeNamed(*cluster, root.name).pid, kAggregatorDeadline + kExitMargin);
     raw.join();
@@ -359,7 +368,7 @@ TEST(Shutdown, EdgeExitsPromptlyAndAnIntermediateFlushesToItsParent) {
   {
     Subscriber subscriber(target(*t.root()), 1);
     RawChild raw(target(*intermediate), 1, *schedule);  // speaks for edge 1 at agg-1
-    ASSERT_TRUE(raw.waitForApplied(200, 20s));
+    ASSERT_TRUE(raw.waitForApplied(200, 20s)) << raw.summary();
     ASSERT_TRUE(subscriber.waitFor([](const auto& epochs, const auto&) { return epochs.size() >= 3; }, 20s));
 
     edge_exit = terminate(nodeNamed(*cluster, "edge-2").pid, kEdgeDeadline + kExitMargin);
