@@ -9,6 +9,7 @@
 #include <set>
 #include <utility>
 
+#include "common/base/angles.hpp"
 #include "common/perception/box_fitting.hpp"
 #include "common/tracking/assignment.hpp"
 
@@ -31,10 +32,17 @@ std::optional<Eigen::Vector2d> headingAware(const CloudObservation& o, const Eig
   return grownFromAnchor(*o.box, *prior, std::atan2(velocity.y(), velocity.x())).centre.head<2>();
 }
 
+// A vehicle track's measured point: the box of a vehicle's observation grown from its anchor to the
+// track's size along the track's heading (the anchor face or corner stays where it was seen).
+// Nothing for an observation without a vehicle's box.
+std::optional<Eigen::Vector2d> vehicleCentre(const CloudObservation& o, const VehicleMotion& vehicle) {
+  if (!o.box || !vehiclePriorFor(*o.box, o.lidar_class)) return std::nullopt;
+  return grownFromAnchor(*o.box, vehicle.size, vehicle.filter.heading()).centre.head<2>();
+}
+
 // Of the two directions along `axis`, the one nearer `toward`.
 double alongNearer(double axis, double toward) {
-  return headingAngleBetween(axis, toward) <= 0.5 * std::numbers::pi ? std::remainder(axis, 2.0 * std::numbers::pi)
-                                                                     : std::remainder(axis + std::numbers::pi, 2.0 * std::numbers::pi);
+  return wrapToPi(headingAngleBetween(axis, toward) <= 0.5 * std::numbers::pi ? axis : axis + std::numbers::pi);
 }
 
 }  // namespace
@@ -305,6 +313,7 @@ Track& Tracker::spawn(const Eigen::Vector2d& position, const Eigen::Matrix2d& co
   tracks_.push_back(track);
   filters_.emplace_back(position, covariance, config_.initial_speed_sigma,
                         ConstantVelocityModel{.acceleration_sigma = config_.acceleration_sigma});
+  vehicles_.emplace_back();
   label_votes_.emplace_back();
   return tracks_.back();
 }
@@ -391,6 +400,9 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
   // Predict every track to the frame's time.
   const double dt = last_cloud_ns_ ? seconds(frame.time_ns - *last_cloud_ns_) : 0.0;
   for (auto& filter : filters_) filter.predict(dt);
+  for (auto& vehicle : vehicles_) {
+    if (vehicle) vehicle->filter.predict(dt);
+  }
 
   // Measurements: every observation, with the labels of the detections that overlay it (several
   // cameras may see one object: their votes add up in one measurement).
@@ -444,14 +456,18 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
     return it == along_motion.end() ? measurements[m].position : it->second;
   };
   for (std::size_t t = 0; t < tracks_.size(); ++t) {
-    const Eigen::Vector2d predicted = filters_[t].position();
-    const double track_spread = filters_[t].covariance().topLeftCorner<2, 2>().trace();
-    const Eigen::Vector2d velocity = filters_[t].velocity();
+    const auto& vehicle = vehicles_[t];
+    const Eigen::Vector2d predicted = positionOf(t);
+    const double track_spread = positionCovarianceOf(t).trace();
+    const Eigen::Vector2d velocity = velocityOf(t);
     for (std::size_t m = 0; m < measurements.size(); ++m) {
       const auto& meas = measurements[m];
-      if (meas.observation->box && velocity.norm() >= kHeadingMinSpeedMps &&
-          (meas.position - predicted).norm() <= kHeadingReachM) {
-        if (const auto point = headingAware(*meas.observation, velocity)) along_motion[{t, m}] = *point;
+      if (meas.observation->box && (meas.position - predicted).norm() <= kHeadingReachM) {
+        if (vehicle) {
+          if (const auto point = vehicleCentre(*meas.observation, *vehicle)) along_motion[{t, m}] = *point;
+        } else if (velocity.norm() >= kHeadingMinSpeedMps) {
+          if (const auto point = headingAware(*meas.observation, velocity)) along_motion[{t, m}] = *point;
+        }
       }
       const Eigen::Vector2d& position = measuredFor(t, m);
       if ((position - predicted).squaredNorm() > config_.gate_chi2 * (track_spread + measurement_spread[m])) continue;
@@ -460,7 +476,8 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
           measured_label[m] != tracks_[t].label) {
         continue;
       }
-      const double d2 = filters_[t].mahalanobis2(position, meas.covariance);
+      const double d2 = vehicle ? vehicle->filter.mahalanobis2(position, meas.covariance)
+                                : filters_[t].mahalanobis2(position, meas.covariance);
       if (d2 <= config_.gate_chi2) cost[t][m] = d2;
     }
   }
@@ -477,8 +494,11 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
     }
     const auto& meas = measurements[*assignment[t]];
     used[*assignment[t]] = true;
-    filters_[t].update(measuredFor(t, *assignment[t]), meas.covariance);
-    track.heading_rad = vehicleHeading(*meas.observation, filters_[t].velocity(), track.heading_rad);
+    const Eigen::Vector2d& point = measuredFor(t, *assignment[t]);
+    filters_[t].update(point, meas.covariance);
+    if (vehicles_[t]) vehicles_[t]->filter.updatePosition(point, meas.covariance);
+    track.heading_rad = vehicleHeading(*meas.observation, velocityOf(t), track.heading_rad);
+    updateVehicle(t, *meas.observation, meas.covariance);
     track.last_update_ns = frame.time_ns;
     ++track.consecutive_hits;
     if (meas.votes.empty()) {
@@ -509,11 +529,57 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
 
   // The published view of every track: the filter's estimate and the label the votes give.
   for (std::size_t t = 0; t < tracks_.size(); ++t) {
-    tracks_[t].position = filters_[t].position();
-    tracks_[t].velocity = filters_[t].velocity();
-    tracks_[t].covariance = filters_[t].covariance().topLeftCorner<2, 2>();
+    tracks_[t].position = positionOf(t);
+    tracks_[t].velocity = velocityOf(t);
+    tracks_[t].covariance = positionCovarianceOf(t);
     tracks_[t].label = bestLabel(label_votes_[t]);
   }
+}
+
+Eigen::Vector2d Tracker::positionOf(std::size_t t) const {
+  return vehicles_[t] ? vehicles_[t]->filter.position() : filters_[t].position();
+}
+Eigen::Vector2d Tracker::velocityOf(std::size_t t) const {
+  return vehicles_[t] ? vehicles_[t]->filter.velocity() : filters_[t].velocity();
+}
+Eigen::Matrix2d Tracker::positionCovarianceOf(std::size_t t) const {
+  return vehicles_[t] ? vehicles_[t]->filter.positionCovariance() : Eigen::Matrix2d(filters_[t].covariance().topLeftCorner<2, 2>());
+}
+
+void Tracker::updateVehicle(std::size_t t, const CloudObservation& o, const Eigen::Matrix2d& measurement_covariance) {
+  auto& vehicle = vehicles_[t];
+  const auto& heading = tracks_[t].heading_rad;
+  if (!heading) {  // the observation's box is no vehicle's (or none was ever seen moving)
+    vehicle.reset();
+    return;
+  }
+  const auto prior = o.box ? vehiclePriorFor(*o.box, o.lidar_class) : std::nullopt;
+  if (!vehicle) {
+    if (!prior) return;  // a heading carried over an observation without a box: start at the next box
+    // At the box grown along the heading now known (the constant-velocity track followed the
+    // centres guessed without one), moving at the constant-velocity track's speed.
+    const Eigen::Vector2d start = grownFromAnchor(*o.box, *prior, *heading).centre.head<2>();
+    const double speed_sigma = std::sqrt(0.5 * filters_[t].covariance().bottomRightCorner<2, 2>().trace());
+    vehicle.emplace(VehicleMotion{CtrvFilter(start, measurement_covariance, *heading, kVehicleInitialHeadingSigmaRad,
+                                             filters_[t].velocity().norm(), speed_sigma, kVehicleInitialYawRateSigma,
+                                             CtrvModel{}),
+                                  *prior, *prior});
+    tracks_[t].heading_rad = vehicle->filter.heading();
+    return;
+  }
+  if (prior) {
+    if (axisAngleBetween(o.box->yaw, vehicle->filter.heading()) <= kHeadingAxisTrustRad) {
+      vehicle->filter.updateAxis(o.box->yaw, kVehicleAxisSigmaRad);
+    }
+    const OrientedBox grown = grownFromAnchor(*o.box, vehicle->size, vehicle->filter.heading());
+    const auto& p = vehicle->prior;
+    auto& size = vehicle->size;
+    size.length_m = std::clamp(size.length_m + kVehicleSizeGain * (grown.length - size.length_m),
+                               kVehicleMinSizeRatio * p.length_m, kVehicleMaxLengthRatio * p.length_m);
+    size.width_m = std::clamp(size.width_m + kVehicleSizeGain * (grown.width - size.width_m),
+                              kVehicleMinSizeRatio * p.width_m, p.max_width_m);
+  }
+  tracks_[t].heading_rad = vehicle->filter.heading();
 }
 
 void Tracker::prune(std::int64_t now_ns, StepStats& stats) {
@@ -531,12 +597,14 @@ void Tracker::prune(std::int64_t now_ns, StepStats& stats) {
     if (kept != t) {
       tracks_[kept] = std::move(tracks_[t]);
       filters_[kept] = std::move(filters_[t]);
+      vehicles_[kept] = std::move(vehicles_[t]);
       label_votes_[kept] = std::move(label_votes_[t]);
     }
     ++kept;
   }
   tracks_.resize(kept);
   filters_.erase(filters_.begin() + static_cast<std::ptrdiff_t>(kept), filters_.end());
+  vehicles_.erase(vehicles_.begin() + static_cast<std::ptrdiff_t>(kept), vehicles_.end());
   label_votes_.resize(kept);
 }
 

@@ -23,6 +23,8 @@
 
 #include "common/base/status.hpp"
 #include "common/camera/pinhole.hpp"
+#include "common/perception/box_fitting.hpp"
+#include "common/tracking/ctrv.hpp"
 #include "common/tracking/kalman.hpp"
 #include "common/tracking/track.hpp"
 #include "common/tracking/tracker_config.hpp"
@@ -46,6 +48,30 @@ inline constexpr double kHeadingReachM = 4.0;
 // clears it.
 inline constexpr double kHeadingAxisTrustRad = std::numbers::pi / 4.0;
 std::optional<double> vehicleHeading(const CloudObservation& o, const Eigen::Vector2d& velocity, std::optional<double> previous);
+
+// Vehicles (docs/tracking.md, "Vehicles"): once vehicleHeading gives a track a heading, the track
+// also runs a CTRV filter (common/tracking/ctrv.hpp), started at the observation's box grown along
+// that heading (with the measurement's covariance) at the constant-velocity track's speed, and
+// keeps its box's size as state: the class's prior at first, then each update's box grown to it
+// (seen faces kept), smoothed by kVehicleSizeGain and held within [kVehicleMinSizeRatio x prior,
+// kVehicleMaxLengthRatio x prior length] and [kVehicleMinSizeRatio x prior width, prior max width].
+// Its position, velocity and heading are the CTRV filter's from then on; each update measures the
+// box's centre grown from its anchor along the filter's heading with the track's size, and the box's
+// axis as a heading (sigma kVehicleAxisSigmaRad) when it lies within kHeadingAxisTrustRad of it.
+// An observation whose box is no vehicle's ends the CTRV filter: the track is a person's or other
+// object's again (constant velocity).
+inline constexpr double kVehicleSizeGain = 0.2;
+inline constexpr double kVehicleMinSizeRatio = 0.8;
+inline constexpr double kVehicleMaxLengthRatio = 1.5;
+inline constexpr double kVehicleAxisSigmaRad = 0.15;
+inline constexpr double kVehicleInitialHeadingSigmaRad = 0.3;
+inline constexpr double kVehicleInitialYawRateSigma = 0.3;  // rad/s
+
+struct VehicleMotion {
+  CtrvFilter filter;
+  BoxPrior prior;  // the class's
+  BoxPrior size;   // the track's estimate (length_m, width_m), max_width_m as the prior's
+};
 
 struct StepStats {
   std::int64_t time_ns = 0;               // the fused LiDAR frame's sensor time
@@ -129,6 +155,13 @@ class Tracker {
   void stepKalman(const CloudFrame& frame, const std::vector<DetectionFrame>& detections, StepStats& stats);
   void prune(std::int64_t now_ns, StepStats& stats);
   Track& spawn(const Eigen::Vector2d& position, const Eigen::Matrix2d& covariance, std::int64_t now_ns);
+  // Track t's estimate: its vehicle filter's where it has one, else its constant-velocity filter's.
+  Eigen::Vector2d positionOf(std::size_t t) const;
+  Eigen::Vector2d velocityOf(std::size_t t) const;
+  Eigen::Matrix2d positionCovarianceOf(std::size_t t) const;
+  // After track t's update by `o` (its heading_rad already set by vehicleHeading): starts, updates
+  // or ends its vehicle motion (see VehicleMotion).
+  void updateVehicle(std::size_t t, const CloudObservation& o, const Eigen::Matrix2d& measurement_covariance);
 
   TrackerConfig config_;
   std::vector<camera::PinholeCamera> cameras_;
@@ -138,6 +171,7 @@ class Tracker {
   std::vector<CloudFrame> waiting_;  // offered LiDAR frames not fused yet, by time
   std::vector<Track> tracks_;
   std::vector<ConstantVelocityFilter> filters_;                // kalman: one per track, same order
+  std::vector<std::optional<VehicleMotion>> vehicles_;          // kalman: a vehicle's CTRV and size
   std::vector<std::map<std::string, double>> label_votes_;     // kalman: summed scores per label
   std::uint64_t next_id_ = 1;
   std::size_t budget_ = 0;
