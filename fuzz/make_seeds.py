@@ -252,15 +252,19 @@ def record(offset_cm, semi_axes_mm, point_count, index, rotation=(1.0, 0.0, 0.0,
             struct.pack("<HH", point_count, index))
 
 
-def block(node, origin_cm, records, frame=None, object_of=(), steps=None):
+def block(node, origin_cm, records, frame=None, object_of=(), steps=None, first_index=None):
     """An EllipsoidBlock: the records of one (node, frame) around origin_cm; object_of (the object of
     each record) goes on the wire as steps from the previous record's (sint32, zigzag), or `steps` as
-    given; both empty makes each record an object of its own."""
+    given; both empty makes each record an object of its own. With first_index, each record's last
+    2 bytes (its index) are left out and the block numbers them from first_index."""
     if steps is None:
         steps = [o - p for o, p in zip(object_of, [0] + list(object_of[:-1]))]
+    if first_index is not None:
+        records = [r[:20] if len(r) == 22 else r for r in records]
     return (field_varint(1, node) + (field_varint(2, frame) if frame is not None else b"") +
             b"".join(field_varint(3 + i, zigzag(v)) for i, v in enumerate(origin_cm)) +
-            field_bytes(6, b"".join(records)) + packed_varints(7, [zigzag(v) for v in steps]))
+            field_bytes(6, b"".join(records)) + packed_varints(7, [zigzag(v) for v in steps]) +
+            (field_varint(9, first_index) if first_index is not None else b""))
 
 
 def chunk_upload(sequence, hdr, points, chunk=0, chunk_count=1, first_point=0, total_points=None, labels=None):
@@ -638,7 +642,14 @@ def compact_upload_seeds():
     write(t, "packed_origin_at_int32_limits", stream_input(MADC, (0, 0, False, map_upload(1, header(1), [], [
         block(1, (2 ** 31 - 1, -2 ** 31, 0), [record((32767, -32767, 0), (500, 500, 500), 20, 0)]),
         block(1, (0, 0, 0), [record((-32768, 32767, -32768), (1, 1, 65535), 65535, 1)])]))))
+    # An edge's local map whose block numbers its records (20 bytes each, indices 0, 1).
+    write(t, "packed_first_index_local_map", stream_input(MADC, (0, 0, False, map_upload(1, header(1), [], [
+        block(1, (1000, -260, 20), [r1, r1b], first_index=0)]))))
     # Malformed blocks and records: refused naming the block and record.
+    write(t, "block_first_index_past_the_last_index", stream_input(MADC, (0, 0, False, map_upload(1, header(1), [], [
+        block(1, (1000, -260, 20), [r1, r1b], first_index=2 ** 32 - 1)]))))
+    write(t, "block_records_not_multiple_of_20_with_first_index", stream_input(MADC, (0, 0, False, map_upload(1, header(1), [], [
+        block(1, (1000, -260, 20), [r1, r1b, b"\x01"], first_index=3)]))))
     write(t, "block_records_not_multiple_of_22", stream_input(MADC, (0, 0, False, map_upload(1, header(1), [], [
         block(1, (1000, -260, 20), [r1, b"\x01"])]))))
     write(t, "block_object_of_out_of_range", stream_input(MADC, (0, 0, False, map_upload(1, header(1), [], [

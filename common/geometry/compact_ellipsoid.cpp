@@ -137,25 +137,26 @@ bool compactCentreFits(const Eigen::Vector3d& centre, const CompactOrigin& origi
   return centreOffsetCm(centre, origin).has_value();
 }
 
-bool appendCompact(const Ellipsoid& e, const CompactOrigin& origin, std::string& out) {
+bool appendCompact(const Ellipsoid& e, const CompactOrigin& origin, std::string& out, CompactIndex index) {
   const std::optional<CompactFields> fields = quantise(e, origin);
   if (!fields) return false;
   for (const std::int16_t c : fields->centre_cm) putU16(out, static_cast<std::uint16_t>(c));
   for (const std::uint16_t a : fields->semi_axes_mm) putU16(out, a);
   putLittleEndian(out, fields->orientation, 6);
   putU16(out, fields->point_count);
-  putU16(out, fields->index);
+  if (index == CompactIndex::kInRecord) putU16(out, fields->index);
   return true;
 }
 
 Expected<Ellipsoid> decodeCompact(std::string_view record, const CompactOrigin& origin, std::uint32_t node,
-                                  std::uint64_t frame) {
-  if (record.size() != kCompactEllipsoidBytes) {
-    return invalidArgument("a compact ellipsoid record has " + std::to_string(kCompactEllipsoidBytes) +
-                           " bytes, got " + std::to_string(record.size()));
+                                  std::uint64_t frame, std::optional<std::uint32_t> implicit_index) {
+  const std::size_t expected = compactRecordBytes(implicit_index ? CompactIndex::kImplicit : CompactIndex::kInRecord);
+  if (record.size() != expected) {
+    const std::string kind = implicit_index ? "a compact ellipsoid record without its index" : "a compact ellipsoid record";
+    return invalidArgument(kind + " has " + std::to_string(expected) + " bytes, got " + std::to_string(record.size()));
   }
   Ellipsoid e;
-  e.id = EllipsoidId{node, frame, getU16(record, 20)};
+  e.id = EllipsoidId{node, frame, implicit_index ? *implicit_index : getU16(record, 20)};
   e.point_count = getU16(record, 18);
   auto refuse = [&e](const std::string& what) {
     return invalidArgument("compact ellipsoid " + toString(e.id) + ": " + what);
@@ -202,17 +203,23 @@ Expected<Ellipsoid> decodeCompact(std::string_view record, const CompactOrigin& 
 }
 
 Expected<std::vector<Ellipsoid>> decodeCompactBlock(std::string_view records, const CompactOrigin& origin,
-                                                    std::uint32_t node, std::uint64_t frame) {
-  if (records.size() % kCompactEllipsoidBytes != 0) {
+                                                    std::uint32_t node, std::uint64_t frame,
+                                                    std::optional<std::uint32_t> first_index) {
+  const std::size_t size = compactRecordBytes(first_index ? CompactIndex::kImplicit : CompactIndex::kInRecord);
+  if (records.size() % size != 0) {
     return invalidArgument("a compact ellipsoid block has " + std::to_string(records.size()) +
-                           " bytes, not a multiple of " + std::to_string(kCompactEllipsoidBytes));
+                           " bytes, not a multiple of " + std::to_string(size));
   }
-  const std::size_t count = records.size() / kCompactEllipsoidBytes;
+  const std::size_t count = records.size() / size;
+  if (first_index && count > 0 && count - 1 > std::numeric_limits<std::uint32_t>::max() - *first_index) {
+    return invalidArgument("a compact ellipsoid block of " + std::to_string(count) + " records from index " +
+                           std::to_string(*first_index) + " runs past the last index, 2^32 - 1");
+  }
   std::vector<Ellipsoid> ellipsoids;
   ellipsoids.reserve(count);
   for (std::size_t i = 0; i < count; ++i) {
-    Expected<Ellipsoid> e =
-        decodeCompact(records.substr(i * kCompactEllipsoidBytes, kCompactEllipsoidBytes), origin, node, frame);
+    const auto index = first_index ? std::optional<std::uint32_t>(*first_index + static_cast<std::uint32_t>(i)) : std::nullopt;
+    Expected<Ellipsoid> e = decodeCompact(records.substr(i * size, size), origin, node, frame, index);
     if (!e) {
       return invalidArgument("record " + std::to_string(i) + " of " + std::to_string(count) + ": " +
                              e.error().message);

@@ -28,6 +28,9 @@
 //                 16384 / 16383 / sqrt(2) and is never written.
 //   bytes 18..19  point_count: uint16.
 //   bytes 20..21  local index: uint16, the ellipsoid's id.index (node and frame come from the block).
+// A block whose records' indices run consecutively (first, first + 1, ...: an edge's local map) may
+// leave bytes 20..21 out of every record (CompactIndex::kImplicit, kCompactRecordBytesWithoutIndex =
+// 20 bytes) and carry the first index once; the decoder is then given each record's index.
 // The decoded shape is R diag(a^2) R^T, symmetrised exactly, with every a >= 1 mm: always finite,
 // symmetric and positive definite, whatever the 22 bytes. Packing a decoded ellipsoid again gives
 // the same bytes when its semi-axes differ; where two are equal in mm (needles, discs) the rotation
@@ -51,6 +54,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <numbers>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -63,6 +67,7 @@
 namespace fogmap {
 
 inline constexpr std::size_t kCompactEllipsoidBytes = 22;
+inline constexpr std::size_t kCompactRecordBytesWithoutIndex = 20;
 inline constexpr double kCompactCentreErrorM = 0.005;       // per axis
 inline constexpr double kCompactSemiAxisErrorM = 0.0005;    // per semi-axis
 inline constexpr double kCompactOrientationErrorRad = 1.5e-4;
@@ -95,19 +100,29 @@ bool fitsCompact(const Ellipsoid& e, const CompactOrigin& origin);
 // The centre condition of fitsCompact alone (no eigen-decomposition): within +-327.67 m per axis.
 bool compactCentreFits(const Eigen::Vector3d& centre, const CompactOrigin& origin);
 
-// Appends e's 22-byte record to out and returns true when fitsCompact(e, origin); otherwise
-// appends nothing and returns false (the caller then sends e exactly).
-[[nodiscard]] bool appendCompact(const Ellipsoid& e, const CompactOrigin& origin, std::string& out);
+// Whether a record holds its ellipsoid's index (22 bytes) or leaves it to its block (20 bytes).
+enum class CompactIndex { kInRecord, kImplicit };
+constexpr std::size_t compactRecordBytes(CompactIndex index) {
+  return index == CompactIndex::kInRecord ? kCompactEllipsoidBytes : kCompactRecordBytesWithoutIndex;
+}
 
-// Decodes one 22-byte record into an ellipsoid with id (node, frame, record's index). Refuses,
-// naming the ellipsoid and the field, a record of another size, a semi-axis of 0, stored quaternion
-// components with squared norm above 1, or the reserved orientation bit set.
-Expected<Ellipsoid> decodeCompact(std::string_view record, const CompactOrigin& origin,
-                                  std::uint32_t node, std::uint64_t frame);
+// Appends e's record to out and returns true when fitsCompact(e, origin); otherwise appends nothing
+// and returns false (the caller then sends e exactly).
+[[nodiscard]] bool appendCompact(const Ellipsoid& e, const CompactOrigin& origin, std::string& out,
+                                 CompactIndex index = CompactIndex::kInRecord);
 
-// Decodes concatenated records, all with the same origin, node and frame. Refuses a size that is
-// not a multiple of 22 bytes, or the first bad record, naming its position.
+// Decodes one record into an ellipsoid with id (node, frame, index): the record's own index (22
+// bytes), or `implicit_index` for a record without one (20 bytes). Refuses, naming the ellipsoid and
+// the field, a record of another size, a semi-axis of 0, stored quaternion components with squared
+// norm above 1, or the reserved orientation bit set.
+Expected<Ellipsoid> decodeCompact(std::string_view record, const CompactOrigin& origin, std::uint32_t node,
+                                  std::uint64_t frame, std::optional<std::uint32_t> implicit_index = std::nullopt);
+
+// Decodes concatenated records, all with the same origin, node and frame: 22 bytes each, or 20 each
+// with indices first_index, first_index + 1, ... Refuses a size that is not a multiple of the
+// record's, indices beyond 2^32 - 1, or the first bad record, naming its position.
 Expected<std::vector<Ellipsoid>> decodeCompactBlock(std::string_view records, const CompactOrigin& origin,
-                                                    std::uint32_t node, std::uint64_t frame);
+                                                    std::uint32_t node, std::uint64_t frame,
+                                                    std::optional<std::uint32_t> first_index = std::nullopt);
 
 }  // namespace fogmap

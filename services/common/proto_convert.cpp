@@ -99,8 +99,29 @@ struct PackedBlock {
   std::string views;                   // one entry per record (compact_view.hpp)
   bool any_view = false;               // else `views` stays off the wire
   std::vector<std::size_t> object_of;  // the map object of each record
+  std::vector<std::uint32_t> indices;  // the ellipsoid index of each record
   bool own_objects = true;             // every record is the only ellipsoid of its object
 };
+
+// The first index when the records' indices run first, first + 1, ... and there are at least two
+// (one record saves 2 bytes and first_index costs 2).
+std::optional<std::uint32_t> consecutiveFrom(const std::vector<std::uint32_t>& indices) {
+  if (indices.size() < 2) return std::nullopt;
+  for (std::size_t k = 1; k < indices.size(); ++k) {
+    if (indices[k] != indices[0] + k) return std::nullopt;
+  }
+  return indices[0];
+}
+
+// The records without their last 2 bytes (the index) each.
+std::string withoutIndices(const std::string& records) {
+  std::string out;
+  out.reserve(records.size() / kCompactEllipsoidBytes * kCompactRecordBytesWithoutIndex);
+  for (std::size_t at = 0; at < records.size(); at += kCompactEllipsoidBytes) {
+    out.append(records, at, kCompactRecordBytesWithoutIndex);
+  }
+  return out;
+}
 
 // Packs every ellipsoid that fits into a block of its (node, frame), whose origin is the common
 // frame's (left off the wire: 9 bytes less a block) when every centre of the (node, frame) is within
@@ -146,7 +167,7 @@ void toProto(const Map& map, std::uint64_t epoch, EllipsoidWire wire, WireObject
         // hold a node's ellipsoids hundreds of metres apart): a record still, never float32.
         const CompactOrigin origin =
             candidates.empty() && at_common_origin.at(key) ? common_origin : compactOriginNear(e.center);
-        PackedBlock fresh{e.id.node, e.id.frame, origin, {}, {}, false, {}, true};
+        PackedBlock fresh{e.id.node, e.id.frame, origin, {}, {}, false, {}, {}, true};
         if (!appendCompact(e, fresh.origin, fresh.records)) {
           exact[o].push_back(&e);
           continue;
@@ -160,6 +181,7 @@ void toProto(const Map& map, std::uint64_t epoch, EllipsoidWire wire, WireObject
       assert(view_written);  // viewFitsCompact(e) was checked above
       block.any_view = block.any_view || hasView(e);
       block.object_of.push_back(o);
+      block.indices.push_back(e.id.index);
       block.own_objects = block.own_objects && lone;
       if (lone) lone_block[o] = chosen;
     }
@@ -190,7 +212,12 @@ void toProto(const Map& map, std::uint64_t epoch, EllipsoidWire wire, WireObject
     out->set_origin_x_cm(block.origin.x_cm);
     out->set_origin_y_cm(block.origin.y_cm);
     out->set_origin_z_cm(block.origin.z_cm);
-    out->set_records(std::move(block.records));
+    if (const auto first = consecutiveFrom(block.indices)) {
+      out->set_first_index(*first);
+      out->set_records(withoutIndices(block.records));
+    } else {
+      out->set_records(std::move(block.records));
+    }
     if (block.any_view) out->set_views(std::move(block.views));
     if (block.own_objects) continue;
     out->mutable_object_step()->Reserve(static_cast<int>(block.object_of.size()));
@@ -285,6 +312,10 @@ struct WirePlace {
   }
 };
 
+std::size_t recordBytesOf(const v1::EllipsoidBlock& block) {
+  return compactRecordBytes(block.has_first_index() ? CompactIndex::kImplicit : CompactIndex::kInRecord);
+}
+
 std::string recordLabel(const std::string& where, int block, std::size_t record) {
   return where + ": " + WirePlace{true, block, record}.text();
 }
@@ -302,12 +333,20 @@ Expected<Map> fromProto(const WireObjects& objects, const WireBlocks& blocks, st
   std::size_t records_in_blocks = 0;
   for (int b = 0; b < blocks.size(); ++b) {
     const std::size_t bytes = blocks[b].records().size();
-    if (bytes % kCompactEllipsoidBytes != 0) {
+    const std::size_t size = recordBytesOf(blocks[b]);
+    if (bytes % size != 0) {
       return invalidArgument(where + ": blocks[" + std::to_string(b) + "]: records has " + std::to_string(bytes) +
-                             " bytes, not a multiple of " + std::to_string(kCompactEllipsoidBytes) +
-                             " (one compact ellipsoid each)");
+                             " bytes, not a multiple of " + std::to_string(size) + " (one compact ellipsoid each" +
+                             (blocks[b].has_first_index() ? ", without its index: the block has first_index)" : ")"));
     }
-    records_in_blocks += bytes / kCompactEllipsoidBytes;
+    const std::size_t count = bytes / size;
+    if (blocks[b].has_first_index() && count > 0 &&
+        count - 1 > std::numeric_limits<std::uint32_t>::max() - blocks[b].first_index()) {
+      return invalidArgument(where + ": blocks[" + std::to_string(b) + "]: first_index " +
+                             std::to_string(blocks[b].first_index()) + " and " + std::to_string(count) +
+                             " records run past the last ellipsoid index, 2^32 - 1");
+    }
+    records_in_blocks += count;
   }
   if (packed_objects > records_in_blocks) {
     return invalidArgument(where + ": packed_objects " + std::to_string(packed_objects) + " exceeds the " +
@@ -331,7 +370,8 @@ Expected<Map> fromProto(const WireObjects& objects, const WireBlocks& blocks, st
     const v1::EllipsoidBlock& block = blocks[b];
     const std::string_view records = block.records();
     const std::string label = where + ": blocks[" + std::to_string(b) + "]";
-    const std::size_t count = records.size() / kCompactEllipsoidBytes;
+    const std::size_t record_bytes = recordBytesOf(block);
+    const std::size_t count = records.size() / record_bytes;
     const auto listed_objects = static_cast<std::size_t>(block.object_step_size());
     if (listed_objects != 0 && listed_objects != count) {
       return invalidArgument(label + ": object_step has " + std::to_string(listed_objects) + " entries for " +
@@ -357,8 +397,10 @@ Expected<Map> fromProto(const WireObjects& objects, const WireBlocks& blocks, st
         object = static_cast<std::size_t>(step_sum);
         ++members[object];
       }
-      auto e = decodeCompact(records.substr(r * kCompactEllipsoidBytes, kCompactEllipsoidBytes), origin, block.node(),
-                             frame);
+      const auto index = block.has_first_index()
+                             ? std::optional<std::uint32_t>(block.first_index() + static_cast<std::uint32_t>(r))
+                             : std::nullopt;
+      auto e = decodeCompact(records.substr(r * record_bytes, record_bytes), origin, block.node(), frame, index);
       if (!e) return invalidArgument(recordLabel(where, b, r) + ": " + e.error().message);
       if (!views.empty()) {
         if (const Status read = readCompactView(views, view_at, *e); !read) {

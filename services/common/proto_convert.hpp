@@ -15,7 +15,8 @@ namespace fogmap {
 enum class EllipsoidWire { kCompact, kExact };
 
 // Maps and global maps: every ellipsoid that fits (fitsCompact) travels as a 22-byte compact record
-// in an EllipsoidBlock of its (node, frame), whose origin is the common frame's (left off the wire)
+// (20 bytes in a block whose records' indices run consecutively: the block carries first_index) in
+// an EllipsoidBlock of its (node, frame), whose origin is the common frame's (left off the wire)
 // when every centre of the (node, frame) lies within a record's reach of it, else the block's first centre in
 // canonical order, rounded to cm; an ellipsoid beyond reach (327.67 m per axis) of the newest 4
 // blocks of its (node, frame) opens another around its centre. An ellipsoid no record holds (a
@@ -75,7 +76,8 @@ v1::Ack refusedAck(std::uint64_t sequence, const Error& error);
 // Every fromProto returns kInvalidArgument with the offending field (and object / ellipsoid /
 // "blocks[b] record r" / point index) in the message. Rejects: missing ellipsoid ids or centres,
 // shapes that are not 6 finite values of a symmetric positive definite matrix, non-finite centres
-// or points, block records not a multiple of 22 bytes, packed_objects above the number of records, a
+// or points, block records not a multiple of 22 bytes (20 with first_index), a first_index whose
+// records run past index 2^32 - 1, packed_objects above the number of records, a
 // block's object_step neither empty nor one entry per record, steps that name an object outside
 // `objects` and `packed_objects`, records decodeCompact
 // refuses (a semi-axis of 0 mm, a bad orientation), objects with no ellipsoid (exact or packed),

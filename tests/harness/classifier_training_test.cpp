@@ -7,12 +7,13 @@
 #include <gtest/gtest.h>
 
 #include "common/sim/generators.hpp"
+#include "tests/support/source_dir.hpp"
 
 namespace fogmap::harness {
 namespace {
 
 namespace fs = std::filesystem;
-const fs::path kSourceDir = FOGMAP_SOURCE_DIR;
+using test_support::kSourceDir;
 
 TEST(ClassifierTraining, LabelsMapOntoTheClasses) {
   EXPECT_EQ(classOfSceneLabel("person"), ObjectClass::kPerson);

@@ -9,12 +9,13 @@
 #include <vector>
 
 #include "harness/cluster_run.hpp"
+#include "tests/support/epoch_times.hpp"
 
 namespace fogmap::harness {
 namespace {
 
 constexpr std::int64_t kT0 = 1'764'000'000'000'000'000;  // a unix time in ns, as the sensors stamp them
-constexpr std::int64_t kMs = 1'000'000;
+using test_support::kMs;
 
 GlobalMapMessage published(std::int64_t sensor_time_ns, std::int64_t published_time_ns, std::vector<std::uint32_t> missing,
                            double merge_seconds = 0.002) {

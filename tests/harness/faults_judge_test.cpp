@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "tests/harness/fault_topologies.hpp"
+#include "tests/support/epoch_times.hpp"
 
 namespace fogmap::harness {
 namespace {
@@ -20,7 +21,7 @@ namespace {
 using namespace std::chrono_literals;
 using fault_fixtures::treeOfFour;
 
-constexpr std::int64_t kMs = 1'000'000;
+using test_support::kMs;
 
 std::int64_t startOf(std::uint64_t epoch) { return static_cast<std::int64_t>(epoch) * 100 * kMs; }
 
@@ -65,7 +66,8 @@ const Check* checkNamed(const FaultReport& report, const std::string& name) {
   return it == report.checks.end() ? nullptr : &*it;
 }
 
-FaultPlan planOf(FaultScenario scenario) {
+// The plan the judge is handed: `scenario` over 10 s, seed 3.
+FaultPlan judgedPlanOf(FaultScenario scenario) {
   FaultPlan plan;
   plan.scenario = scenario;
   plan.duration = 10s;
@@ -85,7 +87,7 @@ TEST(FaultsJudge, AFaultFreeRunPassesEveryCheckWithItsFiguresCountedByHand) {
   seen.journals[3].entries.push_back({1005, "points", Outcome::kApplied});
   seen.memory = {{"edge-1", 1000, 1500}, {"sink", 2000, 1800}};
 
-  const FaultReport r = judgeFaults(treeOfFour(), planOf(FaultScenario::kSoak), epochs(), seen);
+  const FaultReport r = judgeFaults(treeOfFour(), judgedPlanOf(FaultScenario::kSoak), epochs(), seen);
   EXPECT_EQ(r.topology, "tree-4");
   EXPECT_EQ(r.scenario, "soak");
   EXPECT_EQ(r.edges, 4);
@@ -123,7 +125,7 @@ TEST(FaultsJudge, ALostMapAnUnpublishedEpochAndAnEpochPublishedOutOfOrderFailThe
     journal(seen, edge, 1006, 1009, Outcome::kApplied);    // edge-1's 1007 among them
   }
 
-  const FaultReport r = judgeFaults(treeOfFour(), planOf(FaultScenario::kSoak), epochs(), seen);
+  const FaultReport r = judgeFaults(treeOfFour(), judgedPlanOf(FaultScenario::kSoak), epochs(), seen);
   EXPECT_EQ(r.epochs_in_window, 10U);
   EXPECT_EQ(r.epochs_unpublished, 1U);
   EXPECT_EQ(r.unpublished_examples, (std::vector<std::uint64_t>{5})) << "1005, counted from 1000";
@@ -157,7 +159,7 @@ TEST(FaultsJudge, TheRootMaySilentlyWaitForItsDeadlineButNoLonger) {
   FaultObservation waited = loaded(1000, 1009);
   for (std::uint64_t e = 1000; e <= 1009; ++e) publish(waited, e, {1, 2, 3, 4}, {}, e >= 1005 ? 160 : 5);
   for (std::uint32_t edge = 1; edge <= 4; ++edge) journal(waited, edge, 1000, 1009, Outcome::kApplied);
-  const FaultReport held = judgeFaults(treeOfFour(), planOf(FaultScenario::kSoak), epochs(), waited);
+  const FaultReport held = judgeFaults(treeOfFour(), judgedPlanOf(FaultScenario::kSoak), epochs(), waited);
   EXPECT_NEAR(held.max_silence_ms, 255.0, 1e-9) << "1004 at +5 ms, 1005 at its deadline +160 ms";
   ASSERT_NE(checkNamed(held, name), nullptr);
   EXPECT_TRUE(checkNamed(held, name)->passed) << checkNamed(held, name)->detail;
@@ -165,7 +167,7 @@ TEST(FaultsJudge, TheRootMaySilentlyWaitForItsDeadlineButNoLonger) {
   FaultObservation stalled = loaded(1000, 1009);
   for (std::uint64_t e = 1000; e <= 1009; ++e) publish(stalled, e, {1, 2, 3, 4}, {}, e >= 1005 ? 460 : 5);
   for (std::uint32_t edge = 1; edge <= 4; ++edge) journal(stalled, edge, 1000, 1009, Outcome::kApplied);
-  const FaultReport failed = judgeFaults(treeOfFour(), planOf(FaultScenario::kSoak), epochs(), stalled);
+  const FaultReport failed = judgeFaults(treeOfFour(), judgedPlanOf(FaultScenario::kSoak), epochs(), stalled);
   EXPECT_NEAR(failed.max_silence_ms, 555.0, 1e-9);
   ASSERT_NE(checkNamed(failed, name), nullptr);
   EXPECT_FALSE(checkNamed(failed, name)->passed);
@@ -198,7 +200,7 @@ TEST(FaultsJudge, AKilledAggregatorsSubtreeIsNoticedItsLossesCountedApartAndTheR
   seen.journals[0].entries.push_back({1003, "map", Outcome::kApplied});
   seen.journals[0].entries.push_back({1006, "map", Outcome::kApplied});
 
-  const FaultReport r = judgeFaults(treeOfFour(), planOf(FaultScenario::kAggregatorCrash), epochs(), seen);
+  const FaultReport r = judgeFaults(treeOfFour(), judgedPlanOf(FaultScenario::kAggregatorCrash), epochs(), seen);
   EXPECT_EQ(r.maps_lost, 0U);
   EXPECT_EQ(r.maps_lost_in_fault, 2U);
   EXPECT_TRUE(r.lost_examples.empty()) << "only maps lost outside a fault are examples";
@@ -230,7 +232,7 @@ TEST(FaultsJudge, TheFaultWindowRunsFromTheVictimsLastEmissionToTheHealPlusBacko
   }
   journal(seen, 1, 1000, 1039, Outcome::kApplied);
 
-  const FaultReport r = judgeFaults(treeOfFour(), planOf(FaultScenario::kAggregatorCrash), epochs(), seen);
+  const FaultReport r = judgeFaults(treeOfFour(), judgedPlanOf(FaultScenario::kAggregatorCrash), epochs(), seen);
   EXPECT_EQ(r.maps_lost_in_fault, 2U) << "1001 and 1029";
   EXPECT_EQ(r.maps_lost, 2U) << "1000 and 1030";
   EXPECT_EQ(r.lost_examples, (std::vector<std::string>{"edge-1 epoch +0 (applied)", "edge-1 epoch +30 (applied)"}));
@@ -248,7 +250,7 @@ TEST(FaultsJudge, AKilledEdgeIsNoticedAndItsRejoinIsTimedFromWhenItWasUpAgain) {
       publish(seen, e, {1, 2, 3, 4});
     }
   }
-  FaultPlan plan = planOf(FaultScenario::kEdgeCrash);
+  FaultPlan plan = judgedPlanOf(FaultScenario::kEdgeCrash);
   plan.edge_kills = 1;
 
   const FaultReport r = judgeFaults(treeOfFour(), plan, epochs(), seen);
@@ -288,7 +290,7 @@ TEST(FaultsJudge, AStallByNetworkNamespaceIsJudgedAsAStopAndNeedsTheChildrenToNo
     }
   }
   seen.child_notice_ms = 900.0;
-  const FaultReport r = judgeFaults(treeOfFour(), planOf(FaultScenario::kStall), epochs(), seen);
+  const FaultReport r = judgeFaults(treeOfFour(), judgedPlanOf(FaultScenario::kStall), epochs(), seen);
   ASSERT_EQ(r.missing_notice_ms.size(), 1U);
   EXPECT_NEAR(r.missing_notice_ms[0], 170.0, 1e-9) << "1003 published at +170 ms, the drop at its start";
   // Healed at 1008's start, which is whole (no edge journalled anything): 0 + 160 ms.
@@ -298,7 +300,7 @@ TEST(FaultsJudge, AStallByNetworkNamespaceIsJudgedAsAStopAndNeedsTheChildrenToNo
   for (const Check& c : r.checks) EXPECT_TRUE(c.passed) << c.name << ": " << c.detail;
 
   seen.child_notice_ms.reset();
-  const FaultReport unnoticed = judgeFaults(treeOfFour(), planOf(FaultScenario::kStall), epochs(), seen);
+  const FaultReport unnoticed = judgeFaults(treeOfFour(), judgedPlanOf(FaultScenario::kStall), epochs(), seen);
   const Check* children = checkNamed(unnoticed, "the children notice the stall within 3 s");
   ASSERT_NE(children, nullptr);
   EXPECT_FALSE(children->passed);
@@ -309,15 +311,15 @@ TEST(FaultsJudge, MemoryIsBoundedOnlyWhenSampledAfterTheWarmUpAndWithin64MiB) {
   FaultObservation seen = loaded(1000, 1009);
   for (std::uint64_t e = 1000; e <= 1009; ++e) publish(seen, e, {1, 2, 3, 4});
   seen.memory = {{"agg-1", 10'000, 10'000 + 64 * 1024}};
-  EXPECT_TRUE(checkNamed(judgeFaults(treeOfFour(), planOf(FaultScenario::kSoak), epochs(), seen), "memory bounded after the warm-up")->passed)
+  EXPECT_TRUE(checkNamed(judgeFaults(treeOfFour(), judgedPlanOf(FaultScenario::kSoak), epochs(), seen), "memory bounded after the warm-up")->passed)
       << "64 MiB exactly is within the bound";
   seen.memory[0].rss_end_kib += 1;
-  const FaultReport grown = judgeFaults(treeOfFour(), planOf(FaultScenario::kSoak), epochs(), seen);
+  const FaultReport grown = judgeFaults(treeOfFour(), judgedPlanOf(FaultScenario::kSoak), epochs(), seen);
   EXPECT_FALSE(checkNamed(grown, "memory bounded after the warm-up")->passed);
   EXPECT_EQ(checkNamed(grown, "memory bounded after the warm-up")->detail, "65537 KiB largest growth");
   seen.memory.clear();
   seen.warm_sampled = false;
-  EXPECT_FALSE(checkNamed(judgeFaults(treeOfFour(), planOf(FaultScenario::kSoak), epochs(), seen), "memory bounded after the warm-up")->passed)
+  EXPECT_FALSE(checkNamed(judgeFaults(treeOfFour(), judgedPlanOf(FaultScenario::kSoak), epochs(), seen), "memory bounded after the warm-up")->passed)
       << "a run shorter than its warm-up measured nothing";
 }
 

@@ -27,6 +27,7 @@
 #include "harness/launcher.hpp"
 #include "harness/shaped_links.hpp"
 #include "tests/support/shaping.hpp"
+#include "tests/support/source_dir.hpp"
 
 namespace fogmap {
 namespace {
@@ -36,7 +37,7 @@ using namespace std::chrono_literals;
 using harness::NetnsLink;
 using harness::ShapedLinks;
 
-fs::path dataDir() { return fs::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a"; }
+using test_support::kittiSequenceDir;
 constexpr double kRateMbitPerS = test_support::kShapedRateMbitPerS;
 
 // ---- a bulk transfer across one pair ----
@@ -147,13 +148,13 @@ void report(const char* what, const Transfer& t) {
 }
 
 TEST(ShapedLinks, RefuseBadRatesAndMoreEdgesThanAnOctetHoldsBeforeMakingAnything) {
-  const TopologyConfig star = makeStarTopology(3, dataDir(), 40000);
+  const TopologyConfig star = makeStarTopology(3, kittiSequenceDir(), 40000);
   for (const double rate : {0.0, -10.0, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
     const auto shaped = ShapedLinks::create(star, rate, static_cast<unsigned>(::getpid()));
     ASSERT_FALSE(shaped) << rate;
     EXPECT_EQ(shaped.error().code, ErrorCode::kInvalidArgument) << rate;
   }
-  const auto crowded = ShapedLinks::create(makeStarTopology(static_cast<int>(harness::kPairsPerOctet) + 1, dataDir(), 40000),
+  const auto crowded = ShapedLinks::create(makeStarTopology(static_cast<int>(harness::kPairsPerOctet) + 1, kittiSequenceDir(), 40000),
                                            kRateMbitPerS, static_cast<unsigned>(::getpid()));
   ASSERT_FALSE(crowded);
   EXPECT_EQ(crowded.error().code, ErrorCode::kResourceExhausted);
@@ -161,7 +162,7 @@ TEST(ShapedLinks, RefuseBadRatesAndMoreEdgesThanAnOctetHoldsBeforeMakingAnything
 
 TEST(ShapedLinks, APairCarriesNoMoreThanItsRateEitherWayAndAllOnceCleared) {
   SKIP_UNLESS_SHAPING_IS_POSSIBLE();
-  auto shaped = ShapedLinks::create(makeStarTopology(1, dataDir(), 40000), kRateMbitPerS, static_cast<unsigned>(::getpid()));
+  auto shaped = ShapedLinks::create(makeStarTopology(1, kittiSequenceDir(), 40000), kRateMbitPerS, static_cast<unsigned>(::getpid()));
   ASSERT_TRUE(shaped) << shaped.error().message;
   NetnsLink& link = *shaped->link("edge-1");
 

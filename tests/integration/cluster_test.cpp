@@ -28,6 +28,8 @@
 #include "tests/support/free_ports.hpp"
 #include "harness/launcher.hpp"
 #include "services/common/endpoint.hpp"
+#include "tests/support/scratch_dir.hpp"
+#include "tests/support/source_dir.hpp"
 
 namespace fogmap {
 namespace {
@@ -36,20 +38,15 @@ using namespace std::chrono_literals;
 using harness::RunOptions;
 using harness::RunResult;
 
-std::filesystem::path dataDir() { return std::filesystem::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a"; }
+using test_support::keptDir;
+using test_support::kittiSequenceDir;
 constexpr std::size_t kScans = 5;  // bundled frames: epoch e replays scan e mod 5
-
-std::filesystem::path scratchDir(const std::string& name) {
-  const auto dir = std::filesystem::temp_directory_path() / ("fogmap-it-" + std::to_string(::getpid()) + "-" + name);
-  std::filesystem::create_directories(dir);
-  return dir;
-}
 
 // A topology over the bundled frames whose ports are chosen free at run time.
 TopologyConfig topology(const std::string& shape, int edges, Mode mode, std::uint64_t frames) {
   constexpr int kAnyBasePort = 40000;  // replaced by free ports below
-  TopologyConfig t = shape == "star" ? makeStarTopology(edges, dataDir(), kAnyBasePort)
-                                     : makeTreeTopology(edges, dataDir(), kAnyBasePort);
+  TopologyConfig t = shape == "star" ? makeStarTopology(edges, kittiSequenceDir(), kAnyBasePort)
+                                     : makeTreeTopology(edges, kittiSequenceDir(), kAnyBasePort);
   test_support::useFreePorts(t);
   t.mode = mode;
   t.name = std::string(modeName(mode)) + "-" + t.name;
@@ -76,7 +73,7 @@ std::map<std::size_t, Map> runAndCheckAgainstInProcessMerge(const TopologyConfig
   RunOptions options;
   options.frames = 1000;  // everything the edges produce
   options.timeout = 120s;
-  const auto run = harness::runCluster(scratchDir(name), t, options);
+  const auto run = harness::runCluster(keptDir(name), t, options);
   EXPECT_TRUE(run.ok()) << (run.ok() ? "" : run.error().message);
   if (!run.ok()) return {};
   const auto epochs = completeEpochs(*run);
@@ -131,10 +128,10 @@ TEST(Cluster, MadcAgreesWithBaselineRandIndexAtLeast095) {
   RunOptions options;
   options.frames = 1000;  // everything the edges produce
   options.timeout = 120s;
-  const auto madc = harness::runCluster(scratchDir("ri-madc"), topology("star", 3, Mode::kMadc, 20), options);
+  const auto madc = harness::runCluster(keptDir("ri-madc"), topology("star", 3, Mode::kMadc, 20), options);
   ASSERT_TRUE(madc.ok()) << madc.error().message;
   options.point_labels = true;
-  const auto baseline = harness::runCluster(scratchDir("ri-base"), topology("star", 3, Mode::kBaseline, 20), options);
+  const auto baseline = harness::runCluster(keptDir("ri-base"), topology("star", 3, Mode::kBaseline, 20), options);
   ASSERT_TRUE(baseline.ok()) << baseline.error().message;
   std::map<std::size_t, const GlobalMapMessage*> baseline_by_scan;
   for (const auto& [e, g] : baseline->epochs) {
@@ -189,7 +186,7 @@ TEST(Cluster, KillingAnEdgeLeavesTheOthersFlowingAndListsItMissing) {
   RunOptions options;
   options.frames = std::numeric_limits<std::uint64_t>::max();  // every epoch until the edges are stopped
   options.timeout = 120s;
-  const auto run = harness::runCluster(scratchDir("kill"), t, options, [&](const harness::Cluster& cluster) {
+  const auto run = harness::runCluster(keptDir("kill"), t, options, [&](const harness::Cluster& cluster) {
     const test_support::EdgesStopper stop_edges(cluster, t);  // once the test has seen enough
     test_support::RootSubscription published(t, options.timeout);
     ASSERT_TRUE(published.readUntil([&](const GlobalMapMessage& g) { return test_support::everySensor(t, g); }).has_value())
@@ -275,7 +272,7 @@ TEST(Cluster, FogctlGeofenceReportsTheIntrusionsOfThePublishedGlobalMap) {
   RunOptions options;
   options.frames = std::numeric_limits<std::uint64_t>::max();
   options.timeout = 120s;
-  const auto result = harness::runCluster(scratchDir("geofence"), t, options, [&](const harness::Cluster& cluster) {
+  const auto result = harness::runCluster(keptDir("geofence"), t, options, [&](const harness::Cluster& cluster) {
     const test_support::EdgesStopper stop_edges(cluster, t);  // once the queries are done
     // The queries name the root's latest map: one with every edge's objects by now.
     test_support::RootSubscription published(t, options.timeout);

@@ -27,6 +27,7 @@
 #include "tests/support/free_ports.hpp"
 #include "harness/cluster_run.hpp"
 #include "harness/launcher.hpp"
+#include "tests/support/source_dir.hpp"
 
 namespace fogmap {
 namespace {
@@ -40,7 +41,7 @@ constexpr std::uint32_t kHonestEdges = 3;
 // meant to be outside lies a whole window beyond it.
 constexpr std::chrono::seconds kAttackTime{60};
 
-std::filesystem::path dataDir() { return std::filesystem::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a"; }
+using test_support::kittiSequenceDir;
 
 // The value of `family{...reason="reason"...}` in a Prometheus text page (0 when absent).
 double refusedCount(const std::string& page, const std::string& reason) {
@@ -111,7 +112,7 @@ bool allHonestEdges(const GlobalMapMessage& global) {
 }
 
 TEST(HostileClient, RootKeepsPublishingHonestDataAndCountsEveryAttack) {
-  TopologyConfig t = makeStarTopology(kHonestEdges, dataDir(), 40000);
+  TopologyConfig t = makeStarTopology(kHonestEdges, kittiSequenceDir(), 40000);
   test_support::useFreePorts(t);
   t.name = "hostile";
   t.deadline_ms = 500.0;  // a loaded CI machine must not turn slow epochs into partial ones

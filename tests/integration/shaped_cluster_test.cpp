@@ -25,6 +25,7 @@
 #include "services/common/proto_convert.hpp"
 #include "tests/support/free_ports.hpp"
 #include "tests/support/shaping.hpp"
+#include "tests/support/source_dir.hpp"
 
 namespace fogmap {
 namespace {
@@ -34,22 +35,22 @@ using namespace std::chrono_literals;
 using harness::NetnsLink;
 using harness::ShapedLinks;
 
-fs::path dataDir() { return fs::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a"; }
+using test_support::kittiSequenceDir;
 constexpr double kRateMbitPerS = test_support::kShapedRateMbitPerS;
 
 // ---- whole clusters behind shaped links ----
 
 // A Subscribe call to the root: the global maps as it publishes them.
-class Subscription {
+class CompleteMapSubscription {
  public:
-  Subscription(const std::string& target, std::size_t max_message_bytes)
+  CompleteMapSubscription(const std::string& target, std::size_t max_message_bytes)
       : stub_(v1::GlobalMapService::NewStub(makeChannel(target, max_message_bytes))) {
     context_.set_deadline(std::chrono::system_clock::now() + 20s);
     v1::SubscribeRequest request;
     request.set_on_time_only(true);
     reader_ = stub_->Subscribe(&context_, request);
   }
-  ~Subscription() { context_.TryCancel(); }
+  ~CompleteMapSubscription() { context_.TryCancel(); }
   // Reads global maps until `wanted` of them miss no sensor; how many did before the stream ended.
   int completeMaps(int wanted) {
     int complete = 0;
@@ -104,7 +105,7 @@ void expectCompleteEpochsThroughShapedLinks(const ShapedLinks& shaped) {
     }
   }
   const NodeConfig* root = t.root();
-  Subscription watch(endpoint(root->host, root->port), t.max_message_bytes);
+  CompleteMapSubscription watch(endpoint(root->host, root->port), t.max_message_bytes);
   EXPECT_EQ(watch.completeMaps(3), 3) << "the root published fewer than 3 complete epochs in 20 s; see " << state / "logs";
   harness::stopCluster(*cluster, 5s);
   fs::remove_all(state);
@@ -112,7 +113,7 @@ void expectCompleteEpochsThroughShapedLinks(const ShapedLinks& shaped) {
 
 TEST(ShapedLinks, StarOfThreeEdgesEachInItsNamespacePublishesCompleteEpochs) {
   SKIP_UNLESS_SHAPING_IS_POSSIBLE();
-  const TopologyConfig given = withFreePorts(makeStarTopology(3, dataDir(), 40000));
+  const TopologyConfig given = withFreePorts(makeStarTopology(3, kittiSequenceDir(), 40000));
   const auto shaped = ShapedLinks::create(given, kRateMbitPerS, static_cast<unsigned>(::getpid()));
   ASSERT_TRUE(shaped) << shaped.error().message;
   const TopologyConfig& t = shaped->topology();
@@ -143,7 +144,7 @@ TEST(ShapedLinks, StarOfThreeEdgesEachInItsNamespacePublishesCompleteEpochs) {
 TEST(ShapedLinks, TreeOfFourEdgesKeepsAggregatorLinksOnTheHostAndPublishesCompleteEpochs) {
   SKIP_UNLESS_SHAPING_IS_POSSIBLE();
   // sink <- agg-1 <- edge-1, edge-2; sink <- agg-2 <- edge-3, edge-4.
-  const TopologyConfig given = withFreePorts(makeTreeTopology(4, dataDir(), 40000));
+  const TopologyConfig given = withFreePorts(makeTreeTopology(4, kittiSequenceDir(), 40000));
   ASSERT_EQ(given.find("edge-3")->parent, "agg-2");
   const auto shaped = ShapedLinks::create(given, kRateMbitPerS, static_cast<unsigned>(::getpid()));
   ASSERT_TRUE(shaped) << shaped.error().message;

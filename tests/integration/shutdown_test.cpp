@@ -36,6 +36,8 @@
 #include "services/common/proto_convert.hpp"
 #include "tests/support/free_ports.hpp"
 #include "harness/launcher.hpp"
+#include "tests/support/scratch_dir.hpp"
+#include "tests/support/source_dir.hpp"
 
 namespace fogmap {
 namespace {
@@ -50,14 +52,8 @@ constexpr auto kEdgeDeadline = 1s + 50ms;  // the flush of unanswered uploads an
 constexpr auto kExitMargin = 1500ms;
 constexpr std::uint32_t kFirstRawIndex = 1000;  // the raw client's ellipsoid indices (an edge's stay below)
 
-std::filesystem::path dataDir() { return std::filesystem::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a"; }
-
-std::filesystem::path scratchDir(const std::string& name) {
-  const auto dir = std::filesystem::temp_directory_path() / ("fogmap-it-" + std::to_string(::getpid()) + "-" + name);
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
-}
+using test_support::keptDir;
+using test_support::kittiSequenceDir;
 
 const harness::RunningNode& nodeNamed(const harness::Cluster& cluster, const std::string& name) {
   for (const auto& n : cluster.nodes) {
@@ -317,10 +313,10 @@ std::string missingMarks(const std::vector<Mark>& applied, const std::set<Mark>&
 }
 
 TEST(Shutdown, RootExitsWithinItsDeadlineAndPublishesEveryAppliedUploadFirst) {
-  const TopologyConfig t = withFreePorts(makeStarTopology(3, dataDir(), 40000), "shutdown-star");
+  const TopologyConfig t = withFreePorts(makeStarTopology(3, kittiSequenceDir(), 40000), "shutdown-star");
   const auto schedule = EpochSchedule::create(t.period_ms, t.deadline_ms);
   ASSERT_TRUE(schedule.ok());
-  const auto dir = scratchDir("shutdown-star");
+  const auto dir = keptDir("shutdown-star");
   const auto cluster = start(t, dir);
   ASSERT_TRUE(cluster.ok()) << cluster.error().message;
   const NodeConfig& root = *t.root();
@@ -355,10 +351,10 @@ TEST(Shutdown, RootExitsWithinItsDeadlineAndPublishesEveryAppliedUploadFirst) {
 
 TEST(Shutdown, EdgeExitsPromptlyAndAnIntermediateFlushesToItsParent) {
   // sink <- agg-1 <- edge-1, edge-2; sink <- agg-2 <- edge-3, edge-4.
-  const TopologyConfig t = withFreePorts(makeTreeTopology(4, dataDir(), 40000), "shutdown-tree");
+  const TopologyConfig t = withFreePorts(makeTreeTopology(4, kittiSequenceDir(), 40000), "shutdown-tree");
   const auto schedule = EpochSchedule::create(t.period_ms, t.deadline_ms);
   ASSERT_TRUE(schedule.ok());
-  const auto dir = scratchDir("shutdown-tree");
+  const auto dir = keptDir("shutdown-tree");
   const auto cluster = start(t, dir);
   ASSERT_TRUE(cluster.ok()) << cluster.error().message;
   const NodeConfig* intermediate = t.find("agg-1");

@@ -33,6 +33,7 @@
 #include "tests/support/free_ports.hpp"
 #include "harness/cluster_run.hpp"
 #include "harness/launcher.hpp"
+#include "tests/support/source_dir.hpp"
 
 namespace fogmap {
 namespace {
@@ -50,7 +51,7 @@ constexpr int kMaxRounds = 200;
 // the machine, so each attack is refused by its own rule and never as clock skew.
 constexpr std::chrono::seconds kStreamTime{30};
 
-fs::path dataDir() { return fs::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a"; }
+using test_support::kittiSequenceDir;
 
 // The sum of `family` samples whose labels contain `label` (every sample when empty) on a
 // Prometheus text page.
@@ -162,7 +163,7 @@ class Subscription {
 
 TEST(MutualTls, OnlyTheHonestChildrensDataIsAppliedAndEveryAttemptIsTurnedAway) {
   // sink <- agg-1 <- edge-1, edge-2; sink <- edge-3. The root's children are agg-1 and edge-3.
-  TopologyConfig t = makeTreeTopology(3, dataDir(), 40000);
+  TopologyConfig t = makeTreeTopology(3, kittiSequenceDir(), 40000);
   test_support::useFreePorts(t);
   t.name = "tls-tree";
   t.deadline_ms = 500.0;  // a loaded CI machine must not turn slow epochs into partial ones

@@ -21,6 +21,7 @@
 #include "common/perception/virtual_lidar.hpp"
 #include "services/common/proto_convert.hpp"
 #include "tests/support/scratch_dir.hpp"
+#include "tests/support/same_points.hpp"
 
 namespace fogmap {
 namespace {
@@ -92,12 +93,7 @@ Reassembled reassemble(const std::vector<PointChunk>& chunks) {
   return all;
 }
 
-// Point has no operator== (cloud.hpp); compare members, all four, exactly.
-bool samePoints(const Cloud& a, const Cloud& b) {
-  return std::equal(a.begin(), a.end(), b.begin(), b.end(), [](const Point& p, const Point& q) {
-    return p.x == q.x && p.y == q.y && p.z == q.z && p.intensity == q.intensity;
-  });
-}
+using test_support::samePoints;
 
 Cloud withoutIntensity(Cloud cloud) {
   for (Point& p : cloud) p.intensity = 0.0F;

@@ -13,6 +13,7 @@
 #include "tests/support/free_ports.hpp"
 #include "tests/support/served_aggregator.hpp"
 #include "tests/support/service_context.hpp"
+#include "tests/support/source_dir.hpp"
 
 namespace fogmap {
 namespace {
@@ -21,10 +22,10 @@ using test_support::GlobalMapWatcher;
 using test_support::HandMadeContext;
 using test_support::ServedAggregator;
 
-std::filesystem::path dataDir() { return std::filesystem::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a"; }
+using test_support::kittiSequenceDir;
 
 TopologyConfig star() {
-  TopologyConfig topology = makeStarTopology(1, dataDir(), 0);
+  TopologyConfig topology = makeStarTopology(1, kittiSequenceDir(), 0);
   test_support::useFreePorts(topology);
   return topology;
 }
@@ -48,7 +49,7 @@ TEST(EdgeProcess, AnEdgeWithoutAParentOrWithoutAPositiveRateIsRefusedNamingIt) {
   EXPECT_EQ(refusal(still), "edge 'edge-1': rate_hz must be positive");
   TopologyConfig missing = star();
   for (auto& node : missing.nodes) {
-    if (node.name == "edge-1") node.sensor->source = dataDir() / "no-such-scans";
+    if (node.name == "edge-1") node.sensor->source = kittiSequenceDir() / "no-such-scans";
   }
   EXPECT_NE(refusal(missing).find("no-such-scans"), std::string::npos) << refusal(missing);
 }
@@ -56,7 +57,7 @@ TEST(EdgeProcess, AnEdgeWithoutAParentOrWithoutAPositiveRateIsRefusedNamingIt) {
 TEST(EdgeProcess, AnEdgeWhoseClassifierModelIsMissingStopsAtStartUpNamingTheFile) {
   TopologyConfig topology = star();
   topology.objects.boxes = true;
-  topology.objects.classifier = dataDir() / "no-such-model.yml.gz";
+  topology.objects.classifier = kittiSequenceDir() / "no-such-model.yml.gz";
   const std::string message = refusal(topology);
   EXPECT_NE(message.find("edge 'edge-1'"), std::string::npos) << message;
   EXPECT_NE(message.find("no-such-model.yml.gz"), std::string::npos) << message;

@@ -26,7 +26,7 @@
 namespace fogmap {
 namespace {
 
-constexpr std::uint32_t kNode = 5;
+constexpr std::uint32_t kRunnerNode = 5;
 constexpr std::int64_t kMsNs = 1'000'000;
 constexpr double kPeriodMs = 100.0;
 constexpr std::int64_t kPeriodNs = 100 * kMsNs;
@@ -44,9 +44,9 @@ std::uint64_t firstEpoch() { return schedule().epochAt(kStartNs) + 1; }
 
 std::int64_t sensorPeriodNs(double rate_hz) { return std::llround(1e9 / rate_hz); }
 
-EdgeConfig edgeConfig(Mode mode = Mode::kMadc) {
+EdgeConfig runnerConfig(Mode mode = Mode::kMadc) {
   EdgeConfig config;
-  config.node = kNode;
+  config.node = kRunnerNode;
   config.mode = mode;
   config.max_points_per_chunk = 10;  // a scene of 24 to 28 points gives three chunks
   return config;
@@ -129,7 +129,7 @@ struct Shipped {
 // tests to set up and inspect; the runner is built last, from the members before it.
 class Replay {
  public:
-  explicit Replay(double sensor_rate_hz, EdgeConfig config = edgeConfig(), bool report_dropped_uploads = true)
+  explicit Replay(double sensor_rate_hz, EdgeConfig config = runnerConfig(), bool report_dropped_uploads = true)
       : with_dropped_hook(report_dropped_uploads),
         runner(EdgeNode(config), scans, schedule(), sensor_rate_hz, makeHooks()) {}
   Replay(const Replay&) = delete;
@@ -212,9 +212,9 @@ EdgeOutput processedDirectly(const EdgeConfig& config, std::uint64_t scan, std::
 // node in failed_nodes and in no contributing_nodes, sensor time unknown (0).
 void expectFailedFrame(const EdgeOutput& output, Mode mode, std::uint64_t epoch, std::uint64_t dropped_uploads = 0) {
   MapHeader expected;
-  expected.node = kNode;
+  expected.node = kRunnerNode;
   expected.epoch = epoch;
-  expected.failed_nodes = {kNode};
+  expected.failed_nodes = {kRunnerNode};
   expected.dropped_uploads = dropped_uploads;
   for (const MapHeader& header : headersOf(output)) EXPECT_EQ(header, expected);
   if (mode == Mode::kBaseline) {
@@ -233,7 +233,7 @@ void expectNormalFrame(const EdgeOutput& output, std::uint64_t epoch) {
   for (const MapHeader& header : headersOf(output)) {
     EXPECT_EQ(header.epoch, epoch);
     EXPECT_TRUE(header.failed_nodes.empty());
-    EXPECT_EQ(header.contributing_nodes, std::vector<std::uint32_t>{kNode});
+    EXPECT_EQ(header.contributing_nodes, std::vector<std::uint32_t>{kRunnerNode});
   }
   if (output.map) {
     EXPECT_EQ(output.map->map.objects.size(), 2U);
@@ -241,7 +241,7 @@ void expectNormalFrame(const EdgeOutput& output, std::uint64_t epoch) {
 }
 
 TEST(EdgeRunner, DisplacementCentroidsAreShippedOncePerScanFromTheSecondScanOn) {
-  EdgeConfig config = edgeConfig();
+  EdgeConfig config = runnerConfig();
   config.name = "edge-5";
   config.displacement = tracking::DisplacementParams::indoor();
   Replay replay(5.0, config);  // epochs 2j and 2j + 1 show scan j
@@ -316,7 +316,7 @@ TEST(EdgeRunner, FreshScansAreStampedWithTheirEpochAndTheInstantTheyWereRead) {
   for (const Shipped& s : replay.shipped) {
     const std::uint64_t epoch = epochOf(s.output);
     const EdgeOutput expected =
-        processedDirectly(edgeConfig(), replay.runner.scanNumberAt(epoch), epoch, epochs.startNs(epoch));
+        processedDirectly(runnerConfig(), replay.runner.scanNumberAt(epoch), epoch, epochs.startNs(epoch));
     EXPECT_EQ(s.output.map, expected.map);
     EXPECT_EQ(s.output.clusters, 2U);
   }
@@ -327,7 +327,7 @@ TEST(EdgeRunner, ASlowerSensorsScanIsProcessedOnceAndRestampedForEachEpochItShow
   const std::uint64_t first = firstEpoch();
   for (const Mode mode : {Mode::kMadc, Mode::kBaseline, Mode::kExt}) {
     SCOPED_TRACE(modeName(mode));
-    Replay replay(5.0, edgeConfig(mode));
+    Replay replay(5.0, runnerConfig(mode));
     ASSERT_EQ(replay.runner.scanNumberAt(first), replay.runner.scanNumberAt(first + 1));
     ASSERT_NE(replay.runner.scanNumberAt(first + 1), replay.runner.scanNumberAt(first + 2));
     const std::uint64_t scan = replay.runner.scanNumberAt(first);
@@ -344,7 +344,7 @@ TEST(EdgeRunner, ASlowerSensorsScanIsProcessedOnceAndRestampedForEachEpochItShow
     // Each epoch's output is what processing the scan for that epoch gives: header and ellipsoid
     // ids carry the epoch; the sensor time stays the instant the scan was read, the data's age.
     for (std::size_t i = 0; i < 2; ++i) {
-      const EdgeOutput expected = processedDirectly(edgeConfig(mode), scan, first + i, epochs.startNs(first));
+      const EdgeOutput expected = processedDirectly(runnerConfig(mode), scan, first + i, epochs.startNs(first));
       const EdgeOutput& output = replay.shipped[i].output;
       EXPECT_EQ(output.map, expected.map) << "epoch " << first + i;
       EXPECT_EQ(output.chunks, expected.chunks) << "epoch " << first + i;
@@ -356,7 +356,7 @@ TEST(EdgeRunner, ASlowerSensorsScanIsProcessedOnceAndRestampedForEachEpochItShow
       ASSERT_EQ(output.map->map.objects.size(), 2U);
       for (const MapObject& object : output.map->map.objects) {
         for (const Ellipsoid& ellipsoid : object.ellipsoids) {
-          EXPECT_EQ(ellipsoid.id.node, kNode);
+          EXPECT_EQ(ellipsoid.id.node, kRunnerNode);
           EXPECT_EQ(ellipsoid.id.frame, first + i);
         }
       }
@@ -377,7 +377,7 @@ TEST(EdgeRunner, FailedFrameIsShippedEmptyAndFlagged) {
   for (const bool unreadable : {true, false}) {
     for (const Mode mode : {Mode::kMadc, Mode::kBaseline, Mode::kExt}) {
       SCOPED_TRACE(::testing::Message() << modeName(mode) << (unreadable ? ", unreadable scan" : ", processing fails"));
-      EdgeConfig config = edgeConfig(mode);
+      EdgeConfig config = runnerConfig(mode);
       config.preprocess.voxel_leaf_m = 0.01;  // fine for the scene; overflows with a point 1000 km out
       Replay replay(10.0, config);
       const std::uint64_t bad = replay.runner.scanNumberAt(first + 1);
@@ -559,7 +559,7 @@ TEST(EdgeRunner, DroppedUploadsAppearInHeader) {
   const std::uint64_t first = firstEpoch();
   for (const Mode mode : {Mode::kMadc, Mode::kBaseline, Mode::kExt}) {
     SCOPED_TRACE(modeName(mode));
-    Replay replay(5.0, edgeConfig(mode));
+    Replay replay(5.0, runnerConfig(mode));
     const std::uint64_t bad = replay.runner.scanNumberAt(first + 2);
     replay.scans.unreadable = [bad](std::uint64_t n) { return n == bad; };
     // A fresh scan, the same scan re-used, a failed frame: each carries the total when shipped.
@@ -576,7 +576,7 @@ TEST(EdgeRunner, DroppedUploadsAppearInHeader) {
     }
   }
   {
-    Replay replay(10.0, edgeConfig(Mode::kExt), /*report_dropped_uploads=*/false);
+    Replay replay(10.0, runnerConfig(Mode::kExt), /*report_dropped_uploads=*/false);
     replay.dropped_uploads = 5;  // not reported without the hook
     ASSERT_EQ(replay.runner.step(), EdgeStep::kShipped);
     for (const MapHeader& header : headersOf(replay.shipped.at(0).output)) EXPECT_EQ(header.dropped_uploads, 0U);
@@ -694,7 +694,7 @@ struct HostileReplay {
 // Runs an edge at 10 Hz (one fresh scan per epoch) over `scans` to the end, on a clock that jumps
 // to every instant waited for.
 HostileReplay replayToTheEnd(ScanProvider& scans, const std::vector<HostileScan>& recorded, EdgeObserver& observer) {
-  EdgeConfig config = edgeConfig(Mode::kMadc);
+  EdgeConfig config = runnerConfig(Mode::kMadc);
   config.preprocess.crop = CropBox{};  // as the edges run: the crop box, then clustering
   HostileReplay replay;
   std::int64_t now_ns = kStartNs;

@@ -22,7 +22,7 @@
 
 #include "common/geometry/compact_ellipsoid.hpp"
 #include "common/geometry/map.hpp"
-#include "tests/common/random_geometry.hpp"
+#include "tests/support/geometry_builders.hpp"
 
 namespace fogmap {
 namespace {
@@ -31,7 +31,7 @@ namespace {
 // the upper triangle only). In double precision: see roundedToFloat.
 Eigen::Matrix3d randomShape(std::mt19937_64& rng, double min_axis = 0.1, double max_axis = 3.0) {
   std::uniform_real_distribution<double> axis(min_axis, max_axis);
-  const Eigen::Matrix3d r = fogmap::testing::randomRotation(rng);
+  const Eigen::Matrix3d r = fogmap::test_support::randomRotation(rng);
   const Eigen::Vector3d semi{axis(rng), axis(rng), axis(rng)};  // braces: drawn in order
   const Eigen::Matrix3d m = r * semi.cwiseAbs2().asDiagonal() * r.transpose();
   return 0.5 * (m + m.transpose());
@@ -112,7 +112,35 @@ v1::Map exactSampleProtoMap() { return toProto(sampleMapMessage(Wire::kExact)); 
 // The same objects, every ellipsoid a record: block 0 is node 1's with 9 records (the first
 // ellipsoid of every object, object o's has index o), the others one record each (node 2 or 3, a
 // frame of their own); every object is listed, with no exact ellipsoid.
-v1::Map packedSampleProtoMap() { return toProto(sampleMapMessage(Wire::kPacked)); }
+// The size of a block's records: 20 bytes where the block numbers them (first_index), else 22.
+std::size_t recordBytes(const v1::EllipsoidBlock& block) {
+  return compactRecordBytes(block.has_first_index() ? CompactIndex::kImplicit : CompactIndex::kInRecord);
+}
+
+// The block with every record holding its index (22 bytes), as a block without first_index has
+// them: the same ellipsoids on the wire.
+void putIndicesInRecords(v1::EllipsoidBlock& block) {
+  if (!block.has_first_index()) return;
+  std::string records;
+  const std::string& bare = block.records();
+  for (std::size_t r = 0; r * kCompactRecordBytesWithoutIndex < bare.size(); ++r) {
+    records.append(bare, r * kCompactRecordBytesWithoutIndex, kCompactRecordBytesWithoutIndex);
+    const auto index = static_cast<std::uint32_t>(block.first_index() + r);
+    records.push_back(static_cast<char>(index & 0xFFU));
+    records.push_back(static_cast<char>((index >> 8U) & 0xFFU));
+  }
+  block.set_records(records);
+  block.clear_first_index();
+}
+template <class Message>
+Message withIndicesInRecords(Message message) {
+  for (auto& block : *message.mutable_blocks()) putIndicesInRecords(block);
+  return message;
+}
+
+// The sample with every record's index in the record (22 bytes each), so that the tests below can
+// forge faults at a record's offsets.
+v1::Map packedSampleProtoMap() { return withIndicesInRecords(toProto(sampleMapMessage(Wire::kPacked))); }
 
 // A block's origin as the codec takes it.
 CompactOrigin originOf(const v1::EllipsoidBlock& block) {
@@ -182,7 +210,7 @@ int pushedPointsInside(const Ellipsoid& from, const Ellipsoid& to, double distan
   int inside = 0;
   for (int i = 0; i < 64 + 6; ++i) {
     const Eigen::Vector3d u = i < 6 ? Eigen::Vector3d(Eigen::Vector3d::Unit(i / 2) * (i % 2 == 0 ? 1.0 : -1.0))
-                                    : fogmap::testing::randomUnitVector(rng);
+                                    : fogmap::test_support::randomUnitVector(rng);
     const Eigen::Vector3d p = from.center + axes.rotation * axes.semi.cwiseProduct(u);
     const Eigen::Vector3d normal = (axes.rotation * u.cwiseQuotient(axes.semi)).normalized();
     const Eigen::Vector3d d = p + distance * normal - to.center;
@@ -364,7 +392,7 @@ TEST(ProtoConvert, SpheresAndDiscsKeepTheirGeometryWhenEncodedAgain) {
   std::uniform_real_distribution<double> pos(-50.0, 50.0);
   std::vector<Ellipsoid> ellipsoids;
   for (std::uint32_t k = 0; k < 20; ++k) {
-    const Eigen::Matrix3d r = fogmap::testing::randomRotation(rng);
+    const Eigen::Matrix3d r = fogmap::test_support::randomRotation(rng);
     const double a = 0.2 + 0.1 * k;
     const Eigen::Vector3d semi = k % 2 == 0 ? Eigen::Vector3d(a, a, a) : Eigen::Vector3d(0.05, a, a);
     Ellipsoid e;
@@ -404,9 +432,12 @@ std::optional<std::uint64_t> wireFrame(const Message& message, std::uint32_t nod
   }
   for (const auto& b : message.blocks()) {
     if (b.node() != node) continue;
-    for (std::size_t r = 0; r + kCompactEllipsoidBytes <= b.records().size(); r += kCompactEllipsoidBytes) {
-      const auto lo = static_cast<std::uint32_t>(static_cast<unsigned char>(b.records()[r + 20]));
-      const auto hi = static_cast<std::uint32_t>(static_cast<unsigned char>(b.records()[r + 21]));
+    v1::EllipsoidBlock numbered = b;
+    putIndicesInRecords(numbered);
+    const std::string& records = numbered.records();
+    for (std::size_t r = 0; r + kCompactEllipsoidBytes <= records.size(); r += kCompactEllipsoidBytes) {
+      const auto lo = static_cast<std::uint32_t>(static_cast<unsigned char>(records[r + 20]));
+      const auto hi = static_cast<std::uint32_t>(static_cast<unsigned char>(records[r + 21]));
       if ((lo | (hi << 8U)) == index) return b.has_frame() ? std::optional<std::uint64_t>(b.frame()) : std::nullopt;
     }
   }
@@ -562,6 +593,7 @@ TEST(ProtoConvert, MapIsRebuiltInCanonicalForm) {
     for (auto& o : objects) o = o < listed ? listed - 1 - o : listed + (packed - 1 - (o - listed));
     std::reverse(objects.begin(), objects.end());
     setRecordObjects(b, objects);
+    putIndicesInRecords(b);  // reordered, the records must carry their indices
     std::string records;
     for (std::size_t r = b.records().size(); r >= kCompactEllipsoidBytes; r -= kCompactEllipsoidBytes) {
       records += b.records().substr(r - kCompactEllipsoidBytes, kCompactEllipsoidBytes);
@@ -744,12 +776,12 @@ TEST(ProtoConvert, BlocksNearTheCommonOriginLeaveTheirOriginOut) {
   m.map = localMap(ellipsoids);
   const v1::Map far = toProto(m);
   ASSERT_EQ(far.blocks_size(), 1);
-  EXPECT_EQ(far.blocks(0).records().size(), 10 * kCompactEllipsoidBytes);
+  EXPECT_EQ(far.blocks(0).records().size(), 10 * recordBytes(far.blocks(0)));
   EXPECT_EQ(originOf(far.blocks(0)),
             compactOriginNear(m.map.objects[0].ellipsoids[0].center));
 }
 
-TEST(ProtoConvert, LocalMapTravelsAsOneBlockOfAtMost24BytesAnEllipsoid) {
+TEST(ProtoConvert, LocalMapTravelsAsOneBlockOfNumberedRecordsOfAtMost21BytesAnEllipsoid) {
   std::mt19937_64 rng(21);
   MapMessage m;
   m.header.node = 7;
@@ -768,7 +800,10 @@ TEST(ProtoConvert, LocalMapTravelsAsOneBlockOfAtMost24BytesAnEllipsoid) {
   EXPECT_FALSE(block.has_frame());
   EXPECT_EQ(block.object_step_size(), 0);
   EXPECT_EQ(wire.packed_objects(), 0U);
-  EXPECT_EQ(block.records().size(), 100 * kCompactEllipsoidBytes);
+  // The edge's clusters are numbered 0 .. 99 in record order: the block numbers them, 20 bytes a record.
+  ASSERT_TRUE(block.has_first_index());
+  EXPECT_EQ(block.first_index(), 0U);
+  EXPECT_EQ(block.records().size(), 100 * kCompactRecordBytesWithoutIndex);
   EXPECT_EQ(originOf(block),
             compactOriginNear(m.map.objects[0].ellipsoids[0].center))
       << "the origin is the first centre";
@@ -776,7 +811,7 @@ TEST(ProtoConvert, LocalMapTravelsAsOneBlockOfAtMost24BytesAnEllipsoid) {
   const double per_ellipsoid = static_cast<double>(upload.ByteSizeLong()) / 100.0;
   std::printf("[ compact  ] local map, 100 ellipsoids: %zu bytes as a Map, %zu as an Upload: %.2f bytes an ellipsoid\n",
               wire.ByteSizeLong(), upload.ByteSizeLong(), per_ellipsoid);
-  EXPECT_LE(per_ellipsoid, 24.0);
+  EXPECT_LE(per_ellipsoid, 21.0);
 
   v1::Map parsed;
   ASSERT_TRUE(parsed.ParseFromString(wire.SerializeAsString()));
@@ -831,7 +866,7 @@ TEST(ProtoConvert, GlobalMapOfMultiNodeObjectsListsTheObjectOfEachRecord) {
   EXPECT_EQ(wire.packed_objects(), 100U);
   EXPECT_EQ(wire.blocks_size(), 6) << "one block per sensor";
   for (const auto& b : wire.blocks()) {
-    EXPECT_EQ(static_cast<std::size_t>(b.object_step_size()) * kCompactEllipsoidBytes, b.records().size());
+    EXPECT_EQ(static_cast<std::size_t>(b.object_step_size()) * recordBytes(b), b.records().size());
     for (const std::int32_t step : b.object_step()) EXPECT_GE(step, 0) << "records follow their objects' order";
   }
   const std::size_t count = g.map.ellipsoidCount();
@@ -852,7 +887,7 @@ TEST(ProtoConvert, GlobalMapOfMultiNodeObjectsListsTheObjectOfEachRecord) {
 
 Ellipsoid ellipsoidWithAxes(const EllipsoidId& id, const Eigen::Vector3d& center, const Eigen::Vector3d& semi_axes) {
   std::mt19937_64 rng(id.index + 31 * id.node);
-  const Eigen::Matrix3d r = fogmap::testing::randomRotation(rng);
+  const Eigen::Matrix3d r = fogmap::test_support::randomRotation(rng);
   const Eigen::Matrix3d m = r * semi_axes.cwiseAbs2().asDiagonal() * r.transpose();
   Ellipsoid e;
   e.id = id;
@@ -1084,9 +1119,41 @@ TEST(ProtoConvert, RejectsBlockRecordsNotAMultipleOf22Bytes) {
   GlobalMapMessage g;
   std::mt19937_64 rng(5);
   g.map = randomMap(rng, 4);
-  v1::GlobalMap global = toProto(g);
+  v1::GlobalMap global = withIndicesInRecords(toProto(g));
   global.mutable_blocks(0)->mutable_records()->resize(21);
   expectRejected(fromProto(global), {"GlobalMap: blocks[0]", "21 bytes", "not a multiple of 22"});
+}
+
+// A block that numbers its records: 20 bytes each, and no index past 2^32 - 1.
+TEST(ProtoConvert, RejectsNumberedBlocksWhoseRecordsAreCutOrRunPastTheLastIndex) {
+  MapMessage m;
+  m.header.node = 3;
+  m.header.epoch = 17'000'000'123ULL;
+  std::mt19937_64 rng(8);
+  m.map = localMap(sensorClusters(rng, 3, m.header.epoch, 4, {10.0, 0.0, 0.0}));
+  const v1::Map numbered = toProto(m);
+  ASSERT_EQ(numbered.blocks_size(), 1);
+  ASSERT_TRUE(numbered.blocks(0).has_first_index());
+  ASSERT_TRUE(fromProto(numbered).ok());
+
+  v1::Map cut = numbered;
+  cut.mutable_blocks(0)->mutable_records()->resize(4 * kCompactRecordBytesWithoutIndex - 1);
+  expectRejected(fromProto(cut), {"Map: blocks[0]", "79 bytes", "not a multiple of 20", "first_index"});
+
+  v1::Map last = numbered;
+  last.mutable_blocks(0)->set_first_index(std::numeric_limits<std::uint32_t>::max() - 3);  // 2^32 - 4 .. 2^32 - 1
+  const auto at_the_end = fromProto(last);
+  ASSERT_TRUE(at_the_end.ok()) << at_the_end.error().message;
+  EXPECT_EQ(at_the_end->map.objects.back().ellipsoids[0].id.index, std::numeric_limits<std::uint32_t>::max());
+  last.mutable_blocks(0)->set_first_index(std::numeric_limits<std::uint32_t>::max() - 2);
+  expectRejected(fromProto(last), {"Map: blocks[0]", "first_index 4294967293 and 4 records", "2^32 - 1"});
+
+  // A block whose indices do not run on keeps them in its records.
+  m.map = localMap({m.map.objects[0].ellipsoids[0], m.map.objects[2].ellipsoids[0]});
+  const v1::Map gapped = toProto(m);
+  ASSERT_EQ(gapped.blocks_size(), 1);
+  EXPECT_FALSE(gapped.blocks(0).has_first_index());
+  EXPECT_EQ(gapped.blocks(0).records().size(), 2 * kCompactEllipsoidBytes);
 }
 
 TEST(ProtoConvert, RejectsRecordObjectOutOfRange) {

@@ -13,6 +13,7 @@
 
 #include "common/io/cloud_io.hpp"
 #include "common/perception/virtual_lidar.hpp"
+#include "tests/support/same_points.hpp"
 
 namespace fogmap {
 namespace {
@@ -29,12 +30,7 @@ Cloud scanOf(std::size_t n) {
   return cloud;
 }
 
-// Point has no operator== (cloud.hpp); compare members, all four, exactly.
-bool samePoints(const Cloud& a, const Cloud& b) {
-  return std::equal(a.begin(), a.end(), b.begin(), b.end(), [](const Point& p, const Point& q) {
-    return p.x == q.x && p.y == q.y && p.z == q.z && p.intensity == q.intensity;
-  });
-}
+using test_support::samePoints;
 
 // Each test replays files from its own fresh directory under the system temp dir.
 class ScanSourceTest : public ::testing::Test {

@@ -91,20 +91,20 @@ const ServiceSpec kAggregatorSpec{Role::kAggregator, "usage: merge-aggregator --
 const ServiceSpec kEdgeSpec{
     Role::kEdge, "usage: edge-cluster --topology FILE --node NAME [--journal FILE]\n", {"journal"}};
 
-struct Outcome {
+struct RunOutcome {
   int code = -1;
   std::string out;
   std::string err;
 };
 
-Outcome runWith(const ServiceSpec& spec, std::vector<std::string> words,
-                const std::function<int(ServiceContext&)>& run = [](ServiceContext&) { return 0; }) {
+RunOutcome runWith(const ServiceSpec& spec, std::vector<std::string> words,
+                   const std::function<int(ServiceContext&)>& run = [](ServiceContext&) { return 0; }) {
   words.insert(words.begin(), serviceName(spec.role));
   std::vector<char*> argv;
   for (auto& w : words) argv.push_back(w.data());
   Captured out(1);
   Captured err(2);
-  Outcome o;
+  RunOutcome o;
   o.code = runService(static_cast<int>(argv.size()), argv.data(), spec, run);
   o.out = out.text();
   o.err = err.text();
@@ -112,10 +112,10 @@ Outcome runWith(const ServiceSpec& spec, std::vector<std::string> words,
 }
 
 TEST(RunService, HelpPrintsTheUsageAndAWrongCommandLineIsAConfigurationError) {
-  const Outcome help = runWith(kAggregatorSpec, {"--help"});
+  const RunOutcome help = runWith(kAggregatorSpec, {"--help"});
   EXPECT_EQ(help.code, 0);
   EXPECT_EQ(help.out, kAggregatorSpec.usage);
-  const Outcome wrong = runWith(kAggregatorSpec, {"--topology", "t.yaml"});
+  const RunOutcome wrong = runWith(kAggregatorSpec, {"--topology", "t.yaml"});
   EXPECT_EQ(wrong.code, kExitBadConfig);
   EXPECT_TRUE(contains(wrong.err, "merge-aggregator: --topology FILE and --node NAME are required")) << wrong.err;
   EXPECT_TRUE(contains(wrong.err, kAggregatorSpec.usage)) << wrong.err;
@@ -125,7 +125,7 @@ TEST(RunService, HelpPrintsTheUsageAndAWrongCommandLineIsAConfigurationError) {
 
 TEST(RunService, AMissingFileNodeOrRoleIsAConfigurationErrorNamingIt) {
   const TopologyFile file;
-  Outcome o = runWith(kAggregatorSpec, {"--topology", file.path() + ".missing", "--node", "sink"});
+  RunOutcome o = runWith(kAggregatorSpec, {"--topology", file.path() + ".missing", "--node", "sink"});
   EXPECT_EQ(o.code, kExitBadConfig);
   EXPECT_TRUE(contains(o.err, "star.yaml.missing")) << o.err;
   o = runWith(kAggregatorSpec, {"--topology", file.path(), "--node", "nobody"});
@@ -140,21 +140,21 @@ TEST(RunService, TheServiceRunsWithItsNodeFlagsAndMetricsAndItsExitCodeIsTheProc
   const TopologyFile file;
   const NodeConfig& edge = *file.topology().find("edge-1");
   bool ran = false;
-  const Outcome o = runWith(kEdgeSpec, {"--node", "edge-1", "--topology", file.path(), "--journal", "j.log"},
-                            [&](ServiceContext& context) {
-                              ran = true;
-                              EXPECT_EQ(context.node.name, "edge-1");
-                              EXPECT_EQ(context.topology_file, file.path());
-                              EXPECT_EQ(context.flag("journal"), std::optional<std::string>("j.log"));
-                              EXPECT_FALSE(context.flag("other"));
-                              EXPECT_FALSE(context.tls) << "no tls section: plaintext";
-                              EXPECT_EQ(context.prefix(), "edge-cluster edge-1: ");
-                              EXPECT_EQ(context.metrics.listeningPort(), 0) << "not before its parts are checked";
-                              context.serveMetrics();
-                              EXPECT_EQ(context.metrics.listeningPort(), edge.metrics_port);
-                              EXPECT_FALSE(context.stop.requested());
-                              return 42;
-                            });
+  const RunOutcome o = runWith(kEdgeSpec, {"--node", "edge-1", "--topology", file.path(), "--journal", "j.log"},
+                               [&](ServiceContext& context) {
+                                 ran = true;
+                                 EXPECT_EQ(context.node.name, "edge-1");
+                                 EXPECT_EQ(context.topology_file, file.path());
+                                 EXPECT_EQ(context.flag("journal"), std::optional<std::string>("j.log"));
+                                 EXPECT_FALSE(context.flag("other"));
+                                 EXPECT_FALSE(context.tls) << "no tls section: plaintext";
+                                 EXPECT_EQ(context.prefix(), "edge-cluster edge-1: ");
+                                 EXPECT_EQ(context.metrics.listeningPort(), 0) << "not before its parts are checked";
+                                 context.serveMetrics();
+                                 EXPECT_EQ(context.metrics.listeningPort(), edge.metrics_port);
+                                 EXPECT_FALSE(context.stop.requested());
+                                 return 42;
+                               });
   EXPECT_TRUE(ran);
   EXPECT_EQ(o.code, 42);
 }
@@ -162,8 +162,8 @@ TEST(RunService, TheServiceRunsWithItsNodeFlagsAndMetricsAndItsExitCodeIsTheProc
 TEST(RunService, TheOutsideWorldFailingIsARuntimeError) {
   const TopologyFile file;
   const NodeConfig& sink = *file.topology().root();
-  Outcome o = runWith(kAggregatorSpec, {"--topology", file.path(), "--node", "sink"},
-                      [](ServiceContext&) -> int { throw std::runtime_error("the world ended"); });
+  RunOutcome o = runWith(kAggregatorSpec, {"--topology", file.path(), "--node", "sink"},
+                         [](ServiceContext&) -> int { throw std::runtime_error("the world ended"); });
   EXPECT_EQ(o.code, kExitRuntimeError);
   EXPECT_TRUE(contains(o.err, "merge-aggregator: the world ended")) << o.err;
   // Its metrics port taken: the service's parts are built, and nothing serves past the port.

@@ -28,7 +28,7 @@ using test_support::eventually;
 using Clock = std::chrono::steady_clock;
 
 // A port that was free a moment ago and now has no listener.
-int closedPort() {
+int closedTrackerPort() {
   RecordingTracker service;
   TestTracker tracker(service);
   return tracker.port();
@@ -68,7 +68,7 @@ struct LinkCounts {
   }
 };
 
-TrackerLinkConfig configFor(const std::string& target, std::size_t queue_frames = 4) {
+TrackerLinkConfig trackerLinkConfig(const std::string& target, std::size_t queue_frames = 4) {
   TrackerLinkConfig config;
   config.target = target;
   config.queue_frames = queue_frames;
@@ -80,7 +80,7 @@ TEST(DetectionLink, DeliversEveryFrameWithItsCameraAndDetections) {
   TestTracker tracker(service);
   ASSERT_TRUE(tracker.started());
   LinkCounts counts;
-  DetectionLink link(configFor(tracker.target(), 8), counts.hooks());
+  DetectionLink link(trackerLinkConfig(tracker.target(), 8), counts.hooks());
   for (int i = 0; i < 3; ++i) link.send(frameAt(1'000 + i, i + 1));
   ASSERT_TRUE(service.waitFrames(3));
 
@@ -108,10 +108,10 @@ TEST(DetectionLink, DeliversEveryFrameWithItsCameraAndDetections) {
 }
 
 TEST(DetectionLink, WhileTheTrackerIsDownTheOldestFramesAreDroppedThenItReconnectsAndDelivers) {
-  const int port = closedPort();
+  const int port = closedTrackerPort();
   ASSERT_GT(port, 0);
   LinkCounts counts;
-  DetectionLink link(configFor("127.0.0.1:" + std::to_string(port), 3), counts.hooks());
+  DetectionLink link(trackerLinkConfig("127.0.0.1:" + std::to_string(port), 3), counts.hooks());
   for (int i = 1; i <= 8; ++i) link.send(frameAt(i));
   EXPECT_FALSE(link.connected());
   EXPECT_EQ(link.dropped(), 5u);
@@ -140,7 +140,7 @@ TEST(DetectionLink, ReconnectsToARestartedTracker) {
   ASSERT_TRUE(first->started());
   const int port = first->port();
   LinkCounts counts;
-  DetectionLink link(configFor(first->target()), counts.hooks());
+  DetectionLink link(trackerLinkConfig(first->target()), counts.hooks());
   link.send(frameAt(1));
   ASSERT_TRUE(first_service.waitFrames(1));
   first->stop();
@@ -164,7 +164,7 @@ TEST(DetectionLink, DestroyingTheLinkEndsTheStreamCleanly) {
   TestTracker tracker(service);
   ASSERT_TRUE(tracker.started());
   {
-    DetectionLink link(configFor(tracker.target()), {});
+    DetectionLink link(trackerLinkConfig(tracker.target()), {});
     link.send(frameAt(1));
     ASSERT_TRUE(service.waitFrames(1));
   }
@@ -172,10 +172,10 @@ TEST(DetectionLink, DestroyingTheLinkEndsTheStreamCleanly) {
 }
 
 TEST(DetectionLink, DestructorReturnsPromptlyWhenTheTrackerIsGone) {
-  const int port = closedPort();
+  const int port = closedTrackerPort();
   const auto started = Clock::now();
   {
-    DetectionLink link(configFor("127.0.0.1:" + std::to_string(port)), {});
+    DetectionLink link(trackerLinkConfig("127.0.0.1:" + std::to_string(port)), {});
     link.send(frameAt(1));
   }
   EXPECT_LT(Clock::now() - started, 2s);
@@ -186,7 +186,7 @@ TEST(CentroidLink, DeliversEveryCentroidFrameOnItsOwnStream) {
   TestTracker tracker(service);
   ASSERT_TRUE(tracker.started());
   LinkCounts counts;
-  CentroidLink link(configFor(tracker.target(), 8), counts.hooks());
+  CentroidLink link(trackerLinkConfig(tracker.target(), 8), counts.hooks());
   for (int i = 0; i < 3; ++i) {
     tracking::CentroidFrame frame;
     frame.edge = "edge-3";

@@ -1,6 +1,6 @@
 #pragma once
-// Files for tests: a fresh directory of their own, where to keep pictures for a person to look at,
-// and a file's bytes read back.
+// Files for tests: a fresh directory of their own, one kept for a cluster's files, where to keep
+// pictures for a person to look at, and a file's bytes read back.
 #include <unistd.h>
 
 #include <cstdlib>
@@ -32,6 +32,15 @@ class ScratchDir {
  private:
   std::filesystem::path path_;
 };
+
+// A fresh directory for the files of a cluster run (its nodes' logs), under the system temp dir and
+// named by `name` and the process id; kept after the test, for a person to read after a failure.
+inline std::filesystem::path keptDir(const std::string& name) {
+  const auto dir = std::filesystem::temp_directory_path() / ("fogmap-it-" + std::to_string(::getpid()) + "-" + name);
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
 
 // Where a test writes what a person may want to look at: the directory the environment variable
 // `variable` names (created if need be) when it is set, else `scratch`.

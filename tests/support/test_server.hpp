@@ -1,7 +1,8 @@
 #pragma once
 // A real gRPC server on 127.0.0.1 serving one in-process service: what a test stands in for a
-// parent, a tracker or a root with.
+// parent, a tracker or a root with; and the message size it and the tests' channels allow.
 #include <chrono>
+#include <cstddef>
 #include <memory>
 #include <string>
 
@@ -11,12 +12,14 @@
 
 namespace fogmap::test_support {
 
+inline constexpr std::size_t kMaxMessageBytes = 64U << 20;
+
 // Serves `service` until stopped or destroyed; port 0 picks a free port.
 class TestServer {
  public:
   explicit TestServer(grpc::Service& service, int port = 0) {
     grpc::ServerBuilder builder;
-    configureServer(builder, 64U << 20);
+    configureServer(builder, kMaxMessageBytes);
     builder.AddListeningPort("127.0.0.1:" + std::to_string(port), grpc::InsecureServerCredentials(), &port_);
     builder.RegisterService(&service);
     server_ = builder.BuildAndStart();

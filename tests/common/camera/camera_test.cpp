@@ -12,12 +12,12 @@
 #include "common/camera/kitti.hpp"
 #include "common/camera/pinhole.hpp"
 #include "common/io/cloud_io.hpp"
-#include "tests/common/test_data.hpp"
+#include "tests/support/source_dir.hpp"
 
 namespace fogmap::camera {
 namespace {
 
-using fogmap::testing::dataDir;
+using test_support::dataDir;
 
 constexpr int kWidth = 1242;  // KITTI's image_2 of frames 000001 and 000002
 constexpr int kHeight = 375;

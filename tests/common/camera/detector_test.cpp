@@ -22,14 +22,14 @@
 #include "common/camera/detector.hpp"
 #include "common/camera/frame_queue.hpp"
 #include "common/camera/kitti.hpp"
-#include "tests/common/test_data.hpp"
+#include "tests/support/source_dir.hpp"
 #include "tests/support/tiny_detector.hpp"
 
 namespace fogmap::camera {
 namespace {
 
 namespace fs = std::filesystem;
-using fogmap::testing::dataDir;
+using test_support::dataDir;
 using test_support::makeTinyDetector;
 using test_support::pythonWithOnnx;
 

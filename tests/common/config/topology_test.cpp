@@ -5,6 +5,7 @@
 #include "common/config/topology_presets.hpp"
 #include "common/config/topology_yaml.hpp"
 #include "common/config/tracker_node.hpp"
+#include "tests/support/source_dir.hpp"
 
 #include <filesystem>
 #include <fstream>
@@ -22,7 +23,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const fs::path kSourceDir = FOGMAP_SOURCE_DIR;
+using test_support::kSourceDir;
 
 // Field-by-field equality of everything the services read from a topology.
 void expectSameTopology(const TopologyConfig& a, const TopologyConfig& b) {

@@ -16,7 +16,7 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
-#include "tests/common/random_geometry.hpp"
+#include "tests/support/geometry_builders.hpp"
 
 namespace fogmap {
 namespace {
@@ -24,8 +24,9 @@ namespace {
 // ---------------------------------------------------------------------------------------------
 // Helpers.
 
-using testing::randomRotation;
-using testing::randomUnitVector;
+using test_support::randomRotation;
+using test_support::randomUnitVector;
+using test_support::shapeOf;
 
 // An ellipsoid known by its parts: centre, rotation (column i = direction of semi-axis i) and
 // semi-axes, so the test has its own exact surface and normals.
@@ -34,11 +35,6 @@ struct Parts {
   Eigen::Matrix3d rotation;
   Eigen::Vector3d semi_axes;
 };
-
-Eigen::Matrix3d shapeOf(const Eigen::Matrix3d& rotation, const Eigen::Vector3d& semi_axes) {
-  Eigen::Matrix3d m = rotation * semi_axes.cwiseAbs2().asDiagonal() * rotation.transpose();
-  return 0.5 * (m + m.transpose());
-}
 
 Ellipsoid ellipsoidOf(const Parts& parts, const EllipsoidId& id = {}, std::uint64_t point_count = 0) {
   Ellipsoid e;
@@ -602,6 +598,69 @@ TEST(CompactEllipsoidDecode, HostileRecordsGivePositiveDefiniteShapesOrAreRefuse
   }
   EXPECT_GT(decoded, 5000);
   EXPECT_GT(refused, 5000);
+}
+
+// A record without its index is the record's first 20 bytes; its block gives the index.
+TEST(CompactEllipsoidFormat, ARecordWithoutItsIndexIsTheRecordLessItsLastTwoBytes) {
+  std::mt19937_64 rng(103);
+  const CompactOrigin origin = compactOriginNear({-40.0, 25.0, 1.0});
+  std::string with_index;
+  std::string without_index;
+  std::vector<Ellipsoid> exact;
+  for (int trial = 0; trial < 50; ++trial) {
+    const Sample s = randomSampleNear(rng, trial, origin);
+    std::string record;
+    ASSERT_TRUE(appendCompact(s.exact, origin, record)) << trial;
+    std::string bare;
+    ASSERT_TRUE(appendCompact(s.exact, origin, bare, CompactIndex::kImplicit)) << trial;
+    ASSERT_EQ(bare.size(), kCompactRecordBytesWithoutIndex) << trial;
+    EXPECT_EQ(bare, record.substr(0, kCompactRecordBytesWithoutIndex)) << trial;
+    // Decoded with the index the block gives, it is the ellipsoid the full record decodes to.
+    const Expected<Ellipsoid> full = decodeCompact(record, origin, 5, 77);
+    const Expected<Ellipsoid> given = decodeCompact(bare, origin, 5, 77, s.exact.id.index);
+    ASSERT_TRUE(full.ok() && given.ok()) << trial;
+    EXPECT_EQ(*full, *given) << trial;
+  }
+  // Each kind of record has its own size.
+  Ellipsoid ball;
+  ball.center = {-40.0, 25.0, 1.0};
+  ball.shape = Eigen::Matrix3d::Identity();
+  std::string bare;
+  ASSERT_TRUE(appendCompact(ball, origin, bare, CompactIndex::kImplicit));
+  const auto wrong = decodeCompact(bare, origin, 5, 77);
+  ASSERT_FALSE(wrong.ok());
+  EXPECT_NE(wrong.error().message.find("22 bytes, got 20"), std::string::npos) << wrong.error().message;
+  const auto short_one = decodeCompact(bare.substr(0, 19), origin, 5, 77, 3U);
+  ASSERT_FALSE(short_one.ok());
+  EXPECT_NE(short_one.error().message.find("without its index has 20 bytes, got 19"), std::string::npos)
+      << short_one.error().message;
+}
+
+TEST(CompactEllipsoidFormat, ABlockWithoutIndicesNumbersItsRecordsFromItsFirstIndex) {
+  const CompactOrigin origin{};
+  std::string records;
+  for (int k = 0; k < 3; ++k) {
+    Ellipsoid e;
+    e.center = {static_cast<double>(k), 0.0, 0.0};
+    e.shape = Eigen::Matrix3d::Identity() * 0.25;
+    e.point_count = 10;
+    ASSERT_TRUE(appendCompact(e, origin, records, CompactIndex::kImplicit));
+  }
+  const auto block = decodeCompactBlock(records, origin, 2, 9, 40U);
+  ASSERT_TRUE(block.ok()) << block.error().message;
+  ASSERT_EQ(block->size(), 3U);
+  for (std::uint32_t k = 0; k < 3; ++k) EXPECT_EQ((*block)[k].id, (EllipsoidId{2, 9, 40 + k}));
+  // The last indices there are, and one past them.
+  const auto last = decodeCompactBlock(records, origin, 2, 9, 0xFFFFFFFDU);
+  ASSERT_TRUE(last.ok()) << last.error().message;
+  EXPECT_EQ(last->back().id.index, 0xFFFFFFFFU);
+  const auto beyond = decodeCompactBlock(records, origin, 2, 9, 0xFFFFFFFEU);
+  ASSERT_FALSE(beyond.ok());
+  EXPECT_NE(beyond.error().message.find("runs past the last index"), std::string::npos) << beyond.error().message;
+  // A size that is no multiple of 20 bytes.
+  const auto ragged = decodeCompactBlock(std::string_view(records).substr(1), origin, 2, 9, 0U);
+  ASSERT_FALSE(ragged.ok());
+  EXPECT_NE(ragged.error().message.find("not a multiple of 20"), std::string::npos) << ragged.error().message;
 }
 
 }  // namespace

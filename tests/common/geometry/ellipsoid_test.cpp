@@ -12,7 +12,7 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
-#include "tests/common/random_geometry.hpp"
+#include "tests/support/geometry_builders.hpp"
 
 namespace fogmap {
 namespace {
@@ -20,29 +20,17 @@ namespace {
 // ---------------------------------------------------------------------------------------------
 // Helpers.
 
-using testing::randomRotation;
-using testing::randomUnitVector;
-
-// Shape matrix R diag(semi_axes^2) R^T.
-Eigen::Matrix3d shapeOf(const Eigen::Matrix3d& rotation, const Eigen::Vector3d& semi_axes) {
-  Eigen::Matrix3d m = rotation * semi_axes.cwiseAbs2().asDiagonal() * rotation.transpose();
-  return 0.5 * (m + m.transpose());
-}
-
-Eigen::Matrix3d randomShape(std::mt19937_64& rng, double min_axis, double max_axis) {
-  std::uniform_real_distribution<double> axis(min_axis, max_axis);
-  return shapeOf(randomRotation(rng), Eigen::Vector3d(axis(rng), axis(rng), axis(rng)));
-}
+using test_support::randomRotation;
+using test_support::randomShape;
+using test_support::randomUnitVector;
+using test_support::shapeOf;
+using test_support::sphere;
 
 Ellipsoid ellipsoidAt(const Eigen::Vector3d& center, const Eigen::Matrix3d& shape) {
   Ellipsoid e;
   e.center = center;
   e.shape = shape;
   return e;
-}
-
-Ellipsoid sphere(const Eigen::Vector3d& center, double radius) {
-  return ellipsoidAt(center, radius * radius * Eigen::Matrix3d::Identity());
 }
 
 Ellipsoid axisAligned(const Eigen::Vector3d& center, const Eigen::Vector3d& semi_axes) {

@@ -10,17 +10,12 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
-#include "tests/common/random_geometry.hpp"
+#include "tests/support/geometry_builders.hpp"
 
 namespace fogmap {
 namespace {
 
-Ellipsoid sphere(const Eigen::Vector3d& center, double radius) {
-  Ellipsoid e;
-  e.center = center;
-  e.shape = radius * radius * Eigen::Matrix3d::Identity();
-  return e;
-}
+using test_support::sphere;
 
 Geofence singlePlane(const Eigen::Vector3d& normal, double offset) {
   return Geofence{"plane", {HalfSpace{normal, offset}}};
@@ -247,8 +242,8 @@ struct RandomCase {
   Geofence fence;
 };
 
-using testing::randomRotation;
-using testing::randomUnitVector;
+using test_support::randomRotation;
+using test_support::randomUnitVector;
 
 RandomCase randomCase(std::mt19937_64& rng) {
   std::uniform_real_distribution<double> axis(0.1, 3.0);

@@ -9,19 +9,12 @@
 
 #include <Eigen/Geometry>
 
-#include "tests/common/random_geometry.hpp"
+#include "tests/support/geometry_builders.hpp"
 
 namespace fogmap {
 namespace {
 
-Eigen::Matrix3d randomShape(std::mt19937_64& rng, double min_axis, double max_axis) {
-  std::uniform_real_distribution<double> axis(min_axis, max_axis);
-  std::normal_distribution<double> normal;
-  const Eigen::Matrix3d rotation =
-      Eigen::Quaterniond(normal(rng), normal(rng), normal(rng), normal(rng)).normalized().toRotationMatrix();
-  Eigen::Vector3d semi(axis(rng), axis(rng), axis(rng));
-  return rotation * semi.cwiseAbs2().asDiagonal() * rotation.transpose();
-}
+using test_support::randomShape;
 
 // One local map per node: random ellipsoids over a square scene, ids (node, frame, index).
 std::vector<Map> randomLocalMaps(std::mt19937_64& rng, int nodes, int per_node, double extent,
@@ -223,7 +216,7 @@ TEST(Merge, NearContactEqualsAllPairsSpecification) {
       if (k > 0) {
         Eigen::Vector3d n = Eigen::Vector3d::Zero();
         if (trial % 4 == 3) {
-          n = testing::randomUnitVector(rng);
+          n = test_support::randomUnitVector(rng);
         } else {
           const int axis = pick_axis(rng);
           n[axis % 3] = axis < 3 ? 1.0 : -1.0;

@@ -19,8 +19,6 @@
 namespace fogmap {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
-
 OrientedBox boxAt(double x, double y, double length, double width, double yaw, double z = 0.8, double height = 1.6) {
   OrientedBox b;
   b.centre = {x, y, z};
@@ -43,7 +41,8 @@ Ellipsoid view(std::uint32_t node, std::uint32_t index, std::uint64_t points, st
   return e;
 }
 
-MapObject objectOf(std::vector<Ellipsoid> ellipsoids) {
+// The one object mapFromGroups makes of `ellipsoids`, all in one group.
+MapObject mappedObjectOf(std::vector<Ellipsoid> ellipsoids) {
   std::vector<std::size_t> group(ellipsoids.size(), 0);
   return mapFromGroups(ellipsoids, group).objects.at(0);
 }
@@ -53,15 +52,15 @@ MapObject objectOf(std::vector<Ellipsoid> ellipsoids) {
 TEST(ObjectBox, OneViewIsItsOwnBoxAnchorIncluded) {
   OrientedBox b = boxAt(10, 5, 4.4, 1.8, 0.5);
   b.anchor = BoxAnchor::kRearLeft;
-  const auto box = objectBox(objectOf({view(1, 0, 50, b), view(2, 0, 80, std::nullopt)}));
+  const auto box = objectBox(mappedObjectOf({view(1, 0, 50, b), view(2, 0, 80, std::nullopt)}));
   ASSERT_TRUE(box);
   EXPECT_EQ(*box, b);
-  EXPECT_FALSE(objectBox(objectOf({view(1, 0, 50, std::nullopt)})).has_value());
+  EXPECT_FALSE(objectBox(mappedObjectOf({view(1, 0, 50, std::nullopt)})).has_value());
 }
 
 TEST(ObjectBox, TheRearAndFrontHalvesOfACarSeenByTwoSensorsGiveTheWholeCar) {
   // A car 4.4 x 1.8 m at (10, 5) turned 30 degrees; one sensor sees its rear half, the other its front.
-  const double yaw = kPi / 6.0;
+  const double yaw = std::numbers::pi / 6.0;
   const Eigen::Vector2d along(std::cos(yaw), std::sin(yaw));
   const Eigen::Vector2d rear = Eigen::Vector2d(10, 5) - 1.1 * along;
   const Eigen::Vector2d front = Eigen::Vector2d(10, 5) + 1.1 * along;
@@ -69,7 +68,7 @@ TEST(ObjectBox, TheRearAndFrontHalvesOfACarSeenByTwoSensorsGiveTheWholeCar) {
   rear_box.anchor = BoxAnchor::kRearFace;
   OrientedBox front_box = boxAt(front.x(), front.y(), 2.2, 1.8, yaw + 0.01, 0.8, 1.6);  // the better-seen view
   front_box.anchor = BoxAnchor::kFrontFace;
-  const auto box = objectBox(objectOf({view(1, 3, 40, rear_box), view(2, 7, 90, front_box)}));
+  const auto box = objectBox(mappedObjectOf({view(1, 3, 40, rear_box), view(2, 7, 90, front_box)}));
   ASSERT_TRUE(box);
   EXPECT_DOUBLE_EQ(box->yaw, yaw + 0.01);  // from the view with the most points
   EXPECT_NEAR(box->centre.x(), 10.0, 0.03);
@@ -83,16 +82,16 @@ TEST(ObjectBox, TheRearAndFrontHalvesOfACarSeenByTwoSensorsGiveTheWholeCar) {
 
 TEST(ObjectBox, ViewsSideBySideTurnTheAxisWhereTheExtentAcrossIsTheLarger) {
   // Two 2 x 1.5 m boxes along x, side by side in y: together 2 m along x and 3 m across.
-  const auto box = objectBox(objectOf({view(1, 0, 60, boxAt(0, 0.75, 2.0, 1.5, 0.0)), view(2, 0, 50, boxAt(0, -0.75, 2.0, 1.5, 0.0))}));
+  const auto box = objectBox(mappedObjectOf({view(1, 0, 60, boxAt(0, 0.75, 2.0, 1.5, 0.0)), view(2, 0, 50, boxAt(0, -0.75, 2.0, 1.5, 0.0))}));
   ASSERT_TRUE(box);
   EXPECT_NEAR(box->length, 3.0, 1e-12);
   EXPECT_NEAR(box->width, 2.0, 1e-12);
-  EXPECT_NEAR(box->yaw, -kPi / 2.0, 1e-12);  // folded into [-pi/2, pi/2)
+  EXPECT_NEAR(box->yaw, -std::numbers::pi / 2.0, 1e-12);  // folded into [-pi/2, pi/2)
   EXPECT_NEAR(box->centre.head<2>().norm(), 0.0, 1e-12);
 }
 
 TEST(ObjectBox, EqualPointCountsTakeTheAxisOfTheSmallestId) {
-  const auto box = objectBox(objectOf({view(2, 0, 50, boxAt(0, 0, 2.0, 1.0, 0.3)), view(1, 4, 50, boxAt(0, 0, 2.0, 1.0, -0.2))}));
+  const auto box = objectBox(mappedObjectOf({view(2, 0, 50, boxAt(0, 0, 2.0, 1.0, 0.3)), view(1, 4, 50, boxAt(0, 0, 2.0, 1.0, -0.2))}));
   ASSERT_TRUE(box);
   EXPECT_DOUBLE_EQ(box->yaw, -0.2);  // node 1 sorts first
 }
@@ -103,23 +102,23 @@ TEST(ObjectBox, FootprintsOverlapByTheirSeparatingAxes) {
   EXPECT_FALSE(footprintsOverlap(a, boxAt(4.1, 0, 4.0, 2.0, 0.0)));
   // A 1 m square turned 45 degrees off a's corner (2, 1): its axis-aligned bounds overlap a's, but
   // its own diagonal axis separates them at (2.4, 1.4); at (2.3, 1.3) they overlap.
-  EXPECT_FALSE(footprintsOverlap(a, boxAt(2.4, 1.4, 1.0, 1.0, kPi / 4)));
-  EXPECT_TRUE(footprintsOverlap(a, boxAt(2.3, 1.3, 1.0, 1.0, kPi / 4)));
+  EXPECT_FALSE(footprintsOverlap(a, boxAt(2.4, 1.4, 1.0, 1.0, std::numbers::pi / 4)));
+  EXPECT_TRUE(footprintsOverlap(a, boxAt(2.3, 1.3, 1.0, 1.0, std::numbers::pi / 4)));
   EXPECT_TRUE(footprintsOverlap(a, boxAt(0, 0, 0.5, 0.5, 0.3)));  // inside
 }
 
 // ---- a global object's class --------------------------------------------------------------------
 
 TEST(ObjectLabel, ViewsVoteWithConfidenceTimesPoints) {
-  const auto label = objectLabel(objectOf({view(1, 0, 100, std::nullopt, ObjectLabel{ObjectClass::kCar, 0.9}),
+  const auto label = objectLabel(mappedObjectOf({view(1, 0, 100, std::nullopt, ObjectLabel{ObjectClass::kCar, 0.9}),
                                            view(2, 0, 50, std::nullopt, ObjectLabel{ObjectClass::kPerson, 0.8}),
                                            view(3, 0, 500, std::nullopt)}));  // unlabelled: no say
   ASSERT_TRUE(label);
   EXPECT_EQ(label->object_class, ObjectClass::kCar);  // 90 against 40
   EXPECT_NEAR(label->confidence, 90.0 / 150.0, 1e-12);
-  EXPECT_FALSE(objectLabel(objectOf({view(1, 0, 100, std::nullopt)})).has_value());
+  EXPECT_FALSE(objectLabel(mappedObjectOf({view(1, 0, 100, std::nullopt)})).has_value());
   // A tie goes to the smaller class number.
-  const auto tie = objectLabel(objectOf({view(1, 0, 10, std::nullopt, ObjectLabel{ObjectClass::kCyclist, 0.5}),
+  const auto tie = objectLabel(mappedObjectOf({view(1, 0, 10, std::nullopt, ObjectLabel{ObjectClass::kCyclist, 0.5}),
                                          view(2, 0, 10, std::nullopt, ObjectLabel{ObjectClass::kPerson, 0.5})}));
   ASSERT_TRUE(tie);
   EXPECT_EQ(tie->object_class, ObjectClass::kPerson);
@@ -201,7 +200,7 @@ TEST(CompactView, RandomViewsComeBackWithinTheStatedBounds) {
   std::uniform_real_distribution<double> position(-300.0, 300.0);
   std::uniform_real_distribution<double> offset(-40.0, 40.0);
   std::uniform_real_distribution<double> side(0.0, 30.0);
-  std::uniform_real_distribution<double> yaw(-kPi / 2.0, kPi / 2.0);
+  std::uniform_real_distribution<double> yaw(-std::numbers::pi / 2.0, std::numbers::pi / 2.0);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   const CompactOrigin origin{0, 0, 0};
   for (int trial = 0; trial < 2000; ++trial) {
@@ -210,7 +209,7 @@ TEST(CompactView, RandomViewsComeBackWithinTheStatedBounds) {
     double length = side(rng), width = side(rng);
     if (width > length) std::swap(length, width);
     OrientedBox b = boxAt(e.center.x() + offset(rng), e.center.y() + offset(rng), length, width,
-                          trial == 0 ? -kPi / 2.0 : yaw(rng), e.center.z() + 0.1 * offset(rng), side(rng));
+                          trial == 0 ? -std::numbers::pi / 2.0 : yaw(rng), e.center.z() + 0.1 * offset(rng), side(rng));
     b.anchor = static_cast<BoxAnchor>(trial % 9);
     e.box = b;
     e.label = ObjectLabel{static_cast<ObjectClass>(trial % 6), trial == 1 ? 1.0 : unit(rng)};
@@ -229,8 +228,8 @@ TEST(CompactView, RandomViewsComeBackWithinTheStatedBounds) {
     EXPECT_NEAR(d.width, b.width, kCompactViewLengthErrorM + 1e-9);
     EXPECT_NEAR(d.height, b.height, kCompactViewLengthErrorM + 1e-9);
     EXPECT_LE(axisAngleBetween(d.yaw, b.yaw), kCompactViewYawErrorRad);
-    EXPECT_GE(d.yaw, -kPi / 2.0);
-    EXPECT_LT(d.yaw, kPi / 2.0);
+    EXPECT_GE(d.yaw, -std::numbers::pi / 2.0);
+    EXPECT_LT(d.yaw, std::numbers::pi / 2.0);
     EXPECT_EQ(d.anchor, b.anchor);
     EXPECT_EQ(decoded->label->object_class, e.label->object_class);
     EXPECT_NEAR(decoded->label->confidence, e.label->confidence, kCompactViewConfidenceError);
@@ -247,7 +246,7 @@ TEST(CompactView, ViewsThatDoNotFitAreNotWritten) {
   misfits.push_back(view(1, 0, 10, boxAt(nan, 0, 2, 1, 0)));
   misfits.push_back(view(1, 0, 10, boxAt(0, 0, 700, 1, 0)));
   misfits.push_back(view(1, 0, 10, boxAt(0, 0, 2, -0.5, 0)));
-  misfits.push_back(view(1, 0, 10, boxAt(0, 0, 2, 1, kPi / 2.0)));
+  misfits.push_back(view(1, 0, 10, boxAt(0, 0, 2, 1, std::numbers::pi / 2.0)));
   misfits.push_back(view(1, 0, 10, boxAt(0, 0, 2, 1, std::numeric_limits<double>::infinity())));
   misfits.push_back(view(1, 0, 10, std::nullopt, ObjectLabel{ObjectClass::kCar, 1.5}));
   misfits.push_back(view(1, 0, 10, std::nullopt, ObjectLabel{ObjectClass::kCar, nan}));

@@ -17,12 +17,14 @@
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 
+#include "tests/support/source_dir.hpp"
+
 namespace fogmap {
 namespace {
 
 namespace fs = std::filesystem;
 
-const fs::path kSourceDir = FOGMAP_SOURCE_DIR;
+using test_support::kSourceDir;
 
 // Each test writes its files into its own fresh directory under the system temp dir.
 class CloudIo : public ::testing::Test {

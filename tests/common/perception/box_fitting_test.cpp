@@ -19,14 +19,14 @@
 #include "common/perception/sensor_clustering.hpp"
 #include "tests/support/scratch_dir.hpp"
 #include "common/perception/preprocess.hpp"
+#include "common/base/angles.hpp"
+#include "tests/support/source_dir.hpp"
 
 namespace fogmap {
 namespace {
 
 namespace fs = std::filesystem;
-const fs::path kSourceDir = FOGMAP_SOURCE_DIR;
-constexpr double kPi = std::numbers::pi;
-constexpr double kDeg = kPi / 180.0;
+using test_support::kSourceDir;
 
 // What a LiDAR at `sensor` sees of a box's sides: points every `spacing` m along the footprint's
 // edges that face the sensor (an edge faces it when the sensor is on its outer side), at heights
@@ -58,7 +58,7 @@ Cloud visibleSides(const OrientedBox& box, const Eigen::Vector3d& sensor, double
 // The brute force of the specification: the best score over [0, 90) degrees in steps of `step`.
 double bruteForceBestScore(const Cloud& points, double step_deg, double d0) {
   double best = 0.0;
-  for (double t = 0.0; t < 90.0; t += step_deg) best = std::max(best, closenessScore(points, t * kDeg, d0));
+  for (double t = 0.0; t < 90.0; t += step_deg) best = std::max(best, closenessScore(points, t * kDegToRad, d0));
   return best;
 }
 
@@ -72,7 +72,7 @@ TEST(BoxFitting, AVehicleSeenOnTwoSidesGivesItsYawSizeCentreAndNearestCorner) {
     truth.length = 4.5;
     truth.width = 1.8;
     truth.height = 1.5;
-    truth.yaw = yaw_deg * kDeg;
+    truth.yaw = yaw_deg * kDegToRad;
     // The sensor 8 m beyond one end and 5 m beyond one side, a different corner each time.
     const double u = (k % 2 == 0 ? 8.0 : -8.0), v = (k / 2 % 2 == 0 ? 5.0 : -5.0);
     ++k;
@@ -81,9 +81,9 @@ TEST(BoxFitting, AVehicleSeenOnTwoSidesGivesItsYawSizeCentreAndNearestCorner) {
     const Cloud points = visibleSides(truth, sensor, 0.05, 0.01, rng);
     const auto box = fitOrientedBox(points, sensor);
     ASSERT_TRUE(box.ok()) << box.error().message;
-    EXPECT_LT(axisAngleBetween(box->yaw, truth.yaw), 1.0 * kDeg) << box->yaw / kDeg;
-    EXPECT_GE(box->yaw, -kPi / 2);
-    EXPECT_LT(box->yaw, kPi / 2);
+    EXPECT_LT(axisAngleBetween(box->yaw, truth.yaw), 1.0 * kDegToRad) << box->yaw / kDegToRad;
+    EXPECT_GE(box->yaw, -std::numbers::pi / 2);
+    EXPECT_LT(box->yaw, std::numbers::pi / 2);
     EXPECT_NEAR(box->length, truth.length, 0.1);
     EXPECT_NEAR(box->width, truth.width, 0.1);
     EXPECT_NEAR(box->height, truth.height - 0.2, 0.31);  // the sides' points start 0.2 m up, every 0.3 m
@@ -100,7 +100,7 @@ TEST(BoxFitting, AVehicleSeenOnTwoSidesGivesItsYawSizeCentreAndNearestCorner) {
 
 TEST(BoxFitting, OnLShapesTheSearchFindsTheBruteForceBestScore) {
   std::mt19937 rng(11);
-  std::uniform_real_distribution<double> yaw(-kPi / 2, kPi / 2), length(1.0, 12.0), ratio(0.2, 1.0), where(-30.0, 30.0);
+  std::uniform_real_distribution<double> yaw(-std::numbers::pi / 2, std::numbers::pi / 2), length(1.0, 12.0), ratio(0.2, 1.0), where(-30.0, 30.0);
   const double d0 = BoxFitParams{}.min_distance_m;
   for (int trial = 0; trial < 40; ++trial) {
     SCOPED_TRACE("trial " + std::to_string(trial));
@@ -118,10 +118,10 @@ TEST(BoxFitting, OnLShapesTheSearchFindsTheBruteForceBestScore) {
     // yaw of that grid (float against double: within 1 %).
     const double found = closenessScore(points, box->yaw, d0);
     const double best = bruteForceBestScore(points, BoxFitParams{}.fine_step_deg, d0);
-    EXPECT_GE(found, 0.99 * best) << "yaw " << box->yaw / kDeg << " truth " << truth.yaw / kDeg;
+    EXPECT_GE(found, 0.99 * best) << "yaw " << box->yaw / kDegToRad << " truth " << truth.yaw / kDegToRad;
     // The footprint's rectangle, whichever of its sides the fit calls the length.
     const double turn = axisAngleBetween(box->yaw, truth.yaw);
-    EXPECT_LT(std::min(turn, kPi / 2 - turn), 1.0 * kDeg) << box->yaw / kDeg << " truth " << truth.yaw / kDeg;
+    EXPECT_LT(std::min(turn, std::numbers::pi / 2 - turn), 1.0 * kDegToRad) << box->yaw / kDegToRad << " truth " << truth.yaw / kDegToRad;
   }
 }
 
@@ -129,11 +129,11 @@ TEST(BoxFitting, AStraightFaceTakesTheMiddleOfTheYawsThatTie) {
   // A 1 m face along 30 degrees, no noise: every yaw within asin(d0 / 1 m) = 0.57 degrees of it
   // keeps all points within d0 of an edge and scores the same; the middle of that run is 30.
   Cloud face;
-  const double c = std::cos(30.0 * kDeg), s = std::sin(30.0 * kDeg);
+  const double c = std::cos(30.0 * kDegToRad), s = std::sin(30.0 * kDegToRad);
   for (int k = 0; k <= 20; ++k) face.push_back({static_cast<float>(8.0 + 0.05 * k * c), static_cast<float>(2.0 + 0.05 * k * s), 0.0F, 0.0F});
   const auto box = fitOrientedBox(face, std::nullopt);
   ASSERT_TRUE(box.ok()) << box.error().message;
-  EXPECT_LT(axisAngleBetween(box->yaw, 30.0 * kDeg), 0.13 * kDeg) << box->yaw / kDeg;
+  EXPECT_LT(axisAngleBetween(box->yaw, 30.0 * kDegToRad), 0.13 * kDegToRad) << box->yaw / kDegToRad;
   EXPECT_NEAR(box->length, 1.0, 1e-5);
 }
 
@@ -181,7 +181,7 @@ TEST(BoxFitting, AnchorsFollowWhereTheSensorIs) {
   EXPECT_TRUE(box.anchorPoint().isApprox(Eigen::Vector3d(8.0, -1.0, 0.0)));
   box.anchor = BoxAnchor::kLeftFace;
   EXPECT_TRUE(box.anchorPoint().isApprox(Eigen::Vector3d(10.0, 1.0, 0.0)));
-  box.yaw = kPi / 2;  // length along +y: the front face is at +y
+  box.yaw = std::numbers::pi / 2;  // length along +y: the front face is at +y
   box.anchor = BoxAnchor::kFrontFace;
   EXPECT_LT((box.anchorPoint() - Eigen::Vector3d(10.0, 2.0, 0.0)).norm(), 1e-12);
   EXPECT_EQ(boxAnchorName(BoxAnchor::kFrontLeft), "front_left");
@@ -194,7 +194,7 @@ TEST(BoxFitting, APriorGrowsTheUnseenSideAwayFromTheSensor) {
   rear.centre = Eigen::Vector3d(20.1, 0.0, -1.0);
   rear.length = 1.8;
   rear.width = 0.2;
-  rear.yaw = kPi / 2;  // the fit's long edge runs along y
+  rear.yaw = std::numbers::pi / 2;  // the fit's long edge runs along y
   const OrientedBox car = grownToPrior(rear, sensor, BoxPrior{});
   EXPECT_NEAR(car.length, 4.4, 1e-12);
   EXPECT_NEAR(car.width, 1.8, 1e-12);
@@ -229,7 +229,7 @@ TEST(BoxFitting, GrownFromItsAnchorAViewKeepsTheFaceItsSensorSaw) {
   rear.centre = Eigen::Vector3d(20.6, 3.0, 0.7);
   rear.length = 1.8;  // across: the car's width
   rear.width = 1.2;
-  rear.yaw = foldedYaw(kPi / 2);  // the fit's long edge runs along y
+  rear.yaw = foldedYaw(std::numbers::pi / 2);  // the fit's long edge runs along y
   rear.anchor = rear.anchorFor(Eigen::Vector3d(0.0, 3.0, 1.7));
   ASSERT_NE(rear.anchor, BoxAnchor::kNone);
   const OrientedBox car = grownFromAnchor(rear, *vehiclePrior(ObjectClass::kCar));
@@ -255,13 +255,13 @@ TEST(BoxFitting, GrownFromItsAnchorAViewKeepsTheFaceItsSensorSaw) {
 
 TEST(BoxFitting, YawsFoldOntoHalfATurn) {
   EXPECT_DOUBLE_EQ(foldedYaw(0.25), 0.25);
-  EXPECT_NEAR(foldedYaw(kPi + 0.25), 0.25, 1e-12);
-  EXPECT_NEAR(foldedYaw(-kPi + 0.25), 0.25, 1e-12);
-  EXPECT_NEAR(foldedYaw(kPi / 2), -kPi / 2, 1e-12);
-  EXPECT_NEAR(foldedYaw(-kPi / 2), -kPi / 2, 1e-12);
-  EXPECT_NEAR(axisAngleBetween(80 * kDeg, -85 * kDeg), 15 * kDeg, 1e-12);
-  EXPECT_NEAR(axisAngleBetween(10 * kDeg, 190 * kDeg), 0.0, 1e-12);
-  EXPECT_NEAR(axisAngleBetween(0.0, kPi / 2), kPi / 2, 1e-12);
+  EXPECT_NEAR(foldedYaw(std::numbers::pi + 0.25), 0.25, 1e-12);
+  EXPECT_NEAR(foldedYaw(-std::numbers::pi + 0.25), 0.25, 1e-12);
+  EXPECT_NEAR(foldedYaw(std::numbers::pi / 2), -std::numbers::pi / 2, 1e-12);
+  EXPECT_NEAR(foldedYaw(-std::numbers::pi / 2), -std::numbers::pi / 2, 1e-12);
+  EXPECT_NEAR(axisAngleBetween(80 * kDegToRad, -85 * kDegToRad), 15 * kDegToRad, 1e-12);
+  EXPECT_NEAR(axisAngleBetween(10 * kDegToRad, 190 * kDegToRad), 0.0, 1e-12);
+  EXPECT_NEAR(axisAngleBetween(0.0, std::numbers::pi / 2), std::numbers::pi / 2, 1e-12);
 }
 
 TEST(BoxFitting, RefusesNoFinitePointAndBadParametersNamingTheField) {
@@ -343,7 +343,7 @@ TEST(BoxFitting, LabelledKittiCarsGetTheirCentreAndYaw) {
       std::cout << "  fitted " << fitted->length << " x " << fitted->width << " m\n";
       const auto box = std::optional<OrientedBox>(grownToPrior(*fitted, Eigen::Vector3d::Zero(), BoxPrior{}));
       const double centre_error = (box->centre.head<2>() - centre.head<2>()).norm();
-      const double yaw_error = axisAngleBetween(box->yaw, label_yaw) / kDeg;
+      const double yaw_error = axisAngleBetween(box->yaw, label_yaw) / kDegToRad;
       std::cout << "  cluster of " << cluster.size() << " points: box " << box->length << " x " << box->width << " m, centre error "
                 << centre_error << " m, yaw error " << yaw_error << " deg, anchor " << boxAnchorName(box->anchor) << "\n";
       EXPECT_LT(centre_error, 1.0);

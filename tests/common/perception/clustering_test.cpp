@@ -10,7 +10,7 @@
 #include "common/geometry/map.hpp"
 #include "common/io/cloud_io.hpp"
 #include "common/perception/preprocess.hpp"
-#include "tests/common/test_data.hpp"
+#include "tests/support/source_dir.hpp"
 
 namespace fogmap {
 namespace {
@@ -275,7 +275,7 @@ TEST(Clustering, EqualsPclOnRandomClouds) {
 }
 
 TEST(Clustering, EqualsPclOnEveryBundledKittiScan) {
-  for (const auto& path : testing::bundledKittiScans()) {
+  for (const auto& path : test_support::bundledKittiScans()) {
     const auto scan = readCloud(path);
     ASSERT_TRUE(scan.ok()) << scan.error().message;
     ClusteringParams params;  // eps 0.35 m, 10 points: the paper's setting
@@ -290,7 +290,7 @@ TEST(Clustering, EqualsPclOnEveryBundledKittiScan) {
 }
 
 TEST(Clustering, EqualsPclOnGroundRemovedScanWithOtherEps) {
-  const auto scan = readCloud(testing::bundledKittiScans().front());
+  const auto scan = readCloud(test_support::bundledKittiScans().front());
   ASSERT_TRUE(scan.ok());
   const auto ground = removeGround(scan->points, GroundParams{});
   ASSERT_TRUE(ground.ok()) << ground.error().message;

@@ -18,13 +18,14 @@
 
 #include "common/io/cloud_io.hpp"
 #include "common/perception/clustering.hpp"
+#include "tests/support/source_dir.hpp"
 
 namespace fogmap {
 namespace {
 
 namespace fs = std::filesystem;
 
-const fs::path kSourceDir = FOGMAP_SOURCE_DIR;
+using test_support::kSourceDir;
 
 void expectPointNear(const Point& actual, const Point& expected, float tolerance = 1e-5F) {
   EXPECT_NEAR(actual.x, expected.x, tolerance);

@@ -15,11 +15,10 @@
 
 #include "common/geometry/map.hpp"
 #include "common/perception/madc.hpp"
+#include "common/base/angles.hpp"
 
 namespace fogmap {
 namespace {
-
-constexpr double kDeg = std::numbers::pi / 180.0;
 
 // `count` angles from `first` in steps of `step` degrees.
 std::vector<double> evenly(double first, double step, int count) {
@@ -123,9 +122,9 @@ Scan scanWorld(const World& world, const BeamTable& beams, const Eigen::Isometry
   std::normal_distribution<double> noise(0.0, noise_m);
   Scan scan;
   for (std::size_t r = 0; r < beams.elevations_deg.size(); ++r) {
-    const double e = beams.elevations_deg[r] * kDeg;
+    const double e = beams.elevations_deg[r] * kDegToRad;
     for (const double az_deg : azimuths_per_ring[r]) {
-      const double az = az_deg * kDeg;
+      const double az = az_deg * kDegToRad;
       const Eigen::Vector3d d = pose.linear() * Eigen::Vector3d(std::cos(e) * std::cos(az), std::cos(e) * std::sin(az), std::sin(e));
       const auto hit = castRay(world, pose.translation(), d);
       if (!hit) continue;
@@ -158,7 +157,7 @@ Scan randomLidarScan(std::mt19937_64& rng, const BeamTable& beams, const Eigen::
   const int objects = 4 + static_cast<int>(uni(rng) * 10.0);
   for (int k = 0; k < objects; ++k) {
     const double range = 3.0 + uni(rng) * (std::min(max_range, 45.0) - 3.0);
-    const double az = (2.0 * uni(rng) - 1.0) * sector_deg * kDeg;
+    const double az = (2.0 * uni(rng) - 1.0) * sector_deg * kDegToRad;
     const Eigen::Vector3d at = pose * Eigen::Vector3d(range * std::cos(az), range * std::sin(az), 0.0);
     const double floor = *world.ground_z;
     if (uni(rng) < 0.5) {
@@ -357,8 +356,8 @@ TEST(SensorClustering, EqualsBruteForceAcrossTheAzimuthSeamAndWithWholeRingWindo
 // lower slice in the last bin and the upper one in the first, and at 30 m the other way round.
 TEST(SensorClustering, LinksCrossTheAzimuthSeam) {
   auto at = [](double range, double elevation_deg, double azimuth_deg) {
-    const double e = elevation_deg * kDeg;
-    const double a = azimuth_deg * kDeg;
+    const double e = elevation_deg * kDegToRad;
+    const double a = azimuth_deg * kDegToRad;
     return Point{static_cast<float>(range * std::cos(e) * std::cos(a)), static_cast<float>(range * std::cos(e) * std::sin(a)),
                  static_cast<float>(range * std::sin(e)), 0.0F};
   };
@@ -493,7 +492,7 @@ TEST(SensorClustering, DepthDiscontinuityKeepsObjectsApart) {
       const auto a = geometry->index(scan.points[i]);
       const auto b = geometry->index(scan.points[j]);
       const double dist = (scan.points[i].xyz() - scan.points[j].xyz()).cast<double>().norm();
-      const double gap = 2.0 * kDeg;
+      const double gap = 2.0 * kDegToRad;
       premise = premise || (std::abs(a.ring - b.ring) == 1 && std::abs(a.azimuth_bin - b.azimuth_bin) <= params.links.azimuth_window &&
                             dist < params.links.ring_gap_slack * gap * std::min(a.range_m, b.range_m) &&
                             std::abs(a.range_m - b.range_m) >= params.clustering.eps_m);
@@ -519,7 +518,7 @@ TEST(SensorClustering, EqualsExactModeWhereRingsAreCloserThanEps) {
     const auto geometry = BeamGeometry::make(params);
     ASSERT_TRUE(geometry.ok());
     for (const auto& p : scan.points) {
-      ASSERT_LT(params.links.ring_gap_slack * (1.0 / 3.0 + 1e-9) * kDeg * geometry->index(p).range_m, params.clustering.eps_m);
+      ASSERT_LT(params.links.ring_gap_slack * (1.0 / 3.0 + 1e-9) * kDegToRad * geometry->index(p).range_m, params.clustering.eps_m);
     }
     const Clustering exact = euclideanClusters(scan.points, params.clustering);
     EXPECT_GT(exact.cluster_count, 0) << "trial " << trial;
@@ -543,14 +542,14 @@ TEST(SensorClustering, BeamIndexIsNearestRingAndAzimuthBin) {
   std::sort(sorted.begin(), sorted.end());
   ASSERT_EQ(geometry->rings(), 10);
   EXPECT_EQ(geometry->azimuthBins(), 515);  // 514.3 steps: the last bin partial
-  for (int r = 0; r < geometry->rings(); ++r) EXPECT_DOUBLE_EQ(geometry->elevationRad(r), sorted[static_cast<std::size_t>(r)] * kDeg);
-  const double step = 0.7 * kDeg;
+  for (int r = 0; r < geometry->rings(); ++r) EXPECT_DOUBLE_EQ(geometry->elevationRad(r), sorted[static_cast<std::size_t>(r)] * kDegToRad);
+  const double step = 0.7 * kDegToRad;
   int checked = 0;
   for (int k = 0; k < 20000; ++k) {
     const Eigen::Vector3d p(30.0 * uni(rng), 30.0 * uni(rng), 30.0 * uni(rng));
     const Point point{static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()), 0.0F};
     const Eigen::Vector3d s = params.links.sensor_pose.inverse() * point.xyz().cast<double>();
-    const double elevation = std::asin(s.z() / s.norm()) / kDeg;
+    const double elevation = std::asin(s.z() / s.norm()) / kDegToRad;
     std::vector<double> distance;
     for (const double e : sorted) distance.push_back(std::abs(e - elevation));
     auto nearest = std::min_element(distance.begin(), distance.end());
@@ -574,7 +573,7 @@ TEST(SensorClustering, BeamIndexIsNearestRingAndAzimuthBin) {
   EXPECT_EQ(plain->index({-10.0F, 0.0F, 0.0F, 0.0F}).azimuth_bin, 0);
   EXPECT_EQ(plain->index({-10.0F, -0.0F, 0.0F, 0.0F}).azimuth_bin, 0);
   auto at = [](double bins_from_back) {
-    const double a = -std::numbers::pi + bins_from_back * 0.2 * kDeg;
+    const double a = -std::numbers::pi + bins_from_back * 0.2 * kDegToRad;
     return Point{static_cast<float>(10.0 * std::cos(a)), static_cast<float>(10.0 * std::sin(a)), 0.0F, 0.0F};
   };
   EXPECT_EQ(plain->index(at(0.5)).azimuth_bin, 0);
@@ -597,7 +596,7 @@ TEST(SensorClustering, AzimuthBinsFollowTheirFormulaAtBinEdges) {
     params.links.beams = {evenly(-15.0, 2.0, 16), step_deg};
     const auto geometry = BeamGeometry::make(params);
     ASSERT_TRUE(geometry.ok());
-    const double step = step_deg * kDeg;
+    const double step = step_deg * kDegToRad;
     auto formula = [&](const Point& p) {
       const double a = std::atan2(static_cast<double>(p.y), static_cast<double>(p.x));
       const int bin = static_cast<int>(std::floor((a == std::numbers::pi ? 0.0 : a + std::numbers::pi) / step));

@@ -11,15 +11,16 @@
 #include "common/sim/camera_truth.hpp"
 #include "common/sim/generators.hpp"
 #include "common/sim/raycaster.hpp"
+#include "tests/support/scene_raycaster.hpp"
 
 namespace fogmap::sim {
 namespace {
 
-SceneObject boxObject(std::uint32_t id, Eigen::Vector2d xy, Eigen::Vector3d size, std::string label = "crate") {
+SceneObject crateObject(std::uint32_t id, Eigen::Vector2d xy, Eigen::Vector3d size) {
   SceneObject o;
   o.id = id;
-  o.name = label + "-" + std::to_string(id);
-  o.label = std::move(label);
+  o.name = "crate-" + std::to_string(id);
+  o.label = "crate";
   o.xy = xy;
   o.parts = {{Shape::kBox, Eigen::Vector3d::Zero(), size, 0.0}};
   return o;
@@ -48,7 +49,7 @@ CameraConfig forwardCamera() {
   return c;
 }
 
-Scene sceneWith(std::vector<SceneObject> objects) {
+Scene cameraSceneWith(std::vector<SceneObject> objects) {
   Scene s;
   s.extent_m = 100.0;
   s.objects = std::move(objects);
@@ -56,11 +57,7 @@ Scene sceneWith(std::vector<SceneObject> objects) {
   return s;
 }
 
-SceneRaycaster raycaster(const Scene& scene, double t = 0.0) {
-  auto r = SceneRaycaster::build(scene, t);
-  EXPECT_TRUE(r.ok()) << (r.ok() ? "" : r.error().message);
-  return std::move(r).value();
-}
+using test_support::raycaster;
 
 TruthDetectionFrame detect(const Scene& scene, const SceneRaycaster& r, std::uint64_t frame,
                            const TruthReplayConfig& config = {}) {
@@ -88,7 +85,7 @@ TEST(CameraTruth, PinholeOfInvertsTheCameraPose) {
 TEST(CameraTruth, BoxStraightAheadProjectsToItsAnalyticBox) {
   // A 2 m cube centred 10 m ahead: its near face (x = 9) spans y and z - 1 in [-1, 1], so the box
   // is the principal point -+ f / 9 both ways.
-  const Scene scene = sceneWith({boxObject(3, {10, 0}, {2, 2, 2})});
+  const Scene scene = cameraSceneWith({crateObject(3, {10, 0}, {2, 2, 2})});
   const auto r = raycaster(scene, 2.5);
   const auto f = detect(scene, r, 0);
   ASSERT_EQ(f.detections.size(), 1U);
@@ -110,7 +107,7 @@ TEST(CameraTruth, PersonStraightAheadIsBoxedByItsSilhouette) {
   // A cylinder of radius r at distance d: the tangents from the camera give f r / sqrt(d^2 - r^2)
   // either side; top and bottom come from the near rim points at d - r.
   const double d = 8.0, radius = 0.3, height = 1.8;
-  const Scene scene = sceneWith({personObject(5, {d, 0}, radius, height)});
+  const Scene scene = cameraSceneWith({personObject(5, {d, 0}, radius, height)});
   const auto r = raycaster(scene);
   const auto f = detect(scene, r, 0);
   ASSERT_EQ(f.detections.size(), 1U);
@@ -126,22 +123,22 @@ TEST(CameraTruth, PersonStraightAheadIsBoxedByItsSilhouette) {
 TEST(CameraTruth, ObjectHiddenBehindAnotherIsNotDetected) {
   // A 1 m crate 20 m ahead lies wholly in the shadow of the 2 m cube at 10 m; moved 4 m aside, it is
   // seen. Both project into the image, so only occlusion can drop the hidden one.
-  const Scene hidden = sceneWith({boxObject(3, {10, 0}, {2, 2, 2}), boxObject(4, {20, 0}, {1, 1, 1})});
+  const Scene hidden = cameraSceneWith({crateObject(3, {10, 0}, {2, 2, 2}), crateObject(4, {20, 0}, {1, 1, 1})});
   const auto f = detect(hidden, raycaster(hidden), 0);
   EXPECT_EQ(f.objects, std::vector<std::uint32_t>{3});
-  const Scene aside = sceneWith({boxObject(3, {10, 0}, {2, 2, 2}), boxObject(4, {20, 4}, {1, 1, 1})});
+  const Scene aside = cameraSceneWith({crateObject(3, {10, 0}, {2, 2, 2}), crateObject(4, {20, 4}, {1, 1, 1})});
   const auto g = detect(aside, raycaster(aside), 0);
   EXPECT_EQ(g.objects, (std::vector<std::uint32_t>{3, 4}));
   // Half hidden (its left half behind the cube's edge): still seen, through its free face centres.
-  const Scene half = sceneWith({boxObject(3, {10, 0}, {2, 2, 2}), boxObject(4, {20, -2.4}, {1, 1, 1})});
+  const Scene half = cameraSceneWith({crateObject(3, {10, 0}, {2, 2, 2}), crateObject(4, {20, -2.4}, {1, 1, 1})});
   EXPECT_EQ(detect(half, raycaster(half), 0).objects, (std::vector<std::uint32_t>{3, 4}));
 }
 
 TEST(CameraTruth, BoxesAreClippedToTheImageAndObjectsOutsideItOrBehindAreNot) {
   // 10 m ahead the image spans y in [-6.4, 6.4]: a cube at y = -6.4 (the right edge) is cut in half;
   // one at y = -10 is outside the field of view; one behind the camera is not in front of it.
-  const Scene scene = sceneWith({boxObject(3, {10, -6.4}, {2, 2, 2}), boxObject(4, {10, -10}, {2, 2, 2}),
-                                 boxObject(5, {-10, 0}, {2, 2, 2})});
+  const Scene scene = cameraSceneWith({crateObject(3, {10, -6.4}, {2, 2, 2}), crateObject(4, {10, -10}, {2, 2, 2}),
+                                       crateObject(5, {-10, 0}, {2, 2, 2})});
   const auto f = detect(scene, raycaster(scene), 0);
   ASSERT_EQ(f.objects, std::vector<std::uint32_t>{3});
   const camera::Box2d& b = f.detections[0].box;
@@ -154,9 +151,9 @@ TEST(CameraTruth, BoxesAreClippedToTheImageAndObjectsOutsideItOrBehindAreNot) {
 Scene rowOfCrates() {
   std::vector<SceneObject> objects;
   for (std::uint32_t i = 0; i < 12; ++i) {
-    objects.push_back(boxObject(i + 1, {15.0, -5.5 + static_cast<double>(i)}, {0.6, 0.6, 0.6}));
+    objects.push_back(crateObject(i + 1, {15.0, -5.5 + static_cast<double>(i)}, {0.6, 0.6, 0.6}));
   }
-  return sceneWith(std::move(objects));
+  return cameraSceneWith(std::move(objects));
 }
 
 TEST(CameraTruth, MissRateDropsItsShareOfDetectionsAndIsByteIdenticalPerSeed) {

@@ -16,6 +16,7 @@
 #include "common/perception/lidar_models.hpp"
 #include "common/sim/raycaster.hpp"
 #include "common/sim/scene.hpp"
+#include "tests/support/scene_raycaster.hpp"
 
 namespace fogmap::sim {
 namespace {
@@ -53,11 +54,7 @@ Scene sceneWith(std::vector<SceneObject> objects) {
   return s;
 }
 
-SceneRaycaster raycaster(const Scene& scene, double t = 0.0) {
-  auto r = SceneRaycaster::build(scene, t);
-  EXPECT_TRUE(r.ok()) << (r.ok() ? "" : r.error().message);
-  return std::move(r).value();
-}
+using test_support::raycaster;
 
 TEST(SimBeams, TablesHaveTheMakersRingsAndAngles) {
   struct Expect {

@@ -15,7 +15,7 @@
 
 #include "common/io/cloud_io.hpp"
 #include "common/tracking/displacement.hpp"
-#include "tests/common/test_data.hpp"
+#include "tests/support/source_dir.hpp"
 
 namespace fogmap::tracking {
 namespace {
@@ -265,7 +265,7 @@ TEST(DisplacementParams, InvalidParamsAreRefusedNamingTheField) {
 }
 
 TEST(DisplacementDetector, RealKittiFramesGiveCentroids) {
-  const auto dir = testing::dataDir() / "kitti_raw_seq_a";
+  const auto dir = test_support::kittiSequenceDir();
   const auto f0 = readKittiBin(dir / "0000000000.bin");
   const auto f1 = readKittiBin(dir / "0000000001.bin");
   ASSERT_TRUE(f0.ok()) << f0.error().message;

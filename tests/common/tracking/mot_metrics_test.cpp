@@ -22,7 +22,7 @@ namespace {
 
 constexpr double kTol = 1e-12;
 
-MotObject at(std::int64_t id, double x, double y) { return MotObject{id, Eigen::Vector2d(x, y)}; }
+MotObject objectAt(std::int64_t id, double x, double y) { return MotObject{id, Eigen::Vector2d(x, y)}; }
 
 ClearMot clearOf(const std::vector<MotFrame>& frames, const MotConfig& config = {}) {
   Expected<ClearMot> result = clearMot(frames, config);
@@ -43,8 +43,8 @@ std::vector<MotFrame> swappingTracks(int frames, int swap_at) {
   for (int f = 0; f < frames; ++f) {
     const double x = f;
     const bool swapped = f >= swap_at;
-    out.push_back(MotFrame{{at(1, x, 0.0), at(2, x, 10.0)},
-                           {at(10, x, swapped ? 10.0 : 0.0), at(20, x, swapped ? 0.0 : 10.0)}});
+    out.push_back(MotFrame{{objectAt(1, x, 0.0), objectAt(2, x, 10.0)},
+                           {objectAt(10, x, swapped ? 10.0 : 0.0), objectAt(20, x, swapped ? 0.0 : 10.0)}});
   }
   return out;
 }
@@ -53,7 +53,7 @@ TEST(MotMetrics, PerfectTrackingGivesMotaOneAndMotpTheConstantOffset) {
   // Every track sits (0.3, 0.4) from its object: 0.5 m off, always the same identity.
   std::vector<MotFrame> frames;
   for (int f = 0; f < 5; ++f) {
-    frames.push_back(MotFrame{{at(1, f, 0.0), at(2, f, 5.0)}, {at(7, f + 0.3, 0.4), at(8, f + 0.3, 5.4)}});
+    frames.push_back(MotFrame{{objectAt(1, f, 0.0), objectAt(2, f, 5.0)}, {objectAt(7, f + 0.3, 0.4), objectAt(8, f + 0.3, 5.4)}});
   }
   const Expected<MotReport> report = evaluateMot(frames);
   ASSERT_TRUE(report.ok()) << report.error().message;
@@ -118,8 +118,8 @@ TEST(MotMetrics, MissedMiddleFrameIsOneMissAndOneFragmentation) {
   // Track 7 follows object 1 for 5 frames but is absent in frame 2.
   std::vector<MotFrame> frames;
   for (int f = 0; f < 5; ++f) {
-    MotFrame frame{{at(1, f, 0.0)}, {}};
-    if (f != 2) frame.hypotheses.push_back(at(7, f, 0.1));
+    MotFrame frame{{objectAt(1, f, 0.0)}, {}};
+    if (f != 2) frame.hypotheses.push_back(objectAt(7, f, 0.1));
     frames.push_back(frame);
   }
   const ClearMot clear = clearOf(frames);
@@ -140,9 +140,9 @@ TEST(MotMetrics, SwitchIsMeasuredAgainstTheLastMatchAcrossAGap) {
   // Object 1: track 7 in frame 0, nothing in frame 1, track 8 in frame 2. Frame 1 breaks the
   // previous-frame correspondence, but the identity still changed: one switch, one fragmentation.
   const std::vector<MotFrame> frames{
-      MotFrame{{at(1, 0.0, 0.0)}, {at(7, 0.0, 0.0)}},
-      MotFrame{{at(1, 1.0, 0.0)}, {}},
-      MotFrame{{at(1, 2.0, 0.0)}, {at(8, 2.0, 0.0)}},
+      MotFrame{{objectAt(1, 0.0, 0.0)}, {objectAt(7, 0.0, 0.0)}},
+      MotFrame{{objectAt(1, 1.0, 0.0)}, {}},
+      MotFrame{{objectAt(1, 2.0, 0.0)}, {objectAt(8, 2.0, 0.0)}},
   };
   const ClearMot clear = clearOf(frames);
   EXPECT_EQ(clear.id_switches, 1U);
@@ -155,9 +155,9 @@ TEST(MotMetrics, SwitchIsMeasuredAgainstTheLastMatchAcrossAGap) {
 TEST(MotMetrics, TruthAbsentFromAFrameIsNeitherMissNorFragmentation) {
   // Object 1 is not in frame 1 (left the scene); its track stays and is then a false positive.
   const std::vector<MotFrame> frames{
-      MotFrame{{at(1, 0.0, 0.0)}, {at(7, 0.0, 0.0)}},
-      MotFrame{{}, {at(7, 1.0, 0.0)}},
-      MotFrame{{at(1, 2.0, 0.0)}, {at(7, 2.0, 0.0)}},
+      MotFrame{{objectAt(1, 0.0, 0.0)}, {objectAt(7, 0.0, 0.0)}},
+      MotFrame{{}, {objectAt(7, 1.0, 0.0)}},
+      MotFrame{{objectAt(1, 2.0, 0.0)}, {objectAt(7, 2.0, 0.0)}},
   };
   const ClearMot clear = clearOf(frames);
   EXPECT_EQ(clear.misses, 0U);
@@ -171,8 +171,8 @@ TEST(MotMetrics, ExtraHypothesesAreFalsePositives) {
   // Track 7 is exact for 3 frames; track 9 is 50 m away in all 3; track 11 appears once, 3 m away.
   std::vector<MotFrame> frames;
   for (int f = 0; f < 3; ++f) {
-    MotFrame frame{{at(1, f, 0.0)}, {at(7, f, 0.0), at(9, f, 50.0)}};
-    if (f == 1) frame.hypotheses.push_back(at(11, f, 3.0));
+    MotFrame frame{{objectAt(1, f, 0.0)}, {objectAt(7, f, 0.0), objectAt(9, f, 50.0)}};
+    if (f == 1) frame.hypotheses.push_back(objectAt(11, f, 3.0));
     frames.push_back(frame);
   }
   const ClearMot clear = clearOf(frames);
@@ -191,8 +191,8 @@ TEST(MotMetrics, KeepsAValidCorrespondenceEvenWhenAnotherHypothesisIsCloser) {
   // gate, and track 8 has come within 0.1 m. CLEAR MOT keeps 1-7 (no switch) and 8 is a false
   // positive; re-matching by distance alone would have switched to 8.
   const std::vector<MotFrame> frames{
-      MotFrame{{at(1, 0.0, 0.0)}, {at(7, 0.5, 0.0)}},
-      MotFrame{{at(1, 0.0, 0.0)}, {at(7, 0.6, 0.0), at(8, 0.1, 0.0)}},
+      MotFrame{{objectAt(1, 0.0, 0.0)}, {objectAt(7, 0.5, 0.0)}},
+      MotFrame{{objectAt(1, 0.0, 0.0)}, {objectAt(7, 0.6, 0.0), objectAt(8, 0.1, 0.0)}},
   };
   const ClearMot clear = clearOf(frames);
   EXPECT_EQ(clear.id_switches, 0U);
@@ -204,8 +204,8 @@ TEST(MotMetrics, KeepsAValidCorrespondenceEvenWhenAnotherHypothesisIsCloser) {
 TEST(MotMetrics, CorrespondenceLeavingTheGateIsRematched) {
   // Frame 1: track 7 has drifted 1.5 m away (beyond the gate), track 8 is on the object: a switch.
   const std::vector<MotFrame> frames{
-      MotFrame{{at(1, 0.0, 0.0)}, {at(7, 0.2, 0.0)}},
-      MotFrame{{at(1, 0.0, 0.0)}, {at(7, 1.5, 0.0), at(8, 0.1, 0.0)}},
+      MotFrame{{objectAt(1, 0.0, 0.0)}, {objectAt(7, 0.2, 0.0)}},
+      MotFrame{{objectAt(1, 0.0, 0.0)}, {objectAt(7, 1.5, 0.0), objectAt(8, 0.1, 0.0)}},
   };
   const ClearMot clear = clearOf(frames);
   EXPECT_EQ(clear.id_switches, 1U);
@@ -217,7 +217,7 @@ TEST(MotMetrics, MatchesTheMostPairsRatherThanTheNearestFirst) {
   // Object 1 at 0, object 2 at 1.5; tracks at 0.8 and 2.2. Nearest-first takes 2-(0.8) at 0.7 and
   // leaves object 1 alone; the optimum pairs 1-(0.8) and 2-(2.2).
   const std::vector<MotFrame> frames{
-      MotFrame{{at(1, 0.0, 0.0), at(2, 1.5, 0.0)}, {at(7, 0.8, 0.0), at(8, 2.2, 0.0)}},
+      MotFrame{{objectAt(1, 0.0, 0.0), objectAt(2, 1.5, 0.0)}, {objectAt(7, 0.8, 0.0), objectAt(8, 2.2, 0.0)}},
   };
   const ClearMot clear = clearOf(frames);
   EXPECT_EQ(clear.matches, 2U);
@@ -227,7 +227,7 @@ TEST(MotMetrics, MatchesTheMostPairsRatherThanTheNearestFirst) {
 
 TEST(MotMetrics, PairAtExactlyTheThresholdIsNoMatch) {
   // The gate is strict (distance < threshold), as in CLEAR MOT.
-  const std::vector<MotFrame> frames{MotFrame{{at(1, 0.0, 0.0)}, {at(7, 1.0, 0.0)}}};
+  const std::vector<MotFrame> frames{MotFrame{{objectAt(1, 0.0, 0.0)}, {objectAt(7, 1.0, 0.0)}}};
   const ClearMot clear = clearOf(frames, MotConfig{1.0});
   EXPECT_EQ(clear.matches, 0U);
   EXPECT_EQ(clear.misses, 1U);
@@ -258,11 +258,11 @@ TEST(MotMetrics, PairAtExactlyTheThresholdIsNoMatch) {
 //  IDP 7/11, IDR 7/10, IDF1 = 14 / 21.
 std::vector<MotFrame> workedExample() {
   return {
-      MotFrame{{at(1, 0, 0), at(2, 5, 0)}, {at(10, 0.2, 0), at(20, 5, 0.4)}},
-      MotFrame{{at(1, 1, 0), at(2, 5, 1)}, {at(10, 1, 0.3), at(20, 5, 1), at(30, 1.5, 0)}},
-      MotFrame{{at(1, 2, 0), at(2, 5, 2)}, {at(20, 5, 2.5), at(30, 2.6, 0)}},
-      MotFrame{{at(1, 3, 0), at(2, 5, 3)}, {at(10, 3.2, 0), at(30, 3.5, 0)}},
-      MotFrame{{at(1, 4, 0), at(2, 5, 4)}, {at(10, 5, 4.1), at(30, 4, 0.2)}},
+      MotFrame{{objectAt(1, 0, 0), objectAt(2, 5, 0)}, {objectAt(10, 0.2, 0), objectAt(20, 5, 0.4)}},
+      MotFrame{{objectAt(1, 1, 0), objectAt(2, 5, 1)}, {objectAt(10, 1, 0.3), objectAt(20, 5, 1), objectAt(30, 1.5, 0)}},
+      MotFrame{{objectAt(1, 2, 0), objectAt(2, 5, 2)}, {objectAt(20, 5, 2.5), objectAt(30, 2.6, 0)}},
+      MotFrame{{objectAt(1, 3, 0), objectAt(2, 5, 3)}, {objectAt(10, 3.2, 0), objectAt(30, 3.5, 0)}},
+      MotFrame{{objectAt(1, 4, 0), objectAt(2, 5, 4)}, {objectAt(10, 5, 4.1), objectAt(30, 4, 0.2)}},
   };
 }
 
@@ -300,7 +300,7 @@ TEST(MotMetrics, WorkedExampleMatchesTheHandComputedTable) {
 }
 
 TEST(MotMetrics, NoTruthLeavesTheRatiosUndefined) {
-  const std::vector<MotFrame> frames{MotFrame{{}, {at(7, 0, 0)}}};
+  const std::vector<MotFrame> frames{MotFrame{{}, {objectAt(7, 0, 0)}}};
   const Expected<MotReport> report = evaluateMot(frames);
   ASSERT_TRUE(report.ok()) << report.error().message;
   EXPECT_TRUE(std::isnan(report->clear.mota));
@@ -367,10 +367,10 @@ TEST(Idf1, HungarianMatchingEqualsTheBestOfAllOneToOneMatchings) {
     std::size_t detections = 0;
     for (MotFrame& frame : frames) {
       for (const std::int64_t id : truth_ids) {
-        if (present(rng)) frame.truth.push_back(at(id, coordinate(rng), coordinate(rng)));
+        if (present(rng)) frame.truth.push_back(objectAt(id, coordinate(rng), coordinate(rng)));
       }
       for (const std::int64_t id : hyp_ids) {
-        if (present(rng)) frame.hypotheses.push_back(at(id, coordinate(rng), coordinate(rng)));
+        if (present(rng)) frame.hypotheses.push_back(objectAt(id, coordinate(rng), coordinate(rng)));
       }
       detections += frame.truth.size() + frame.hypotheses.size();
     }
@@ -454,11 +454,11 @@ TEST(MotInput, NonFinitePositionIsRefusedNamingFrameAndId) {
 
 TEST(MotInput, DuplicateIdInAFrameIsRefusedNamingFrameAndId) {
   std::vector<MotFrame> frames = workedExample();
-  frames[1].hypotheses.push_back(at(20, 9, 9));
+  frames[1].hypotheses.push_back(objectAt(20, 9, 9));
   expectRefused(frames, {}, {"frame 1", "hypothesis id 20", "twice"});
 
   frames = workedExample();
-  frames[3].truth.push_back(at(1, 7, 7));
+  frames[3].truth.push_back(objectAt(1, 7, 7));
   expectRefused(frames, {}, {"frame 3", "truth id 1", "twice"});
 }
 
@@ -472,7 +472,7 @@ TEST(MotInput, ThresholdMustBePositiveAndFinite) {
 
 TEST(MotInput, SameIdAsTruthAndHypothesisIsAllowed) {
   // Truth and hypothesis ids are separate name spaces.
-  const std::vector<MotFrame> frames{MotFrame{{at(1, 0, 0)}, {at(1, 0, 0)}}};
+  const std::vector<MotFrame> frames{MotFrame{{objectAt(1, 0, 0)}, {objectAt(1, 0, 0)}}};
   EXPECT_TRUE(validateMotInput(frames, {}).ok());
   EXPECT_DOUBLE_EQ(clearOf(frames).mota, 1.0);
 }
@@ -489,10 +489,10 @@ TEST(MotHeadings, TheAngleBetweenHeadingsIsScoredOverMatchesWhereBothHaveOne) {
   // A car (truth 1, heading 170 deg) tracked by 10 with -170 deg: 20 degrees apart across +-180.
   // A person (truth 2, no heading) tracked by 20 with one: not scored. Truth 3 (heading 0) tracked
   // by 30 with 90 deg, then without a heading.
-  frames.push_back(MotFrame{{with(at(1, 0, 0), 170 * deg), at(2, 5, 0), with(at(3, 10, 0), 0.0)},
-                            {with(at(10, 0.1, 0), -170 * deg), with(at(20, 5, 0), 1.0), with(at(30, 10, 0), 90 * deg)}});
-  frames.push_back(MotFrame{{with(at(1, 1, 0), 170 * deg), at(2, 5, 1), with(at(3, 10, 1), 0.0)},
-                            {with(at(10, 1, 0), 175 * deg), at(20, 5, 1), at(30, 10, 1)}});
+  frames.push_back(MotFrame{{with(objectAt(1, 0, 0), 170 * deg), objectAt(2, 5, 0), with(objectAt(3, 10, 0), 0.0)},
+                            {with(objectAt(10, 0.1, 0), -170 * deg), with(objectAt(20, 5, 0), 1.0), with(objectAt(30, 10, 0), 90 * deg)}});
+  frames.push_back(MotFrame{{with(objectAt(1, 1, 0), 170 * deg), objectAt(2, 5, 1), with(objectAt(3, 10, 1), 0.0)},
+                            {with(objectAt(10, 1, 0), 175 * deg), objectAt(20, 5, 1), objectAt(30, 10, 1)}});
   const auto report = evaluateMot(frames);
   ASSERT_TRUE(report.ok()) << report.error().message;
   EXPECT_EQ(report->clear.matches, 6U);
@@ -506,10 +506,12 @@ TEST(MotHeadings, TheAngleBetweenHeadingsIsScoredOverMatchesWhereBothHaveOne) {
   EXPECT_EQ(report->clear.mota, 1.0) << "a wrong heading is no miss";
 
   // A heading opposite the truth's is the largest error, 180 degrees; a non-finite one is refused.
-  const auto opposite = evaluateMot(std::vector<MotFrame>{MotFrame{{with(at(1, 0, 0), 0.5)}, {with(at(9, 0, 0), 0.5 - std::numbers::pi)}}});
+  const auto opposite = evaluateMot(
+      std::vector<MotFrame>{MotFrame{{with(objectAt(1, 0, 0), 0.5)}, {with(objectAt(9, 0, 0), 0.5 - std::numbers::pi)}}});
   ASSERT_TRUE(opposite.ok());
   EXPECT_NEAR(opposite->heading_error_deg.max_m, 180.0, 1e-9);
-  const auto bad = evaluateMot(std::vector<MotFrame>{MotFrame{{at(1, 0, 0)}, {with(at(9, 0, 0), std::numeric_limits<double>::quiet_NaN())}}});
+  const auto bad = evaluateMot(
+      std::vector<MotFrame>{MotFrame{{objectAt(1, 0, 0)}, {with(objectAt(9, 0, 0), std::numeric_limits<double>::quiet_NaN())}}});
   ASSERT_FALSE(bad.ok());
   EXPECT_NE(bad.error().message.find("hypothesis id 9 has a non-finite heading"), std::string::npos) << bad.error().message;
 }

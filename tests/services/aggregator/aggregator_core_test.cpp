@@ -15,23 +15,21 @@
 #include "common/perception/clustering.hpp"
 #include "common/perception/madc.hpp"
 #include "tests/support/topology_builders.hpp"
+#include "tests/support/epoch_times.hpp"
 
 namespace fogmap {
 namespace {
 
-constexpr std::int64_t kMs = 1'000'000;
-constexpr std::int64_t kPeriodNs = 100 * kMs;  // the cluster period of every test
-constexpr std::int64_t kT0 = 1'700'000'000'000'000'000;  // an arbitrary unix time in ns
-constexpr std::uint64_t kE0 = kT0 / kPeriodNs;           // the epoch holding kT0
-constexpr std::uint32_t kRoot = 100;
-constexpr std::size_t kWireBytes = 1000;  // the serialised size the tests claim for an upload
+// Epoch k of the tests is E(k), at(k, offset_ms) a time in it (its deadline at one level is offset 80).
+using test_support::at;
+using test_support::E;
+using test_support::kE0;
+using test_support::kMs;
+using test_support::kPeriodNs;
+using test_support::kRoot;
+using test_support::kT0;
 
-// Epoch k of the tests, and a time `offset_ms` after its start (its deadline at one level is
-// offset 80).
-std::uint64_t E(std::int64_t k) { return static_cast<std::uint64_t>(static_cast<std::int64_t>(kE0) + k); }
-std::int64_t at(std::int64_t k, double offset_ms) {
-  return static_cast<std::int64_t>(E(k)) * kPeriodNs + static_cast<std::int64_t>(offset_ms * kMs);
-}
+constexpr std::size_t kWireBytes = 1000;  // the serialised size the tests claim for an upload
 
 AggregatorConfig starConfig(std::vector<std::uint32_t> edges, Mode mode = Mode::kMadc, bool is_root = true) {
   AggregatorConfig config;

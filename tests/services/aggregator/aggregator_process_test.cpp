@@ -22,6 +22,7 @@
 #include "services/merge_aggregator/aggregator_process.hpp"
 #include "tests/support/free_ports.hpp"
 #include "tests/support/served_aggregator.hpp"
+#include "tests/support/source_dir.hpp"
 
 namespace fogmap {
 namespace {
@@ -30,9 +31,9 @@ using namespace std::chrono_literals;
 using test_support::GlobalMapWatcher;
 using test_support::ServedAggregator;
 
-constexpr auto kRpcTimeout = 30s;  // bounds a call only so that a broken process fails the test
+constexpr auto kProcessRpcTimeout = 30s;  // bounds a call only so that a broken process fails the test
 
-std::filesystem::path dataDir() { return std::filesystem::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_raw_seq_a"; }
+using test_support::kittiSequenceDir;
 
 // `node`'s map of one ellipsoid for the epoch now.
 v1::Upload mapNow(const TopologyConfig& topology, std::uint32_t node, std::uint64_t sequence) {
@@ -59,7 +60,7 @@ v1::Upload mapNow(const TopologyConfig& topology, std::uint32_t node, std::uint6
 std::optional<std::uint64_t> pushAnswered(const std::shared_ptr<grpc::Channel>& channel, const v1::Upload& upload) {
   auto stub = v1::MapIngest::NewStub(channel);
   grpc::ClientContext context;
-  context.set_deadline(std::chrono::system_clock::now() + kRpcTimeout);
+  context.set_deadline(std::chrono::system_clock::now() + kProcessRpcTimeout);
   context.set_wait_for_ready(true);
   auto stream = stub->Push(&context);
   v1::Ack ack;
@@ -79,7 +80,7 @@ TopologyConfig withFreePorts(TopologyConfig topology) {
 TEST(AggregatorProcess, ARootPublishesEveryUploadItAppliedBeforeItEndsItsSubscribersStreamsAndExitsZero) {
   // Two edges, one of them silent: the epoch waits for its deadline, so only the drain publishes
   // it when the stop comes first.
-  const TopologyConfig topology = withFreePorts(makeStarTopology(2, dataDir(), 0));
+  const TopologyConfig topology = withFreePorts(makeStarTopology(2, kittiSequenceDir(), 0));
   const std::uint32_t edge = topology.find("edge-1")->id;
   ServedAggregator root(topology, "sink");
   GlobalMapWatcher watcher(root.channel());
@@ -95,7 +96,7 @@ TEST(AggregatorProcess, ARootPublishesEveryUploadItAppliedBeforeItEndsItsSubscri
 
 TEST(AggregatorProcess, AnIntermediateFlushesWhatItAppliedToItsParentBeforeItExitsZero) {
   // sink <- agg-1 <- edge-1, edge-2; sink <- agg-2 <- edge-3, edge-4.
-  const TopologyConfig topology = withFreePorts(makeTreeTopology(4, dataDir(), 0));
+  const TopologyConfig topology = withFreePorts(makeTreeTopology(4, kittiSequenceDir(), 0));
   const std::uint32_t edge = topology.find("edge-1")->id;
   ServedAggregator sink(topology, "sink");
   GlobalMapWatcher watcher(sink.channel());

@@ -23,6 +23,9 @@
 #include "services/merge_aggregator/global_map_service.hpp"
 #include "services/merge_aggregator/ingest_service.hpp"
 #include "tests/support/eventually.hpp"
+#include "tests/support/epoch_times.hpp"
+#include "tests/support/test_server.hpp"
+#include "tests/support/topology_builders.hpp"
 
 namespace fogmap {
 namespace {
@@ -31,19 +34,17 @@ using namespace std::chrono_literals;
 // The server side of a call has no client-visible signal: tests poll it, bounded.
 using test_support::eventually;
 
-constexpr std::size_t kMaxMessageBytes = 64U << 20;
-constexpr std::uint32_t kRoot = 100;
-constexpr auto kRpcTimeout = 10s;
-constexpr std::int64_t kMs = 1'000'000;
-constexpr std::int64_t kPeriodNs = 100 * kMs;
-constexpr std::int64_t kT0 = 1'700'000'000'000'000'000;
-constexpr std::uint64_t kE0 = kT0 / kPeriodNs;
+// Epoch k of the tests is E(k), at(k, offset_ms) a time in it (deadline at one level: offset 80).
+using test_support::at;
+using test_support::E;
+using test_support::kE0;
+using test_support::kMaxMessageBytes;
+using test_support::kMs;
+using test_support::kPeriodNs;
+using test_support::kRoot;
+using test_support::kT0;
 
-// Epoch k of the tests and a time `offset_ms` into it (deadline at one level: offset 80).
-std::uint64_t E(std::int64_t k) { return static_cast<std::uint64_t>(static_cast<std::int64_t>(kE0) + k); }
-std::int64_t at(std::int64_t k, double offset_ms) {
-  return static_cast<std::int64_t>(E(k)) * kPeriodNs + static_cast<std::int64_t>(offset_ms * kMs);
-}
+constexpr auto kRpcTimeout = 10s;
 
 // The aggregator's clock, set by the test: deadlines pass when the test says so.
 class FakeClock {

@@ -16,15 +16,19 @@
 #include "common/geometry/map.hpp"
 #include "services/common/proto_convert.hpp"
 #include "services/merge_aggregator/aggregator_core.hpp"
+#include "tests/support/epoch_times.hpp"
+#include "tests/support/topology_builders.hpp"
 
 namespace fogmap {
 namespace {
 
-constexpr std::int64_t kMs = 1'000'000;
-constexpr std::uint64_t kEpoch = 17'000'000'000;  // epoch k starts at k x 100 ms
-constexpr std::int64_t kNow = static_cast<std::int64_t>(kEpoch) * 100 * kMs + 5 * kMs;  // before any deadline
+using test_support::kE0;
+using test_support::kMs;
+using test_support::kRoot;
+using test_support::startOf;
+
+constexpr std::int64_t kNow = startOf(kE0) + 5 * kMs;  // before any deadline
 constexpr std::uint32_t kEdges = 8;
-constexpr std::uint32_t kRoot = 100;
 constexpr int kSchedules = 1000;
 
 // Eight edges' local maps over one 12 m square: dense enough that objects span nodes.
@@ -38,7 +42,7 @@ std::vector<Map> scene(std::uint64_t seed) {
     std::vector<Ellipsoid> ellipsoids;
     for (std::uint32_t k = 0; k < 6; ++k) {
       Ellipsoid e;
-      e.id = {node, kEpoch, k};
+      e.id = {node, kE0, k};
       e.center = {pos(rng), pos(rng), 1.0};
       e.shape = Eigen::Vector3d(axis(rng), axis(rng), axis(rng)).cwiseAbs2().asDiagonal();
       e.point_count = points(rng);
@@ -109,7 +113,7 @@ std::string runSchedule(std::uint32_t leaves, const std::vector<Map>& maps, std:
   for (std::uint32_t node = 1; node <= kEdges; ++node) {
     MapMessage message;
     message.header.node = node;
-    message.header.epoch = kEpoch;
+    message.header.epoch = kE0;
     message.header.sensor_time_ns = kNow;
     message.header.contributing_nodes = {node};
     message.map = maps[node - 1];
@@ -146,12 +150,12 @@ std::string runSchedule(std::uint32_t leaves, const std::vector<Map>& maps, std:
   // opened at its first poll and nobody reports, is published at its deadline (60 ms after the
   // epoch began), and the complete epoch right after it, before its own deadline.
   MergeAggregator& root = cluster.aggregators.at(kRoot);
-  const std::int64_t previous_due = static_cast<std::int64_t>(kEpoch - 1) * 100 * kMs + root.config().levels * 80 * kMs;
+  const std::int64_t previous_due = startOf(kE0 - 1) + root.config().levels * 80 * kMs;
   for (auto& output : root.poll(std::max(kNow, previous_due))) {
-    EXPECT_TRUE(output.complete || output.epoch < kEpoch);
+    EXPECT_TRUE(output.complete || output.epoch < kE0);
     globals.push_back(std::get<GlobalMapMessage>(output.message));
   }
-  std::erase_if(globals, [](const GlobalMapMessage& g) { return g.header.epoch != kEpoch; });
+  std::erase_if(globals, [](const GlobalMapMessage& g) { return g.header.epoch != kE0; });
   EXPECT_EQ(globals.size(), 1U) << "one emission, no revision: duplicates change nothing";
   if (globals.empty()) return {};
   EXPECT_TRUE(globals[0].header.missing_nodes.empty());

@@ -22,29 +22,31 @@
 #include "services/merge_aggregator/aggregator_runtime.hpp"
 #include "services/merge_aggregator/global_map_service.hpp"
 #include "services/merge_aggregator/ingest_service.hpp"
+#include "tests/support/epoch_times.hpp"
+#include "tests/support/test_server.hpp"
 
 namespace fogmap {
 namespace {
 
 using namespace std::chrono_literals;
 
-constexpr std::size_t kMaxMessageBytes = 64U << 20;
-constexpr std::int64_t kMs = 1'000'000;
-constexpr std::int64_t kPeriodNs = 100 * kMs;
-constexpr std::int64_t kT0 = 1'700'000'000'000'000'000;
-constexpr std::uint64_t kE0 = kT0 / kPeriodNs;
-const CertTime kNow = std::chrono::system_clock::now();
+using test_support::kE0;
+using test_support::kMaxMessageBytes;
+using test_support::kMs;
+using test_support::kT0;
+
+const CertTime kCertNow = std::chrono::system_clock::now();  // the certificates' validity is around it
 
 // A certificate authority of the test and the identities it issues.
 class TestPki {
  public:
   TestPki() {
-    auto ca = makeCertificateAuthority("fogmap test CA", kNow - 72h, kNow + 24h);
+    auto ca = makeCertificateAuthority("fogmap test CA", kCertNow - 72h, kCertNow + 24h);
     EXPECT_TRUE(ca.ok()) << ca.error().message;
     if (ca.ok()) ca_ = *ca;
   }
   // `name`'s identity, valid now unless told otherwise, trusting this CA.
-  TlsPem identity(const std::string& name, CertTime not_before = kNow - 1h, CertTime not_after = kNow + 1h) const {
+  TlsPem identity(const std::string& name, CertTime not_before = kCertNow - 1h, CertTime not_after = kCertNow + 1h) const {
     auto leaf = issueCertificate(ca_, {name, {name}, {"127.0.0.1"}, not_before, not_after});
     EXPECT_TRUE(leaf.ok()) << leaf.error().message;
     return leaf.ok() ? TlsPem{ca_.cert, leaf->cert, leaf->key, name} : TlsPem{};
@@ -261,7 +263,7 @@ TEST(TlsService, ClientsWithoutAValidCertificateNeverGetPastTheHandshake) {
       {"plaintext", grpc::InsecureChannelCredentials()},
       {"TLS without a client certificate", grpc::SslCredentials(no_certificate)},
       {"a certificate from another CA", channelCredentials(wrong_ca)},
-      {"an expired certificate", channelCredentials(pki.identity("edge-1", kNow - 48h, kNow - 24h))},
+      {"an expired certificate", channelCredentials(pki.identity("edge-1", kCertNow - 48h, kCertNow - 24h))},
   };
   for (const auto& [what, credentials] : clients) {
     SCOPED_TRACE(what);

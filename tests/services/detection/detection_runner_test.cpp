@@ -29,13 +29,14 @@
 #include "services/common/metrics.hpp"
 #include "services/detection/detection_metrics.hpp"
 #include "tests/support/metric_values.hpp"
+#include "tests/support/source_dir.hpp"
 
 namespace fogmap {
 namespace {
 
 using namespace std::chrono_literals;
 
-const std::filesystem::path kSourceDir = FOGMAP_SOURCE_DIR;
+using test_support::kSourceDir;
 // About 2023-11-14 in unix ns: frame numbers since the epoch are as large as in service.
 constexpr std::int64_t kStartNs = 1'700'000'000'000'000'000;
 

@@ -19,11 +19,12 @@
 #include "common/config/topology.hpp"
 #include "common/config/topology_parse.hpp"
 #include "common/config/topology_yaml.hpp"
+#include "tests/support/source_dir.hpp"
 
 namespace fogmap {
 namespace {
 
-const std::filesystem::path kSourceDir = FOGMAP_SOURCE_DIR;
+using test_support::kSourceDir;
 const std::filesystem::path kKittiImages = kSourceDir / "data/kitti_raw_seq_a/image_02";
 
 // A fresh directory under the system's temporary directory, removed at the end of the test.

@@ -29,6 +29,8 @@
 #include "tests/support/eventually.hpp"
 #include "tests/support/metric_values.hpp"
 #include "tests/support/test_server.hpp"
+#include "tests/support/epoch_times.hpp"
+#include "tests/support/global_maps.hpp"
 
 namespace fogmap {
 namespace {
@@ -36,13 +38,14 @@ namespace {
 using namespace std::chrono_literals;
 using test_support::counterValue;
 
-constexpr std::int64_t kMs = 1'000'000;
+using test_support::globalMapWith;
+using test_support::kE0;
+using test_support::kMs;
+using test_support::kT0;
+using test_support::startOf;
+
 constexpr std::int64_t kDayNs = 86'400'000'000'000;
 constexpr std::int64_t kYearNs = 365 * kDayNs;
-constexpr std::uint64_t kEpoch = 17'000'000'000;  // starts at 1.7e18 ns (epochs of 100 ms)
-constexpr std::int64_t kEpochStart = 1'700'000'000'000'000'000;
-
-std::int64_t startOf(std::uint64_t epoch) { return kEpochStart + static_cast<std::int64_t>(epoch - kEpoch) * 100 * kMs; }
 
 double gaugeValue(Metrics& metrics, const std::string& family, const std::string& label, const std::string& value) {
   for (const auto& f : metrics.registry().Collect()) {
@@ -57,24 +60,6 @@ double gaugeValue(Metrics& metrics, const std::string& family, const std::string
 }
 
 using test_support::frontCamera;
-
-// A global map of one obstacle per centre, at `sensor_time_ns`.
-GlobalMapMessage globalMapWith(std::int64_t sensor_time_ns, const std::vector<Eigen::Vector3d>& centres) {
-  GlobalMapMessage g;
-  g.header.sensor_time_ns = sensor_time_ns;
-  std::vector<Ellipsoid> ellipsoids;
-  std::uint32_t index = 0;
-  for (const auto& c : centres) {
-    Ellipsoid e;
-    e.id = {1, 1, index++};
-    e.center = c;
-    e.shape = Eigen::Matrix3d::Identity() * 0.09;
-    e.point_count = 50;
-    ellipsoids.push_back(e);
-  }
-  g.map = localMap(std::move(ellipsoids));
-  return g;
-}
 
 // A person 8 m ahead of frontCamera: (8, 0, 0.5) is pixel (320, 271.25).
 tracking::DetectionFrame personSeenAt(std::int64_t capture_ns) {
@@ -188,7 +173,7 @@ class TrackerUnderTest {
     return lines_;
   }
 
-  std::atomic<std::int64_t> now_ns{kEpochStart};
+  std::atomic<std::int64_t> now_ns{kT0};
   Metrics& metrics() { return metrics_; }
   TrackerMetrics& trackerMetrics() { return tracker_metrics_; }
   BurstLog& log() { return log_; }
@@ -220,18 +205,18 @@ TEST(TrackerAdmission, CentroidFramesOutsideTheWindowAreRefusedAndTheTracksKeepC
   TrackerUnderTest t({.edges = {"edge-a"}});
   const auto person = [](std::uint64_t k) { return Eigen::Vector2d(4.0, 0.1 * static_cast<double>(k)); };
   const auto honest = [&](std::uint64_t k) {
-    t.now_ns = startOf(kEpoch + k) + 10 * kMs;
-    return t.pushCentroids({toProto(centroidFrame("edge-a", kEpoch + k, startOf(kEpoch + k) + 2 * kMs, {person(k)}))});
+    t.now_ns = startOf(kE0 + k) + 10 * kMs;
+    return t.pushCentroids({toProto(centroidFrame("edge-a", kE0 + k, startOf(kE0 + k) + 2 * kMs, {person(k)}))});
   };
   for (std::uint64_t k = 0; k < 10; ++k) EXPECT_EQ(honest(k).refused(), 0U);
   ASSERT_EQ(t.snapshots().size(), 10U);
   // The next epoch dated a year ahead, an epoch a year ahead, and the next epoch dated a day back.
-  t.now_ns = startOf(kEpoch + 10) + 10 * kMs;
+  t.now_ns = startOf(kE0 + 10) + 10 * kMs;
   const std::uint64_t year_of_epochs = static_cast<std::uint64_t>(kYearNs / (100 * kMs));
   const auto hostile = t.pushCentroids({
-      toProto(centroidFrame("edge-a", kEpoch + 10, startOf(kEpoch + 10) + kYearNs, {person(10)})),
-      toProto(centroidFrame("edge-a", kEpoch + year_of_epochs, startOf(kEpoch + year_of_epochs), {person(10)})),
-      toProto(centroidFrame("edge-a", kEpoch + 10, startOf(kEpoch + 10) - kDayNs, {person(10)})),
+      toProto(centroidFrame("edge-a", kE0 + 10, startOf(kE0 + 10) + kYearNs, {person(10)})),
+      toProto(centroidFrame("edge-a", kE0 + year_of_epochs, startOf(kE0 + year_of_epochs), {person(10)})),
+      toProto(centroidFrame("edge-a", kE0 + 10, startOf(kE0 + 10) - kDayNs, {person(10)})),
   });
   EXPECT_EQ(hostile.refused(), 3U);
   EXPECT_NE(hostile.last_refusal().find("clock_skew"), std::string::npos) << hostile.last_refusal();
@@ -241,7 +226,7 @@ TEST(TrackerAdmission, CentroidFramesOutsideTheWindowAreRefusedAndTheTracksKeepC
   for (std::uint64_t k = 10; k < 20; ++k) EXPECT_EQ(honest(k).refused(), 0U) << "epoch " << k;
   const auto snapshots = t.snapshots();
   ASSERT_EQ(snapshots.size(), 20U);
-  EXPECT_EQ(snapshots.back().lidar_time_ns, startOf(kEpoch + 19) + 2 * kMs);
+  EXPECT_EQ(snapshots.back().lidar_time_ns, startOf(kE0 + 19) + 2 * kMs);
   ASSERT_EQ(snapshots.back().tracks.size(), 1U);
   EXPECT_EQ(snapshots.back().tracks[0].id, snapshots[9].tracks.at(0).id);
   EXPECT_EQ(t.node().counters().cloud_frames_out_of_order, 0U);
@@ -251,7 +236,7 @@ TEST(TrackerAdmission, CentroidFramesOutsideTheWindowAreRefusedAndTheTracksKeepC
 TEST(TrackerAdmission, DetectionFramesOutsideTheWindowAreRefusedAndTheCameraStaysFreshAndNamesItsPerson) {
   TrackerUnderTest t({.cameras = {frontCamera()}});
   const auto step = [&](int k) {
-    t.now_ns = kEpochStart + k * 100 * kMs;
+    t.now_ns = kT0 + k * 100 * kMs;
     const auto summary = t.pushDetections({personSeenAt(t.now_ns.load())});
     t.node().addGlobalMap(globalMapWith(t.now_ns.load(), {{8, 0, 0.5}}));
     return summary;
@@ -292,9 +277,9 @@ TEST(TrackerAdmission, ASlowCameraIsHeardItsLateFramesCountedStaleNotRefused) {
   TrackerUnderTest t({.cameras = {frontCamera()}});
   constexpr std::int64_t kDelay = 1500 * kMs;
   for (int k = 0; k < 40; ++k) {
-    t.now_ns = kEpochStart + k * 100 * kMs;
+    t.now_ns = kT0 + k * 100 * kMs;
     t.node().addGlobalMap(globalMapWith(t.now_ns.load(), {{8, 0, 0.5}}));
-    if (k % 5 == 0 && t.now_ns.load() - kDelay >= kEpochStart) {
+    if (k % 5 == 0 && t.now_ns.load() - kDelay >= kT0) {
       EXPECT_EQ(t.pushDetections({personSeenAt(t.now_ns.load() - kDelay)}).refused(), 0U) << "step " << k;
     }
   }
@@ -309,7 +294,7 @@ TEST(TrackerAdmission, AGlobalMapFromTheFutureIsRefusedAndTheTracksKeepComing) {
   TrackerUnderTest t({});
   const GlobalMapFeedHooks feed = globalMapFeedHooks(t.metrics(), t.trackerMetrics(), t.node(), t.log(), "root");
   for (int k = 0; k < 5; ++k) {
-    t.now_ns = kEpochStart + k * 100 * kMs;
+    t.now_ns = kT0 + k * 100 * kMs;
     feed.on_map(globalMapWith(t.now_ns.load(), {{8, 0.1 * k, 0.5}}), 100);
   }
   feed.on_map(globalMapWith(t.now_ns.load() + kYearNs, {{8, 0.5, 0.5}}), 100);
@@ -317,20 +302,20 @@ TEST(TrackerAdmission, AGlobalMapFromTheFutureIsRefusedAndTheTracksKeepComing) {
   ASSERT_EQ(t.lines().size(), 1U);
   EXPECT_NE(t.lines()[0].find("refused global maps (clock_skew)"), std::string::npos) << t.lines()[0];
   for (int k = 5; k < 10; ++k) {
-    t.now_ns = kEpochStart + k * 100 * kMs;
+    t.now_ns = kT0 + k * 100 * kMs;
     feed.on_map(globalMapWith(t.now_ns.load(), {{8, 0.1 * k, 0.5}}), 100);
   }
   const auto snapshots = t.snapshots();
   ASSERT_EQ(snapshots.size(), 10U);
-  EXPECT_EQ(snapshots.back().lidar_time_ns, kEpochStart + 900 * kMs);
+  EXPECT_EQ(snapshots.back().lidar_time_ns, kT0 + 900 * kMs);
   EXPECT_EQ(t.node().counters().cloud_frames_out_of_order, 0U);
 }
 
 TEST(TrackerAdmission, TheStalenessOfACameraThatStoppedGrowsOnEveryTickWithoutAnythingFused) {
   TrackerUnderTest t({.cameras = {frontCamera()}});
-  EXPECT_EQ(t.pushDetections({personSeenAt(kEpochStart)}).refused(), 0U);
+  EXPECT_EQ(t.pushDetections({personSeenAt(kT0)}).refused(), 0U);
   for (int s = 1; s <= 3; ++s) {
-    t.now_ns = kEpochStart + s * 1'000'000'000LL;
+    t.now_ns = kT0 + s * 1'000'000'000LL;
     t.trackerMetrics().cameraStaleness(t.node().tick());
     EXPECT_DOUBLE_EQ(gaugeValue(t.metrics(), "fogmap_camera_staleness_seconds", "camera", "cam-1"), s);
   }
@@ -340,9 +325,9 @@ TEST(TrackerAdmission, TheStalenessOfACameraThatStoppedGrowsOnEveryTickWithoutAn
 TEST(TrackerAdmission, AFloodOfRefusedFramesWritesOneLinePerReasonPerBurstWithItsCount) {
   TrackerUnderTest t({.cameras = {frontCamera()}, .edges = {"edge-a"}});
   constexpr int kFlood = 5000;
-  std::vector<tracking::DetectionFrame> ahead(kFlood, personSeenAt(kEpochStart + kDayNs));
-  std::vector<v1::CentroidFrame> strangers(kFlood, toProto(centroidFrame("edge-z", kEpoch, kEpochStart, {{1, 1}})));
-  v1::CentroidFrame malformed = toProto(centroidFrame("edge-a", kEpoch, kEpochStart, {{1, 1}}));
+  std::vector<tracking::DetectionFrame> ahead(kFlood, personSeenAt(kT0 + kDayNs));
+  std::vector<v1::CentroidFrame> strangers(kFlood, toProto(centroidFrame("edge-z", kE0, kT0, {{1, 1}})));
+  v1::CentroidFrame malformed = toProto(centroidFrame("edge-a", kE0, kT0, {{1, 1}}));
   malformed.mutable_centroids(0)->set_position(0, std::nanf(""));
   std::vector<v1::CentroidFrame> broken(kFlood, malformed);
   EXPECT_EQ(t.pushDetections(ahead).refused(), static_cast<unsigned>(kFlood));
@@ -360,7 +345,7 @@ TEST(TrackerAdmission, AFloodOfRefusedFramesWritesOneLinePerReasonPerBurstWithIt
   EXPECT_NE(lines[1].find("refused centroid frames (unknown_edge): edge 'edge-z'"), std::string::npos) << lines[1];
   EXPECT_NE(lines[2].find("refused centroid frames (malformed)"), std::string::npos) << lines[2];
   // Once the bursts went quiet, each is summarised with its count.
-  t.now_ns = kEpochStart + 6'000'000'000LL;
+  t.now_ns = kT0 + 6'000'000'000LL;
   t.log().flush();
   lines = t.lines();
   ASSERT_EQ(lines.size(), 6U);
@@ -418,8 +403,8 @@ TEST(TrackerAdmission, AFloodOfClutterIsShedByTheFusionBudgetAndThePeopleKeepThe
   std::uniform_real_distribution<double> jitter(-0.4, 0.4);
   std::map<int, std::uint64_t> ids;
   for (std::uint64_t k = 0; k < 40; ++k) {
-    t.now_ns = startOf(kEpoch + k) + 10 * kMs;
-    auto frame = centroidFrame("edge-a", kEpoch + k, startOf(kEpoch + k) + 2 * kMs, people(k), 30);
+    t.now_ns = startOf(kE0 + k) + 10 * kMs;
+    auto frame = centroidFrame("edge-a", kE0 + k, startOf(kE0 + k) + 2 * kMs, people(k), 30);
     if (k >= 10) {
       for (int j = 0; j < 1000; ++j) {
         const Eigen::Vector3d at(30.0 + 2.0 * (j % 50) + jitter(rng), -20.0 + 2.0 * (j / 50) + jitter(rng), 0.9);

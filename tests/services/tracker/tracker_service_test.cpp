@@ -28,13 +28,16 @@
 #include "services/tracker/tracker_service.hpp"
 #include "tests/support/front_camera.hpp"
 #include "tests/support/metric_values.hpp"
+#include "tests/support/epoch_times.hpp"
+#include "tests/support/global_maps.hpp"
 
 namespace fogmap {
 namespace {
 
 using namespace std::chrono_literals;
 
-constexpr std::int64_t kMs = 1'000'000;
+using test_support::globalMapWith;
+using test_support::kMs;
 
 Ellipsoid ellipsoidAt(std::uint32_t node, std::uint32_t index, const Eigen::Vector3d& centre, const Eigen::Matrix3d& shape,
                       std::uint64_t points) {
@@ -44,17 +47,6 @@ Ellipsoid ellipsoidAt(std::uint32_t node, std::uint32_t index, const Eigen::Vect
   e.shape = shape;
   e.point_count = points;
   return e;
-}
-
-GlobalMapMessage globalMapWith(std::int64_t sensor_time_ns, const std::vector<Eigen::Vector3d>& centres) {
-  GlobalMapMessage g;
-  g.header.epoch = 1;
-  g.header.sensor_time_ns = sensor_time_ns;
-  std::vector<Ellipsoid> ellipsoids;
-  std::uint32_t index = 0;
-  for (const auto& c : centres) ellipsoids.push_back(ellipsoidAt(1, index++, c, Eigen::Matrix3d::Identity() * 0.09, 50));
-  g.map = localMap(std::move(ellipsoids));  // one object each, boxes from the ellipsoids
-  return g;
 }
 
 using test_support::frontCamera;
