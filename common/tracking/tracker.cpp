@@ -22,22 +22,11 @@ std::int64_t nanoseconds(double s) { return static_cast<std::int64_t>(std::llrou
 
 Eigen::Vector2d ground(const CloudObservation& o) { return o.position.head<2>(); }
 
-// A vehicle's measured point once its track moves: its box grown to its class's size with the
-// length along the track's direction of motion (a car's side seen in part is as long as its rear
-// is wide; the motion tells them apart). Nothing for other observations or a track too slow to say.
-std::optional<Eigen::Vector2d> headingAware(const CloudObservation& o, const Eigen::Vector2d& velocity) {
-  if (!o.box || velocity.norm() < kHeadingMinSpeedMps) return std::nullopt;
-  const auto prior = vehiclePriorFor(*o.box, o.lidar_class);
-  if (!prior) return std::nullopt;
-  return grownFromAnchor(*o.box, *prior, std::atan2(velocity.y(), velocity.x())).centre.head<2>();
-}
-
-// A vehicle track's measured point: the box of a vehicle's observation grown from its anchor to the
-// track's size along the track's heading (the anchor face or corner stays where it was seen).
-// Nothing for an observation without a vehicle's box.
-std::optional<Eigen::Vector2d> vehicleCentre(const CloudObservation& o, const VehicleMotion& vehicle) {
-  if (!o.box || !vehiclePriorFor(*o.box, o.lidar_class)) return std::nullopt;
-  return grownFromAnchor(*o.box, vehicle.size, vehicle.filter.heading()).centre.head<2>();
+// A vehicle's measured point: its box grown from its anchor to `size`, the length along `heading`
+// (the face or corner its sensor saw stays where it was seen; a car's side seen in part is as long
+// as its rear is wide, and the heading tells them apart).
+Eigen::Vector2d grownCentre(const OrientedBox& box, const BoxPrior& size, double heading) {
+  return grownFromAnchor(box, size, heading).centre.head<2>();
 }
 
 // Of the two directions along `axis`, the one nearer `toward`.
@@ -411,11 +400,13 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
     Eigen::Matrix2d covariance;
     std::map<std::string, double> votes;  // the cameras'
     const CloudObservation* observation = nullptr;  // its box and LiDAR class
+    std::optional<BoxPrior> vehicle_prior{};        // its box's, when it is a vehicle's (vehiclePriorFor)
   };
   std::vector<Measurement> measurements;
   measurements.reserve(frame.observations.size());
   for (const auto& o : frame.observations) {
-    measurements.push_back({ground(o), groundCovariance(o, config_.min_measurement_sigma_m), {}, &o});
+    measurements.push_back({ground(o), groundCovariance(o, config_.min_measurement_sigma_m), {}, &o,
+                            o.box ? vehiclePriorFor(*o.box, o.lidar_class) : std::nullopt});
   }
   // Labels: the cameras' detections vote with their scores, a LiDAR class with its confidence
   // times lidar_class_weight (docs/tracking.md, "Labels").
@@ -449,7 +440,7 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
   std::vector<double> measurement_spread(measurements.size());
   for (std::size_t m = 0; m < measurements.size(); ++m) measurement_spread[m] = measurements[m].covariance.trace();
   // A vehicle seen by a moving track is measured where its box, grown along the track's motion,
-  // puts it (headingAware): for each such pair within reach, its own measured point.
+  // puts it (grownCentre): for each such pair within reach, its own measured point.
   std::map<std::pair<std::size_t, std::size_t>, Eigen::Vector2d> along_motion;
   const auto measuredFor = [&](std::size_t t, std::size_t m) -> const Eigen::Vector2d& {
     const auto it = along_motion.find({t, m});
@@ -462,11 +453,12 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
     const Eigen::Vector2d velocity = velocityOf(t);
     for (std::size_t m = 0; m < measurements.size(); ++m) {
       const auto& meas = measurements[m];
-      if (meas.observation->box && (meas.position - predicted).norm() <= kHeadingReachM) {
+      if (meas.vehicle_prior && (meas.position - predicted).norm() <= kHeadingReachM) {
+        const OrientedBox& box = *meas.observation->box;
         if (vehicle) {
-          if (const auto point = vehicleCentre(*meas.observation, *vehicle)) along_motion[{t, m}] = *point;
+          along_motion[{t, m}] = grownCentre(box, vehicle->size, vehicle->filter.heading());
         } else if (velocity.norm() >= kHeadingMinSpeedMps) {
-          if (const auto point = headingAware(*meas.observation, velocity)) along_motion[{t, m}] = *point;
+          along_motion[{t, m}] = grownCentre(box, *meas.vehicle_prior, std::atan2(velocity.y(), velocity.x()));
         }
       }
       const Eigen::Vector2d& position = measuredFor(t, m);
@@ -498,7 +490,7 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
     filters_[t].update(point, meas.covariance);
     if (vehicles_[t]) vehicles_[t]->filter.updatePosition(point, meas.covariance);
     track.heading_rad = vehicleHeading(*meas.observation, velocityOf(t), track.heading_rad);
-    updateVehicle(t, *meas.observation, meas.covariance);
+    updateVehicle(t, *meas.observation, meas.vehicle_prior, meas.covariance);
     track.last_update_ns = frame.time_ns;
     ++track.consecutive_hits;
     if (meas.votes.empty()) {
@@ -546,19 +538,19 @@ Eigen::Matrix2d Tracker::positionCovarianceOf(std::size_t t) const {
   return vehicles_[t] ? vehicles_[t]->filter.positionCovariance() : Eigen::Matrix2d(filters_[t].covariance().topLeftCorner<2, 2>());
 }
 
-void Tracker::updateVehicle(std::size_t t, const CloudObservation& o, const Eigen::Matrix2d& measurement_covariance) {
+void Tracker::updateVehicle(std::size_t t, const CloudObservation& o, const std::optional<BoxPrior>& prior,
+                            const Eigen::Matrix2d& measurement_covariance) {
   auto& vehicle = vehicles_[t];
   const auto& heading = tracks_[t].heading_rad;
   if (!heading) {  // the observation's box is no vehicle's (or none was ever seen moving)
     vehicle.reset();
     return;
   }
-  const auto prior = o.box ? vehiclePriorFor(*o.box, o.lidar_class) : std::nullopt;
   if (!vehicle) {
     if (!prior) return;  // a heading carried over an observation without a box: start at the next box
     // At the box grown along the heading now known (the constant-velocity track followed the
     // centres guessed without one), moving at the constant-velocity track's speed.
-    const Eigen::Vector2d start = grownFromAnchor(*o.box, *prior, *heading).centre.head<2>();
+    const Eigen::Vector2d start = grownCentre(*o.box, *prior, *heading);
     const double speed_sigma = std::sqrt(0.5 * filters_[t].covariance().bottomRightCorner<2, 2>().trace());
     vehicle.emplace(VehicleMotion{CtrvFilter(start, measurement_covariance, *heading, kVehicleInitialHeadingSigmaRad,
                                              filters_[t].velocity().norm(), speed_sigma, kVehicleInitialYawRateSigma,

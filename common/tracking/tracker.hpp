@@ -32,7 +32,7 @@
 namespace fogmap::tracking {
 
 // A vehicle's track moving at least this fast updates on its box grown along its direction of
-// motion (common/tracking/tracker.cpp, headingAware).
+// motion (common/tracking/tracker.cpp, grownCentre).
 inline constexpr double kHeadingMinSpeedMps = 1.0;
 // ... when its box, grown as the extents say, lies within this ground distance of the prediction
 // (a wrong guess of which side is the length moves a car's centre by at most about 2.2 m).
@@ -161,7 +161,9 @@ class Tracker {
   Eigen::Matrix2d positionCovarianceOf(std::size_t t) const;
   // After track t's update by `o` (its heading_rad already set by vehicleHeading): starts, updates
   // or ends its vehicle motion (see VehicleMotion).
-  void updateVehicle(std::size_t t, const CloudObservation& o, const Eigen::Matrix2d& measurement_covariance);
+  // `prior`: o's box's vehicle prior (vehiclePriorFor), none when it is no vehicle's.
+  void updateVehicle(std::size_t t, const CloudObservation& o, const std::optional<BoxPrior>& prior,
+                     const Eigen::Matrix2d& measurement_covariance);
 
   TrackerConfig config_;
   std::vector<camera::PinholeCamera> cameras_;
