@@ -20,6 +20,7 @@
 #include <google/protobuf/descriptor.h>
 #include <google/protobuf/unknown_field_set.h>
 
+#include "common/base/little_endian.hpp"
 #include "common/geometry/compact_ellipsoid.hpp"
 #include "common/geometry/map.hpp"
 #include "tests/support/geometry_builders.hpp"
@@ -125,9 +126,7 @@ void putIndicesInRecords(v1::EllipsoidBlock& block) {
   const std::string& bare = block.records();
   for (std::size_t r = 0; r * kCompactRecordBytesWithoutIndex < bare.size(); ++r) {
     records.append(bare, r * kCompactRecordBytesWithoutIndex, kCompactRecordBytesWithoutIndex);
-    const auto index = static_cast<std::uint32_t>(block.first_index() + r);
-    records.push_back(static_cast<char>(index & 0xFFU));
-    records.push_back(static_cast<char>((index >> 8U) & 0xFFU));
+    putU16(records, static_cast<std::uint16_t>(block.first_index() + r));
   }
   block.set_records(records);
   block.clear_first_index();
@@ -436,9 +435,7 @@ std::optional<std::uint64_t> wireFrame(const Message& message, std::uint32_t nod
     putIndicesInRecords(numbered);
     const std::string& records = numbered.records();
     for (std::size_t r = 0; r + kCompactEllipsoidBytes <= records.size(); r += kCompactEllipsoidBytes) {
-      const auto lo = static_cast<std::uint32_t>(static_cast<unsigned char>(records[r + 20]));
-      const auto hi = static_cast<std::uint32_t>(static_cast<unsigned char>(records[r + 21]));
-      if ((lo | (hi << 8U)) == index) return b.has_frame() ? std::optional<std::uint64_t>(b.frame()) : std::nullopt;
+      if (getU16(records, r + 20) == index) return b.has_frame() ? std::optional<std::uint64_t>(b.frame()) : std::nullopt;
     }
   }
   ADD_FAILURE() << "no ellipsoid " << node << "/" << index << " on the wire";
