@@ -6,7 +6,7 @@ set(FOGMAP_FOLDERS
   common/config common/scoring common/certs common/sim common/classify
   protos
   services/common services/edge_cluster services/merge_aggregator services/detection services/tracker
-  harness pictures tools/fogctl
+  harness pictures view tools/fogctl
   bench fuzz tests)
 
 # common/: pure domain libraries (no gRPC, protobuf or Prometheus).
@@ -39,11 +39,13 @@ endforeach()
 # harness measured; fogctl is the command line over both.
 set(FOGMAP_MAY_USE_harness ${FOGMAP_COMMON} protos services/common services/edge_cluster)
 set(FOGMAP_MAY_USE_pictures ${FOGMAP_COMMON} harness services/edge_cluster)
-set(FOGMAP_MAY_USE_tools/fogctl ${FOGMAP_COMMON} protos services/common services/edge_cluster harness pictures)
+# The live view subscribes to the root and a tracker as any client does, and serves a web page.
+set(FOGMAP_MAY_USE_view ${FOGMAP_COMMON} protos services/common)
+set(FOGMAP_MAY_USE_tools/fogctl ${FOGMAP_COMMON} protos services/common services/edge_cluster harness pictures view)
 
 # Benchmarks, fuzz targets and tests may use anything they measure or check.
 set(FOGMAP_EVERYTHING ${FOGMAP_COMMON} protos services/common services/edge_cluster services/merge_aggregator
-  services/detection services/tracker harness pictures)
+  services/detection services/tracker harness pictures view)
 set(FOGMAP_MAY_USE_bench ${FOGMAP_EVERYTHING})
 set(FOGMAP_MAY_USE_fuzz ${FOGMAP_EVERYTHING})
 set(FOGMAP_MAY_USE_tests ${FOGMAP_EVERYTHING})

@@ -29,7 +29,8 @@ if [ -z "$from_host" ]; then
   exec docker build --network host -q -f "$here/Dockerfile" -t "$tag" "$here/.."
 fi
 
-services=(edge-cluster merge-aggregator detection tracker)
+# The four services, and fogctl for the live view (fogctl view, the compose file's `view` service).
+services=(edge-cluster merge-aggregator detection tracker fogctl)
 for s in "${services[@]}"; do
   [ -x "$from_host/bin/$s" ] || { echo "image.sh: $from_host/bin/$s is missing: build it first (tools/build.sh)" >&2; exit 1; }
 done

@@ -17,7 +17,7 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr const char* kMountPoint = "/fogmap";
-const std::set<std::string> kInfrastructure = {"prometheus", "grafana"};
+const std::set<std::string> kInfrastructure = {"prometheus", "grafana", "view"};
 
 // `path` made absolute (from the working directory) and normal, with symbolic links of its
 // existing part resolved; an error naming `what` when it is empty or cannot be resolved.
@@ -135,6 +135,22 @@ Expected<std::string> composeFile(const TopologyConfig& topology, const ComposeO
     const std::string upstream = reads_root ? root->name : node.parent;
     if (!upstream.empty()) out << "    depends_on: [" << upstream << "]\n";
   }
+
+  // The live view: the root's map and the tracker's tracks as a web page, on view_listen only.
+  const auto view_colon = options.view_listen.rfind(':');
+  if (view_colon == std::string::npos || view_colon == 0) {
+    return invalidArgument("--view-listen: '" + options.view_listen + "' is not ADDRESS:PORT");
+  }
+  out << "  view:\n";
+  out << "    image: " << options.image << "\n";
+  out << "    command: [fogctl, view, " << *topology_path << ", --listen, " << options.view_listen.substr(0, view_colon)
+      << ", --port, " << options.view_listen.substr(view_colon + 1) << "]\n";
+  out << "    network_mode: host\n";
+  out << "    restart: unless-stopped\n";
+  // The image's health check reads /metrics, which the view serves beside its page.
+  out << "    environment:\n      FOGMAP_METRICS: \"" << options.view_listen << "\"\n";
+  out << "    volumes:\n      - .:" << kMountPoint << ":ro\n";
+  if (const NodeConfig* root = topology.root()) out << "    depends_on: [" << root->name << "]\n";
 
   const std::string prometheus_check = httpCheck(options.prometheus_listen, "/-/ready");
   out << "  prometheus:\n";

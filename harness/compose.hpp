@@ -28,13 +28,15 @@ struct ComposeOptions {
   std::string grafana_image = "grafana/grafana-oss:10.4.2";
   std::string prometheus_listen = "127.0.0.1:9090";
   std::string grafana_listen = "127.0.0.1:3000";
+  std::string view_listen = "127.0.0.1:8088";  // fogctl view's page (the `view` service)
   std::string command;  // the command line that generated it, written in the header
 };
 
 // The compose file (valid for Compose v2 and Debian's docker-compose 1.29): one service per node
 // (named after it, its binary from serviceName(role): edges, aggregators, detection nodes and
 // trackers alike; host networking, so it listens on the address its topology entry gives; a V4L2
-// camera's device passed in), Prometheus, and Grafana in the `grafana` profile. Errors name what
+// camera's device passed in), the live view (`fogctl view`, listening on view_listen only; with TLS
+// it presents the operator's certificate), Prometheus, and Grafana in the `grafana` profile. Errors name what
 // cannot be deployed: a file outside project_dir (scans, scenes, camera frames, detector models,
 // TLS files), a path that is empty or cannot be resolved, a node named like an infrastructure
 // service. It checks no more than that: `fogctl compose` runs checkStartable (launcher.hpp) first.

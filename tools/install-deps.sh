@@ -13,6 +13,7 @@ build=(
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   prometheus-cpp-dev libyaml-cpp-dev libssl-dev
   nlohmann-json3-dev  # harness/ and fogctl: JSON reports
+  libcivetweb-dev civetweb  # view/: the live view's web server (civetweb's CMake package names its binary)
   libembree-dev  # common/sim: ray casting
   lld  # the linker (CMakeLists.txt): links in a fraction of GNU ld's time
 )
@@ -22,6 +23,7 @@ test=(
   iproute2 iptables
   clang libclang-rt-14-dev  # tools/fuzz.sh: libFuzzer, AddressSanitizer and UBSan runtimes
   opencv-data python3-onnx  # the detector tests: OpenCV's cascades, and building a tiny ONNX network
+  chromium  # the live view's browser tests (headless)
 )
 deploy=(docker.io docker-compose debootstrap curl jq)
 

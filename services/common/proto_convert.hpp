@@ -6,6 +6,7 @@
 #include "common/io/messages.hpp"
 #include "common/base/status.hpp"
 #include "common/tracking/track.hpp"
+#include "common/tracking/track_snapshot.hpp"
 #include "fogmap/v1/fogmap.pb.h"
 
 namespace fogmap {
@@ -109,5 +110,7 @@ inline constexpr double kMaxCentroidVarianceM2 = 1e8;
 Expected<tracking::CentroidFrame> fromProto(const v1::CentroidFrame& frame);
 // A track (what fogctl watch and the tests read): finite state, a known state value.
 Expected<tracking::Track> fromProto(const v1::Track& track);
+// A tracker's published tracks (fogctl view): each track as above, a known association.
+Expected<tracking::TrackSnapshot> fromProto(const v1::TrackList& list);
 
 }  // namespace fogmap

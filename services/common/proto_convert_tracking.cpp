@@ -195,4 +195,20 @@ Expected<tracking::Track> fromProto(const v1::Track& track) {
   return out;
 }
 
+Expected<tracking::TrackSnapshot> fromProto(const v1::TrackList& list) {
+  tracking::TrackSnapshot out;
+  out.lidar_time_ns = list.lidar_time_ns();
+  out.published_time_ns = list.published_time_ns();
+  auto association = tracking::parseAssociation(list.association());
+  if (!association) return invalidArgument("track list: association: " + association.error().message);
+  out.association = *association;
+  out.tracks.reserve(static_cast<std::size_t>(list.tracks_size()));
+  for (const auto& proto : list.tracks()) {
+    auto track = fromProto(proto);
+    if (!track) return track.error();
+    out.tracks.push_back(std::move(*track));
+  }
+  return out;
+}
+
 }  // namespace fogmap

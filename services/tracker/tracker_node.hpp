@@ -17,6 +17,7 @@
 #include "common/io/messages.hpp"
 #include "common/base/status.hpp"
 #include "common/config/topology.hpp"
+#include "common/tracking/track_snapshot.hpp"
 #include "common/tracking/tracker.hpp"
 #include "services/tracker/centroid_collector.hpp"
 
@@ -40,13 +41,8 @@ inline constexpr double kGroundMergeM = 0.3;
 inline constexpr double kVehicleCentreSigmaM = 0.3;
 tracking::CloudFrame observationsOf(const GlobalMapMessage& global, double alpha, double ground_merge_m = kGroundMergeM);
 
-// One published set of tracks.
-struct TrackSnapshot {
-  std::int64_t lidar_time_ns = 0;      // the sensor time of the fused LiDAR frame (global map or epoch)
-  std::int64_t published_time_ns = 0;
-  tracking::Association association = tracking::Association::kKalman;
-  std::vector<tracking::Track> tracks;  // every live track (subscribers choose which to show)
-};
+// One published set of tracks (common/tracking/track_snapshot.hpp).
+using TrackSnapshot = tracking::TrackSnapshot;
 
 // What fusing took and did, for the metrics: the steps fused at once (usually one LiDAR frame),
 // and the tracker's state after them.

@@ -170,8 +170,8 @@ deploy() {  # deploy COMPOSE_FILE TOPOLOGY: certificates, up, global maps, every
       healthy=$((healthy + 1))
     fi
   done
-  [ "$healthy" -eq "$nodes" ] || fail "$name: $healthy fogmap containers for $nodes nodes"
-  phase "$name: $healthy fogmap containers healthy, uid 10001"
+  [ "$healthy" -eq $((nodes + 1)) ] || fail "$name: $healthy fogmap containers for $nodes nodes and the view"
+  phase "$name: $healthy fogmap containers healthy (every node and the view), uid 10001"
   local root_target
   root_target=$(awk '/^  - name:/ {n++} n == 1 && /host:/ {h=$2} n == 1 && / port:/ {p=$2} END {print h ":" p}' "$topology")
   if "$fogctl" watch --target "$root_target" --count 1 --timeout-s 5 > /dev/null 2>&1; then
@@ -193,6 +193,18 @@ echo "$(query 'sum(fogmap_tracks{state="confirmed"})' | jq -r '.data.result[0].v
 if "$fogctl" watch --tracks --target "$tracker_target" --count 1 --timeout-s 5 > /dev/null 2>&1; then
   fail "star: a plaintext client got tracks from $tracker_target"
 fi
+# The live view (the `view` service: fogctl view, over mutual TLS with the operator's certificate):
+# its page, and its events carrying the global map and the tracks.
+view_url=http://127.0.0.1:8088
+page=$(curl -fsS --max-time 5 "$view_url/") || fail "star: the view's page is not served at $view_url"
+grep -q fogmap-state <<< "$page" || fail "star: $view_url/ is not the view's page"
+events=$(mktemp)
+curl -sN --max-time 8 "$view_url/events" > "$events" || true  # an event stream never ends: cut after 8 s
+grep -q '^event: map' "$events" || fail "star: the view streamed no global map in 8 s"
+grep -q '^event: tracks' "$events" || fail "star: the view streamed no tracks in 8 s"
+grep '^data: ' "$events" | grep -q '"root":{"connected":true' || fail "star: the view is not connected to the root"
+rm -f "$events"
+phase "star: the live view serves its page and streams the global map and tracks"
 checked=0
 for dashboard in docker/grafana/dashboards/*.json; do
   while IFS= read -r expr; do

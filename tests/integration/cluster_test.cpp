@@ -23,6 +23,7 @@
 #include "common/geometry/map.hpp"
 #include "harness/cluster_run.hpp"
 #include "services/common/proto_convert.hpp"
+#include "tests/support/shell.hpp"
 #include "tests/support/cluster_control.hpp"
 #include "tests/support/eventually.hpp"
 #include "tests/support/free_ports.hpp"
@@ -249,16 +250,7 @@ TEST(Cluster, KillingAnEdgeLeavesTheOthersFlowingAndListsItMissing) {
               static_cast<unsigned long>(last), contributed[1], contributed[3], with_both);
 }
 
-// Runs a command; its exit code and output.
-std::pair<int, std::string> run(const std::string& command) {
-  std::string output;
-  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
-  if (pipe == nullptr) return {-1, ""};
-  char buffer[4096];
-  while (std::fgets(buffer, sizeof buffer, pipe) != nullptr) output += buffer;
-  const int status = ::pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
-}
+std::pair<int, std::string> run(const std::string& command) { return test_support::runCommand(command); }
 
 // fogctl geofence against a running root: the intrusions it prints are exactly those of the
 // global map of the epoch it names, as the root published it, recomputed in-process.

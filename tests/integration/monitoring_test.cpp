@@ -28,6 +28,7 @@
 #include "common/config/topology_parse.hpp"
 #include "common/config/topology_presets.hpp"
 #include "common/config/topology_yaml.hpp"
+#include "tests/support/shell.hpp"
 #include "tests/support/free_ports.hpp"
 #include "harness/compose.hpp"
 #include "harness/launcher.hpp"
@@ -40,15 +41,7 @@ using namespace std::chrono_literals;
 
 const fs::path kSource = FOGMAP_SOURCE_DIR;
 
-std::pair<int, std::string> run(const std::string& command) {
-  std::string output;
-  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
-  if (pipe == nullptr) return {-1, "popen failed"};
-  std::array<char, 4096> buffer{};
-  while (std::fgets(buffer.data(), buffer.size(), pipe) != nullptr) output += buffer.data();
-  const int status = ::pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
-}
+std::pair<int, std::string> run(const std::string& command) { return test_support::runCommand(command); }
 
 std::string readFile(const fs::path& path) {
   std::ifstream in(path);

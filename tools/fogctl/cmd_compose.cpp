@@ -47,9 +47,9 @@ Expected<fs::path> absolutePath(const fs::path& path) {
 int runCompose(int argc, char** argv) {
   const std::string usage =
       "usage: fogctl compose TOPOLOGY.yaml [--out FILE] [--prometheus FILE] [--image NAME] [--prometheus-listen ADDR]\n"
-      "                     [--grafana-listen ADDR] [--check]";
+      "                     [--grafana-listen ADDR] [--view-listen ADDR] [--check]";
   const auto args =
-      Args::parse(argc, argv, 2, {"out", "prometheus", "image", "prometheus-listen", "grafana-listen"}, {"check"});
+      Args::parse(argc, argv, 2, {"out", "prometheus", "image", "prometheus-listen", "grafana-listen", "view-listen"}, {"check"});
   if (!args) return fail(args.error(), "fogctl compose");
   if (args->positional().size() != 1) return fail(invalidArgument(usage), "fogctl compose");
   const fs::path topology_file = args->positional()[0];
@@ -80,7 +80,8 @@ int runCompose(int argc, char** argv) {
   options.image = args->get("image", options.image);
   options.prometheus_listen = args->get("prometheus-listen", options.prometheus_listen);
   options.grafana_listen = args->get("grafana-listen", options.grafana_listen);
-  for (const std::string* listen : {&options.prometheus_listen, &options.grafana_listen}) {
+  options.view_listen = args->get("view-listen", options.view_listen);
+  for (const std::string* listen : {&options.prometheus_listen, &options.grafana_listen, &options.view_listen}) {
     const auto colon = listen->rfind(':');
     if (colon == std::string::npos || colon == 0 || colon + 1 == listen->size()) {
       return fail(invalidArgument("'" + *listen + "' is not HOST:PORT"), "fogctl compose");
@@ -131,11 +132,13 @@ Command composeCommand() {
   return {"compose",
           "TOPOLOGY.yaml [--out FILE] [--prometheus FILE]   a docker compose deployment of the topology",
           "usage: fogctl compose TOPOLOGY.yaml [--out FILE] [--prometheus FILE] [--image fogmap:latest]\n"
-          "                      [--prometheus-listen 127.0.0.1:9090] [--grafana-listen 127.0.0.1:3000] [--check]\n"
+          "                      [--prometheus-listen 127.0.0.1:9090] [--grafana-listen 127.0.0.1:3000]\n"
+          "                      [--view-listen 127.0.0.1:8088] [--check]\n"
           "Writes a docker compose file (to stdout unless --out) that runs every node of the topology as a\n"
           "container of the fogmap image with host networking (each service listens where its topology entry\n"
-          "says, as under fogctl up), Prometheus scraping every service with the alert rules of\n"
-          "docker/prometheus/rules.yml, and Grafana with the provisioned dashboard (profile grafana). The\n"
+          "says, as under fogctl up), the live view (fogctl view, its page on --view-listen), Prometheus\n"
+          "scraping every service with the alert rules of docker/prometheus/rules.yml, and Grafana with the\n"
+          "provisioned dashboard (profile grafana). The\n"
           "directory of the compose file is mounted read-only at /fogmap: the topology and every file it\n"
           "names must lie inside it. Also writes the Prometheus configuration the deployment uses. The\n"
           "topology is checked first as fogctl up checks it.\n"

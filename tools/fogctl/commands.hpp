@@ -28,5 +28,6 @@ Command topologyCommand();
 Command sceneCommand();
 Command splitCommand();
 Command trainClassifierCommand();
+Command viewCommand();
 
 }  // namespace fogmap::cli

@@ -18,7 +18,7 @@ const std::vector<Command>& commands() {
   static const std::vector<Command> all = {
       clusterCommand(), benchCommand(),    demoCommand(),   evalCommand(),    trackEvalCommand(), overlayCommand(),
       upCommand(),      downCommand(),     watchCommand(),  geofenceCommand(), faultsCommand(),   certsCommand(),
-      composeCommand(), topologyCommand(), sceneCommand(),  splitCommand(),    trainClassifierCommand(),
+      composeCommand(), topologyCommand(), sceneCommand(),  splitCommand(),    trainClassifierCommand(), viewCommand(),
   };
   return all;
 }

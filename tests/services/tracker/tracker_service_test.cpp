@@ -26,6 +26,7 @@
 #include "services/tracker/tracker_metrics.hpp"
 #include "services/tracker/tracker_node.hpp"
 #include "services/tracker/tracker_service.hpp"
+#include "tests/support/fake_root.hpp"
 #include "tests/support/front_camera.hpp"
 #include "tests/support/metric_values.hpp"
 #include "tests/support/epoch_times.hpp"
@@ -510,64 +511,13 @@ TEST(TrackerMetrics, CentroidFramesReceivedRejectedAndPartialEpochsAreExported) 
   EXPECT_EQ(counterValue(metrics, "fogmap_centroid_epochs_partial_total", "node", "tracker"), 3.0);
 }
 
-// A fake root: publishes the global maps the test gives it to every subscriber.
-class FakeRoot final : public v1::GlobalMapService::Service {
- public:
-  grpc::Status Subscribe(grpc::ServerContext* context, const v1::SubscribeRequest* request,
-                         grpc::ServerWriter<v1::GlobalMap>* writer) override {
-    // Late first publications too: the node skips only revisions.
-    EXPECT_FALSE(request->on_time_only());
-    {
-      std::lock_guard lock(mutex_);
-      ++subscriptions_;
-      changed_.notify_all();
-    }
-    while (!context->IsCancelled()) {
-      std::unique_lock lock(mutex_);
-      changed_.wait_for(lock, 20ms, [&] { return !pending_.empty() || closing_; });
-      if (closing_) break;
-      if (pending_.empty()) continue;
-      const v1::GlobalMap next = pending_.front();
-      pending_.erase(pending_.begin());
-      lock.unlock();
-      if (!writer->Write(next)) break;
-    }
-    return grpc::Status::OK;
-  }
-  void send(const GlobalMapMessage& g) {
-    std::lock_guard lock(mutex_);
-    pending_.push_back(toProto(g));
-    changed_.notify_all();
-  }
-  bool waitForSubscriptions(int n) {
-    std::unique_lock lock(mutex_);
-    return changed_.wait_for(lock, 10s, [&] { return subscriptions_ >= n; });
-  }
-  void close() {
-    std::lock_guard lock(mutex_);
-    closing_ = true;
-    changed_.notify_all();
-  }
-
- private:
-  std::mutex mutex_;
-  std::condition_variable changed_;
-  std::vector<v1::GlobalMap> pending_;
-  int subscriptions_ = 0;
-  bool closing_ = false;
-};
-
-std::unique_ptr<grpc::Server> serve(FakeRoot& root, int& port) {
-  grpc::ServerBuilder builder;
-  builder.AddListeningPort("127.0.0.1:" + std::to_string(port), grpc::InsecureServerCredentials(), &port);
-  builder.RegisterService(&root);
-  return builder.BuildAndStart();
-}
+using test_support::FakeRoot;
+using test_support::serveFakeRoot;
 
 TEST(GlobalMapFeed, FollowsTheRootAcrossARestartAndSkipsMalformedMaps) {
   int port = 0;
   auto root = std::make_unique<FakeRoot>();
-  auto server = serve(*root, port);
+  auto server = serveFakeRoot(*root, port);
   ASSERT_NE(port, 0);
   std::mutex mutex;
   std::condition_variable got;
@@ -595,7 +545,7 @@ TEST(GlobalMapFeed, FollowsTheRootAcrossARestartAndSkipsMalformedMaps) {
   server->Shutdown(std::chrono::system_clock::now() + 200ms);
   server.reset();
   auto second = std::make_unique<FakeRoot>();
-  auto server2 = serve(*second, port);
+  auto server2 = serveFakeRoot(*second, port);
   ASSERT_TRUE(server2 != nullptr);
   ASSERT_TRUE(second->waitForSubscriptions(1));
   GlobalMapMessage broken = globalMapWith(2, {{1, 1, 1}});
@@ -609,6 +559,9 @@ TEST(GlobalMapFeed, FollowsTheRootAcrossARestartAndSkipsMalformedMaps) {
   EXPECT_EQ(times, (std::vector<std::int64_t>{1, 3}));
   EXPECT_EQ(malformed.load(), 1);
   EXPECT_GE(reconnects.load(), 1);
+  // Late first publications too: the node skips only revisions.
+  EXPECT_FALSE(root->askedOnTimeOnly());
+  EXPECT_FALSE(second->askedOnTimeOnly());
   feed.stop();
   second->close();
   server2->Shutdown(std::chrono::system_clock::now() + 200ms);

@@ -1,0 +1,135 @@
+// The view's web server, real civetweb on loopback: the page, its events, its bounds, and a browser
+// that stops reading.
+#include <gtest/gtest.h>
+
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <string>
+#include <thread>
+
+#include "tests/support/http_client.hpp"
+#include "view/web_server.hpp"
+
+namespace fogmap::view {
+namespace {
+
+using namespace std::chrono_literals;
+using test_support::httpRequest;
+using test_support::SseClient;
+
+std::unique_ptr<WebServer> startServer(EventHub& hub, WebServerOptions options = {}) {
+  options.port = 0;
+  auto server = WebServer::start(options, hub);
+  if (!server) ADD_FAILURE() << server.error().message;
+  return server ? std::move(*server) : nullptr;
+}
+
+TEST(WebServer, ServesThePageItsFilesAndNothingElse) {
+  EventHub hub(4);
+  WebServerOptions options;
+  options.metrics_text = [] { return std::string("fogmap_view_pages 0\n"); };
+  auto server = startServer(hub, options);
+  ASSERT_TRUE(server);
+  EXPECT_NE(server->port(), 0);
+  EXPECT_EQ(server->url(), "http://127.0.0.1:" + std::to_string(server->port()) + "/");
+  const auto page = httpRequest(server->port(), "/");
+  EXPECT_EQ(page.status, 200);
+  EXPECT_NE(page.headers.find("text/html"), std::string::npos);
+  EXPECT_NE(page.body.find("fogmap-state"), std::string::npos);  // the test hook of the page
+  EXPECT_EQ(httpRequest(server->port(), "/index.html").body, page.body);
+  const auto script = httpRequest(server->port(), "/view.js");
+  EXPECT_EQ(script.status, 200);
+  EXPECT_NE(script.headers.find("text/javascript"), std::string::npos);
+  EXPECT_NE(script.body.find("EventSource"), std::string::npos);
+  EXPECT_EQ(httpRequest(server->port(), "/view.css").status, 200);
+  EXPECT_EQ(httpRequest(server->port(), "/metrics").body, "fogmap_view_pages 0\n");
+  EXPECT_EQ(httpRequest(server->port(), "/../etc/passwd").status, 404);
+  EXPECT_EQ(httpRequest(server->port(), "/nothing").status, 404);
+  EXPECT_EQ(httpRequest(server->port(), "/", "POST").status, 405);
+}
+
+TEST(WebServer, ThePageAndItsScriptAreSmall) {
+  std::size_t bytes = 0;
+  for (const auto& asset : webAssets()) bytes += asset.body.size();
+  EXPECT_LE(bytes, 300U * 1000U);  // the issue's bound, JavaScript and CSS and HTML together
+}
+
+TEST(WebServer, ListensOnTheGivenAddressOnly) {
+  EventHub hub(4);
+  auto server = startServer(hub);
+  ASSERT_TRUE(server);
+  const int there = test_support::connectTo("127.0.0.1", server->port());
+  EXPECT_GE(there, 0);
+  if (there >= 0) ::close(there);
+  // Another address of the loopback network: nothing listens there.
+  const int elsewhere = test_support::connectTo("127.0.0.2", server->port());
+  EXPECT_LT(elsewhere, 0);
+  if (elsewhere >= 0) ::close(elsewhere);
+  WebServerOptions bad;
+  bad.address = "localhost";
+  EXPECT_FALSE(WebServer::start(bad, hub));
+  // The port in use: an error naming it, not a crash.
+  WebServerOptions taken;
+  taken.port = server->port();
+  const auto second = WebServer::start(taken, hub);
+  ASSERT_FALSE(second);
+  EXPECT_NE(second.error().message.find(std::to_string(server->port())), std::string::npos);
+}
+
+TEST(WebServer, StreamsTheNewestEventsAndRefusesPagesBeyondTheBound) {
+  EventHub hub(2);
+  auto server = startServer(hub);
+  ASSERT_TRUE(server);
+  hub.publish(EventKind::kConfig, R"({"topology":"t"})");
+  SseClient page(server->port());
+  ASSERT_TRUE(page.connected());
+  const auto config = page.next("", 10s);
+  ASSERT_TRUE(config);
+  EXPECT_EQ(page.status(), 200);
+  EXPECT_EQ(config->first, "config");
+  EXPECT_EQ(config->second, R"({"topology":"t"})");
+  hub.publish(EventKind::kMap, R"({"epoch":1})");
+  const auto map = page.next("map", 10s);
+  ASSERT_TRUE(map);
+  EXPECT_EQ(map->second, R"({"epoch":1})");
+  SseClient second(server->port());
+  ASSERT_TRUE(second.next("config", 10s));
+  SseClient third(server->port());  // one more than the hub's 2
+  EXPECT_FALSE(third.next("", 10s));
+  EXPECT_EQ(third.status(), 503);
+  EXPECT_EQ(hub.refused(), 1U);
+}
+
+TEST(WebServer, ABrowserThatStopsReadingNeitherHoldsThePublisherNorTheOtherPages) {
+  EventHub hub(4);
+  auto server = startServer(hub);
+  ASSERT_TRUE(server);
+  // A page that reads nothing: its socket buffers fill, then its writes wait.
+  const int stuck = test_support::connectTo("127.0.0.1", server->port());
+  ASSERT_GE(stuck, 0);
+  ASSERT_TRUE(test_support::sendRequest(stuck, "GET", "/events"));
+  SseClient reading(server->port());
+  ASSERT_TRUE(reading.connected());
+  // 2,000 maps of 64 kB: far more than the stuck page's buffers hold.
+  const std::string padding(64 * 1024, 'x');
+  for (int k = 1; k <= 2000; ++k) {
+    hub.publish(EventKind::kMap, "{\"epoch\":" + std::to_string(k) + ",\"pad\":\"" + padding + "\"}");
+  }
+  hub.publish(EventKind::kMap, R"({"epoch":"last"})");
+  // The reading page gets the last map (having skipped what it could not keep up with).
+  bool got_last = false;
+  while (auto map = reading.next("map", 30s)) {
+    if (map->second == R"({"epoch":"last"})") {
+      got_last = true;
+      break;
+    }
+  }
+  EXPECT_TRUE(got_last);
+  EXPECT_GT(hub.skipped(), 0U);
+  ::close(stuck);
+}
+
+}  // namespace
+}  // namespace fogmap::view
