@@ -200,10 +200,12 @@ std::string LiveView::mapEvent(const GlobalMapMessage& global) {
 }
 
 std::string LiveView::tracksEvent(const tracking::TrackSnapshot& snapshot) {
+  // The trails of tracks that ended go first: their places are free for new tracks.
   std::set<std::uint64_t> live;
+  for (const auto& t : snapshot.tracks) live.insert(t.id);
+  std::erase_if(trails_, [&](const auto& entry) { return live.count(entry.first) == 0; });
   json tracks = json::array();
   for (const auto& t : snapshot.tracks) {
-    live.insert(t.id);
     auto trail = trails_.find(t.id);
     if (trail == trails_.end() && trails_.size() < max_trails_) trail = trails_.emplace(t.id, std::deque<Eigen::Vector2d>{}).first;
     json points = json::array();
@@ -219,7 +221,6 @@ std::string LiveView::tracksEvent(const tracking::TrackSnapshot& snapshot) {
                       {"vy", mm(t.velocity.y())}, {"heading_deg", heading}, {"camera", t.camera_confirmed},
                       {"sigma_m", mm(std::sqrt(std::max(0.0, t.covariance.trace() / 2.0)))}, {"trail", std::move(points)}});
   }
-  std::erase_if(trails_, [&](const auto& entry) { return live.count(entry.first) == 0; });
   return json{{"published_ms", ms(snapshot.published_time_ns)}, {"lidar_ms", ms(snapshot.lidar_time_ns)},
               {"association", tracking::associationName(snapshot.association)}, {"tracks", std::move(tracks)}}
       .dump(-1, ' ', false, json::error_handler_t::replace);

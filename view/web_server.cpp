@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "services/common/http_stop.hpp"
+
 
 namespace fogmap::view {
 namespace {
@@ -64,8 +66,8 @@ Expected<std::unique_ptr<WebServer>> WebServer::start(const WebServerOptions& op
 }
 
 WebServer::~WebServer() {
-  hub_.stop();
-  if (context_ != nullptr) mg_stop(context_);
+  hub_.stop();  // the pages' streams end
+  if (context_ != nullptr) stopHttpServer([this] { mg_stop(context_); }, options_.address, port_);
 }
 
 std::string WebServer::url() const { return "http://" + options_.address + ":" + std::to_string(port_) + "/"; }

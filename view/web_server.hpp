@@ -44,7 +44,7 @@ class WebServer {
   WebServer& operator=(const WebServer&) = delete;
 
   std::uint16_t port() const { return port_; }
-  std::string url() const;  // http://ADDRESS:PORT/
+  std::string url() const;  // the page: "http://" then address:port and "/"
 
  private:
   WebServer(const WebServerOptions& options, EventHub& hub) : options_(options), hub_(hub) {}

@@ -1,5 +1,7 @@
 #include "services/common/metrics.hpp"
 
+#include "services/common/http_stop.hpp"
+
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
@@ -45,35 +47,6 @@ Histogram& histogram(Registry& registry, const std::string& name, const std::str
                      Histogram::BucketBoundaries buckets) {
   return prometheus::BuildHistogram().Name(name).Help(help).Labels(constant).Register(registry).Add(
       {}, std::move(buckets));
-}
-
-// The exposer's HTTP server (civetweb) sees a stop request only when its listening socket wakes
-// it: every 2 s, or at once on a connection. A complete request (answered 404) wakes it without
-// holding a worker; a few tries cover the moment before the stop request is made.
-constexpr int kStopWakeTries = 100;
-constexpr std::chrono::milliseconds kStopWakeInterval{20};
-
-void wake(const std::string& host, int port) {
-  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-  if (fd < 0) return;
-  const timeval timeout{0, 200'000};
-  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
-  ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &timeout, sizeof timeout);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(static_cast<std::uint16_t>(port));
-  if (::inet_pton(AF_INET, host.c_str(), &addr.sin_addr) != 1 || addr.sin_addr.s_addr == htonl(INADDR_ANY)) {
-    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  }
-  if (::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) == 0) {
-    static constexpr char kRequest[] = "GET / HTTP/1.0\r\n\r\n";
-    if (::send(fd, kRequest, sizeof kRequest - 1, MSG_NOSIGNAL) > 0) {
-      char answer[256];
-      while (::recv(fd, answer, sizeof answer, 0) > 0) {
-      }
-    }
-  }
-  ::close(fd);
 }
 
 }  // namespace
@@ -185,27 +158,7 @@ void Metrics::serve(const std::string& bind_address) {
 
 Metrics::~Metrics() {
   if (!exposer_) return;
-  const int port = listeningPort();
-  std::mutex mutex;
-  std::condition_variable stopped_cv;
-  bool stopped = false;
-  std::thread stop([&] {
-    exposer_.reset();
-    {
-      std::lock_guard lock(mutex);
-      stopped = true;
-    }
-    stopped_cv.notify_all();
-  });
-  std::unique_lock lock(mutex);
-  for (int i = 0; i < kStopWakeTries && !stopped; ++i) {
-    lock.unlock();
-    wake(host_, port);
-    lock.lock();
-    stopped_cv.wait_for(lock, kStopWakeInterval, [&] { return stopped; });
-  }
-  lock.unlock();
-  stop.join();
+  stopHttpServer([this] { exposer_.reset(); }, host_, listeningPort());
 }
 
 int Metrics::listeningPort() const {

@@ -13,7 +13,8 @@ Actions (each a separate argument):
   shot:FILE          a PNG screenshot of the first page
   run:COMMAND        run a shell command (e.g. kill the root), failing when it fails
   eval:JS            evaluate JavaScript on the first page (e.g. to remember a count for an until)
-  open:N             open N more pages on URL
+  open:N             open URL in N more browsers (each its own Chromium: a browser opens at most
+                     6 connections to one server, and each page's event stream holds one)
   click:X,Y          a left click on the first page
 
 A page that loads with a live event stream never finishes loading, so Chromium's one-shot flags
@@ -65,7 +66,11 @@ class Browser:
         os.write(self.cmd_w, json.dumps(message).encode() + b'\0')
         deadline = time.monotonic() + timeout
         while True:
-            for reply in self._read(deadline):
+            try:
+                replies = self._read(deadline)
+            except TimeoutError:
+                raise TimeoutError(f'no answer from the browser to {method} within {timeout:g} s') from None
+            for reply in replies:
                 if reply.get('id') == self.next_id:
                     if 'error' in reply:
                         raise RuntimeError(f'{method}: {reply["error"]}')
@@ -144,15 +149,25 @@ def main(argv):
     if shutil.which('chromium') is None:
         print('headless_page: chromium is not installed (tools/install-deps.sh installs it)', file=sys.stderr)
         return SKIP
+    browsers = []
     try:
-        browser = Browser(size)
-        browser.send('Browser.getVersion', timeout=30)
+        browsers.append(Browser(size))
+        browsers[0].send('Browser.getVersion', timeout=30)
     except Exception as e:  # the browser does not start here (no display stack, no memory, ...)
         print(f'headless_page: chromium does not start: {e}', file=sys.stderr)
+        for b in browsers:
+            b.close()
         return SKIP
+    browser = browsers[0]
+    pages = []  # (browser, session) of every open page, the first page first
+
+    def open_page(b):
+        b.open(url)
+        pages.append((b, b.sessions[-1]))
+
     status = 0
     try:
-        browser.open(url)
+        open_page(browser)
         for action in actions:
             kind, _, arg = action.partition(':')
             if kind == 'wait':
@@ -160,7 +175,7 @@ def main(argv):
             elif kind == 'until':
                 deadline = time.monotonic() + timeout
                 check = f'(() => {{ const s = window.fogmapState; return !!(s && ({arg})); }})()'
-                while not all(browser.eval(check, s) for s in browser.sessions):
+                while not all(b.eval(check, session) for b, session in pages):
                     if time.monotonic() > deadline:
                         raise RuntimeError(f'not within {timeout:g} s: {arg}; the page says {browser.state(browser.sessions[0])}')
                     time.sleep(0.2)
@@ -169,7 +184,7 @@ def main(argv):
                     f.write(browser.state(browser.sessions[0]))
             elif kind == 'states':
                 with open(arg, 'w') as f:
-                    f.write('[' + ','.join(browser.state(s) for s in browser.sessions) + ']')
+                    f.write('[' + ','.join(b.state(session) for b, session in pages) + ']')
             elif kind == 'shot':
                 data = browser.send('Page.captureScreenshot', {'format': 'png'}, browser.sessions[0])['data']
                 with open(arg, 'wb') as f:
@@ -182,7 +197,8 @@ def main(argv):
                 browser.eval(arg, browser.sessions[0])
             elif kind == 'open':
                 for _ in range(int(arg)):
-                    browser.open(url)
+                    browsers.append(Browser(size))
+                    open_page(browsers[-1])
             elif kind == 'click':
                 x, y = (float(v) for v in arg.split(','))
                 for event in ('mousePressed', 'mouseReleased'):
@@ -195,10 +211,11 @@ def main(argv):
         print(f'headless_page: {e}', file=sys.stderr)
         status = 1
     finally:
-        for error in browser.errors:
-            print(f'headless_page: the page threw: {error}', file=sys.stderr)
-            status = 1
-        browser.close()
+        for b in browsers:
+            for error in b.errors:
+                print(f'headless_page: the page threw: {error}', file=sys.stderr)
+                status = 1
+            b.close()
     return status
 
 

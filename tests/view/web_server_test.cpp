@@ -102,9 +102,11 @@ TEST(WebServer, StreamsTheNewestEventsAndRefusesPagesBeyondTheBound) {
   EXPECT_EQ(hub.refused(), 1U);
 }
 
-TEST(WebServer, ABrowserThatStopsReadingNeitherHoldsThePublisherNorTheOtherPages) {
+TEST(WebServer, ABrowserThatStopsReadingNeitherHoldsThePublisherNorTheOtherPagesAndIsDropped) {
   EventHub hub(4);
-  auto server = startServer(hub);
+  WebServerOptions options;
+  options.write_timeout = std::chrono::milliseconds(500);
+  auto server = startServer(hub, options);
   ASSERT_TRUE(server);
   // A page that reads nothing: its socket buffers fill, then its writes wait.
   const int stuck = test_support::connectTo("127.0.0.1", server->port());
@@ -128,6 +130,10 @@ TEST(WebServer, ABrowserThatStopsReadingNeitherHoldsThePublisherNorTheOtherPages
   }
   EXPECT_TRUE(got_last);
   EXPECT_GT(hub.skipped(), 0U);
+  // The stuck page's write waited write_timeout: it is dropped, its place freed.
+  const auto deadline = std::chrono::steady_clock::now() + 30s;
+  while (hub.clients() > 1 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(10ms);
+  EXPECT_EQ(hub.clients(), 1U) << "the page that stopped reading still holds a place";
   ::close(stuck);
 }
 
