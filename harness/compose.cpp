@@ -143,8 +143,10 @@ Expected<std::string> composeFile(const TopologyConfig& topology, const ComposeO
   }
   out << "  view:\n";
   out << "    image: " << options.image << "\n";
+  // (The port quoted: compose takes a command's words as strings only.)
   out << "    command: [fogctl, view, " << *topology_path << ", --listen, " << options.view_listen.substr(0, view_colon)
-      << ", --port, " << options.view_listen.substr(view_colon + 1) << "]\n";
+      << ", --port, \"" << options.view_listen.substr(view_colon + 1) << "\"" << (topology.tls ? std::string(", --identity, ") + kViewIdentity : "")
+      << "]\n";
   out << "    network_mode: host\n";
   out << "    restart: unless-stopped\n";
   // The image's health check reads /metrics, which the view serves beside its page.

@@ -15,6 +15,10 @@ namespace fogmap::harness {
 // gives it the private keys.
 inline constexpr int kImageUid = 10001;
 
+// The certificate the deployment's live view presents to the root and the tracker (with TLS): a
+// client of its own, whose key `fogctl certs --owner` gives to the containers' user.
+inline constexpr const char* kViewIdentity = "view";
+
 struct ComposeOptions {
   // The topology file as the user named it, and the directory of the compose file: the directory
   // is mounted read-only at /fogmap in every container, so the topology and every file it names

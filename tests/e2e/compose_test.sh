@@ -202,7 +202,7 @@ events=$(mktemp)
 curl -sN --max-time 8 "$view_url/events" > "$events" || true  # an event stream never ends: cut after 8 s
 grep -q '^event: map' "$events" || fail "star: the view streamed no global map in 8 s"
 grep -q '^event: tracks' "$events" || fail "star: the view streamed no tracks in 8 s"
-grep '^data: ' "$events" | grep -q '"root":{"connected":true' || fail "star: the view is not connected to the root"
+grep -q '^data: {"root":{"connected":true' "$events" || fail "star: the view is not connected to the root"
 rm -f "$events"
 phase "star: the live view serves its page and streams the global map and tracks"
 checked=0

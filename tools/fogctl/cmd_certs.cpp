@@ -19,6 +19,7 @@
 #include "common/certs/certs.hpp"
 #include "common/config/topology.hpp"
 #include "common/config/topology_parse.hpp"
+#include "harness/compose.hpp"
 #include "tools/fogctl/args.hpp"
 #include "tools/fogctl/commands.hpp"
 
@@ -101,6 +102,7 @@ int runCerts(int argc, char** argv) {
     clients = splitList(args->get("clients"));
   } else {
     clients.push_back("operator");
+    clients.push_back(harness::kViewIdentity);
     if (topology->tls) clients.insert(clients.end(), topology->tls->geofence_clients.begin(), topology->tls->geofence_clients.end());
   }
   for (const auto& client : clients) {
@@ -142,7 +144,9 @@ int runCerts(int argc, char** argv) {
   for (const auto& client : clients) {
     const auto pair = issueCertificate(*ca, {client, {client}, {}, not_before, not_after});
     if (!pair) return fail(pair.error(), "fogctl certs");
-    if (const Status s = writePair(out, client, *pair); !s) return fail(s.error(), "fogctl certs");
+    // The deployment's live view runs in a container as --owner, as the nodes do.
+    const long client_owner = client == harness::kViewIdentity ? *owner : -1;
+    if (const Status s = writePair(out, client, *pair, client_owner); !s) return fail(s.error(), "fogctl certs");
   }
   std::string client_list;
   for (const auto& client : clients) client_list += (client_list.empty() ? "" : ", ") + client;
@@ -176,8 +180,9 @@ Command certsCommand() {
           "subjectAltName), so its peers verify HOST:PORT. Point the topology at them: tls: {ca: DIR/ca.crt}.\n"
           "  --days N       valid from now for N days (default 365)\n"
           "  --clients A,B  client identities besides the nodes, for fogctl --identity\n"
-          "                 (default: operator and the topology's tls.geofence_clients)\n"
-          "  --owner UID    give the nodes' private keys to UID (as root): the user the services run as,\n"
+          "                 (default: operator, view (the compose deployment's live view) and the\n"
+          "                 topology's tls.geofence_clients)\n"
+          "  --owner UID    give the nodes' and the view's private keys to UID (as root): the user the services run as,\n"
           "                 10001 in the fogmap image (fogctl compose)\n"
           "  --force        replace a CA already in DIR (what it issued is no longer trusted)\n",
           runCerts};
