@@ -105,7 +105,7 @@ TEST(WebServer, StreamsTheNewestEventsAndRefusesPagesBeyondTheBound) {
 TEST(WebServer, ABrowserThatStopsReadingNeitherHoldsThePublisherNorTheOtherPagesAndIsDropped) {
   EventHub hub(4);
   WebServerOptions options;
-  options.write_timeout = std::chrono::milliseconds(500);
+  options.write_timeout = std::chrono::seconds(2);
   auto server = startServer(hub, options);
   ASSERT_TRUE(server);
   // A page that reads nothing: its socket buffers fill, then its writes wait.
@@ -114,13 +114,23 @@ TEST(WebServer, ABrowserThatStopsReadingNeitherHoldsThePublisherNorTheOtherPages
   ASSERT_TRUE(test_support::sendRequest(stuck, "GET", "/events"));
   SseClient reading(server->port());
   ASSERT_TRUE(reading.connected());
-  // 2,000 maps of 64 kB: far more than the stuck page's buffers hold.
+  const auto joined = std::chrono::steady_clock::now() + 30s;
+  while (hub.clients() < 2 && std::chrono::steady_clock::now() < joined) std::this_thread::sleep_for(10ms);
+  ASSERT_EQ(hub.clients(), 2U) << "both pages read events";
+  // Maps of 64 kB keep coming while the reading page reads and the stuck one reads nothing, until
+  // the stuck page's buffers are full and its write has waited write_timeout: it is dropped and
+  // its place freed (however fast this machine writes, reads or publishes).
   const std::string padding(64 * 1024, 'x');
-  for (int k = 1; k <= 2000; ++k) {
-    hub.publish(EventKind::kMap, "{\"epoch\":" + std::to_string(k) + ",\"pad\":\"" + padding + "\"}");
+  int published = 0;
+  const auto deadline = std::chrono::steady_clock::now() + 60s;
+  while (hub.clients() > 1 && std::chrono::steady_clock::now() < deadline) {
+    hub.publish(EventKind::kMap, "{\"epoch\":" + std::to_string(++published) + ",\"pad\":\"" + padding + "\"}");
+    while (reading.next("map", 1ms)) {  // the reading page reads all it has been sent
+    }
   }
+  EXPECT_EQ(hub.clients(), 1U) << "the page that stopped reading still holds a place after " << published << " maps";
+  // The publisher was never held, and the reading page still gets the newest map.
   hub.publish(EventKind::kMap, R"({"epoch":"last"})");
-  // The reading page gets the last map (having skipped what it could not keep up with).
   bool got_last = false;
   while (auto map = reading.next("map", 30s)) {
     if (map->second == R"({"epoch":"last"})") {
@@ -129,11 +139,6 @@ TEST(WebServer, ABrowserThatStopsReadingNeitherHoldsThePublisherNorTheOtherPages
     }
   }
   EXPECT_TRUE(got_last);
-  EXPECT_GT(hub.skipped(), 0U);
-  // The stuck page's write waited write_timeout: it is dropped, its place freed.
-  const auto deadline = std::chrono::steady_clock::now() + 30s;
-  while (hub.clients() > 1 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(10ms);
-  EXPECT_EQ(hub.clients(), 1U) << "the page that stopped reading still holds a place";
   ::close(stuck);
 }
 
