@@ -10,6 +10,26 @@ function(fogmap_set_warnings target)
   endif()
 endfunction()
 
+# The gRPC-facing targets (the services' layer, the services and their mains, the harness, the
+# pictures of runs, the view, fogctl) parse the same heavy headers in every unit: gRPC, protobuf and
+# the generated fogmap.grpc.pb.h, Eigen, Prometheus, nlohmann/json. With FOGMAP_PCH they reuse one
+# precompiled cmake/pch/service_headers.hpp, built by fogmap_service_pch with the same flags as
+# they are (GCC takes a precompiled header only from identical flags; it warns, -Winvalid-pch, and
+# parses the header as text where they differ).
+function(fogmap_use_service_pch target)
+  if(FOGMAP_PCH)
+    target_precompile_headers(${target} REUSE_FROM fogmap_service_pch)
+  endif()
+endfunction()
+
+# The same for the Eigen-based libraries under common/ and the cores built on them, which are
+# compiled without -pthread: they reuse cmake/pch/core_headers.hpp, built by fogmap_core_pch.
+function(fogmap_use_core_pch target)
+  if(FOGMAP_PCH)
+    target_precompile_headers(${target} REUSE_FROM fogmap_core_pch)
+  endif()
+endfunction()
+
 # fogmap_add_executable(name SOURCES ... LIBS ...)
 function(fogmap_add_executable name)
   cmake_parse_arguments(ARG "" "" "SOURCES;LIBS" ${ARGN})

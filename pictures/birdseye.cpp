@@ -6,11 +6,11 @@
 #include <cstdio>
 #include <optional>
 
-#include <Eigen/Eigenvalues>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "common/geometry/object_shape.hpp"
+#include "common/geometry/symmetric_eigen.hpp"
 #include "pictures/drawing.hpp"
 
 namespace fogmap::pictures {
@@ -58,9 +58,9 @@ std::vector<cv::Point> fixedPolygon(const Projection& proj, const std::vector<Ei
 std::vector<Eigen::Vector2d> marginalEllipse(const Ellipsoid& e, int sides) {
   const Eigen::Matrix2d s = e.shape.topLeftCorner<2, 2>();
   if (!s.allFinite() || !e.center.head<2>().allFinite()) return {};
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> solver(s);
-  const Eigen::Vector2d axes = solver.eigenvalues().cwiseMax(0.0).cwiseSqrt();
-  const Eigen::Matrix2d v = solver.eigenvectors();
+  const SymmetricEigen<2> eigen = symmetricEigen(s);
+  const Eigen::Vector2d axes = eigen.values.cwiseMax(0.0).cwiseSqrt();
+  const Eigen::Matrix2d v = eigen.vectors;
   std::vector<Eigen::Vector2d> out;
   out.reserve(static_cast<std::size_t>(sides));
   for (int i = 0; i < sides; ++i) {
@@ -85,7 +85,7 @@ std::pair<Eigen::Vector2d, double> groundDisc(const MapObject& object) {
   for (const auto& e : object.ellipsoids) {
     const Eigen::Matrix2d s = e.shape.topLeftCorner<2, 2>();
     if (!e.center.head<2>().allFinite() || !s.allFinite()) continue;
-    const double reach = std::sqrt(std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(s).eigenvalues().maxCoeff()));
+    const double reach = std::sqrt(std::max(0.0, symmetricEigen(s).values.maxCoeff()));
     radius = std::max(radius, (e.center.head<2>() - centre).norm() + reach);
   }
   return {centre, radius};

@@ -27,7 +27,17 @@ case "$preset" in
 esac
 [ "$preset" = dev ] && [ -z "$target" ] && target=unit-tests
 
-cmake --preset "$preset" > /dev/null
+# A new build directory is generated for Ninja where it is installed (tools/install-deps.sh): it
+# compiles a target's units while the targets it links are still being built, where make waits
+# for them; the demo build takes about 4 instead of 4.3 minutes on 2 cores. A directory keeps the
+# generator it was made with.
+binary_dir=build
+[ "$preset" = release ] || binary_dir=build-$preset
+generator=()
+if [ ! -f "$binary_dir/CMakeCache.txt" ] && command -v ninja > /dev/null; then
+  generator=(-G Ninja)
+fi
+cmake --preset "$preset" "${generator[@]}" > /dev/null
 if [ -n "$target" ]; then
   cmake --build --preset "$preset" --target "$target" -j "$(nproc)"
 else

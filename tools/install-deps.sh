@@ -25,10 +25,13 @@ test=(
   opencv-data python3-onnx  # the detector tests: OpenCV's cascades, and building a tiny ONNX network
   chromium  # the live view's browser tests (headless)
 )
+host=(
+  ninja-build  # tools/build.sh's generator: compiles across targets, so every core stays busy
+)
 deploy=(docker.io docker-compose debootstrap curl jq)
 
 case "${1:-}" in
-  "") packages=("${build[@]}" "${test[@]}") ;;
+  "") packages=("${build[@]}" "${host[@]}" "${test[@]}") ;;
   --build) packages=("${build[@]}") ;;
   --deploy) packages=("${deploy[@]}") ;;
   -h | --help)

@@ -6,7 +6,6 @@
 #include <sstream>
 #include <utility>
 
-#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 
@@ -16,6 +15,7 @@
 #include "common/geometry/geofence.hpp"
 #include "common/geometry/object_class.hpp"
 #include "common/geometry/object_shape.hpp"
+#include "common/geometry/symmetric_eigen.hpp"
 
 namespace fogmap::view {
 namespace {
@@ -102,9 +102,9 @@ GroundEllipse groundEllipse(const Ellipsoid& ellipsoid) {
   // The shadow of {x : (x - c)^T S^-1 (x - c) <= 1} on the ground is the ellipse of the marginal
   // block S_xy: its eigenvalues are the squared semi-axes.
   const Eigen::Matrix2d block = ellipsoid.shape.topLeftCorner<2, 2>();
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> solver(block);
-  const Eigen::Vector2d values = solver.eigenvalues().cwiseMax(0.0);  // ascending
-  const Eigen::Vector2d major = solver.eigenvectors().col(1);
+  const SymmetricEigen<2> eigen = symmetricEigen(block);
+  const Eigen::Vector2d values = eigen.values.cwiseMax(0.0);  // ascending
+  const Eigen::Vector2d major = eigen.vectors.col(1);
   GroundEllipse out;
   out.centre = ellipsoid.center.head<2>();
   out.a = std::sqrt(values(1));

@@ -7,7 +7,7 @@
 #include <string>
 #include <utility>
 
-#include <Eigen/Eigenvalues>
+#include "common/geometry/symmetric_eigen.hpp"
 
 namespace fogmap {
 namespace {
@@ -108,9 +108,9 @@ std::optional<Refused> checkMapBounds(const Map& map, const AdmissionLimits& lim
                                                  ", " + num(e.center.z()) + ") lies outside the world extent of " +
                                                  num(limits.world_extent_m) + " m"};
       }
-      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(e.shape, Eigen::EigenvaluesOnly);
-      const Eigen::Vector3d values = solver.eigenvalues();  // ascending
-      if (solver.info() != Eigen::Success || !values.allFinite() || values[0] < limits.min_eigenvalue_m2 ||
+      const SymmetricEigen<3> eigen = symmetricEigenvalues(e.shape);
+      const Eigen::Vector3d values = eigen.values;  // ascending
+      if (!eigen.converged || !values.allFinite() || values[0] < limits.min_eigenvalue_m2 ||
           values[2] > limits.max_eigenvalue_m2 || values[2] > limits.max_condition * values[0]) {
         return Refused{Refusal::kBadShape, which + ": shape eigenvalues " + num(values[0]) + ", " + num(values[1]) +
                                                ", " + num(values[2]) + " m^2 are outside [" +

@@ -1,11 +1,11 @@
 #include "common/geometry/ellipsoid.hpp"
+#include "common/geometry/symmetric_eigen.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 
 #include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 
 namespace fogmap {
 
@@ -50,9 +50,9 @@ Eigen::Matrix3d ClusterSummary::covariance() const {
 }
 
 Eigen::Matrix3d withAura(const Eigen::Matrix3d& shape, double delta_m) {
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(0.5 * (shape + shape.transpose()));
-  const Eigen::Vector3d semi_axes = solver.eigenvalues().cwiseMax(0.0).cwiseSqrt().array() + delta_m;
-  const Eigen::Matrix3d& v = solver.eigenvectors();
+  const SymmetricEigen<3> eigen = symmetricEigen(Eigen::Matrix3d(0.5 * (shape + shape.transpose())));
+  const Eigen::Vector3d semi_axes = eigen.values.cwiseMax(0.0).cwiseSqrt().array() + delta_m;
+  const Eigen::Matrix3d& v = eigen.vectors;
   Eigen::Matrix3d grown = v * semi_axes.cwiseAbs2().asDiagonal() * v.transpose();
   return 0.5 * (grown + grown.transpose());
 }
@@ -178,10 +178,10 @@ bool ellipsoidsIntersect(const Eigen::Vector3d& center_a, const Eigen::Matrix3d&
   c = l.solve(c.transpose()).eval();
   c = 0.5 * (c + c.transpose());
   const Eigen::Vector3d w = l.solve(d);  // the sign of d does not matter: only w_i^2 enters
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver;
-  solver.compute(c);  // the closed-form 3x3 solver loses small eigenvalues of thin shapes
-  const Eigen::Vector3d lambda = solver.eigenvalues().cwiseMax(0.0);
-  const Eigen::Vector3d v = solver.eigenvectors().transpose() * w;
+  // The iterative solver: the closed-form 3x3 one loses small eigenvalues of thin shapes.
+  const SymmetricEigen<3> eigen = symmetricEigen(c);
+  const Eigen::Vector3d lambda = eigen.values.cwiseMax(0.0);
+  const Eigen::Vector3d v = eigen.vectors.transpose() * w;
   return !separatingMaximumExceedsOne(v.cwiseAbs2(), lambda);
 }
 

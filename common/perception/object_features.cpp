@@ -4,7 +4,7 @@
 #include <cmath>
 #include <vector>
 
-#include <Eigen/Eigenvalues>
+#include "common/geometry/symmetric_eigen.hpp"
 
 namespace fogmap {
 namespace {
@@ -90,13 +90,13 @@ FeatureVector objectFeatures(std::span<const Point> points, const OrientedBox& b
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
   for (const auto& p : finite) covariance += (p - mean) * (p - mean).transpose();
   covariance /= n;
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(covariance);
-  const Eigen::Vector3d l = solver.eigenvalues().cwiseMax(0.0);  // ascending
+  const SymmetricEigen<3> eigen = symmetricEigen(covariance);
+  const Eigen::Vector3d l = eigen.values.cwiseMax(0.0);  // ascending
   if (l(2) > 0.0) {
     set(Feature::kLinearity, (l(2) - l(1)) / l(2));
     set(Feature::kPlanarity, (l(1) - l(0)) / l(2));
     set(Feature::kScattering, l(0) / l(2));
-    set(Feature::kVerticality, std::abs(solver.eigenvectors().col(2).z()));
+    set(Feature::kVerticality, std::abs(eigen.vectors.col(2).z()));
   }
 
   // Height profile over the box's height (from its bottom), and the spread above and below its middle.

@@ -97,11 +97,12 @@ void linkAdjacentRings(const RangeImage& image, int r, std::span<const Point> po
     const double ri = range_of[pi];
     const double rj = range_of[pj];
     if (!(std::abs(ri - rj) < eps)) return;
-    const double bound = std::max(eps, gap_link * std::min(ri, rj));
+    const double reach = gap_link * std::min(ri, rj);
+    if (!(reach > eps)) return;
     const double dx = static_cast<double>(points[pi].x) - static_cast<double>(points[pj].x);
     const double dy = static_cast<double>(points[pi].y) - static_cast<double>(points[pj].y);
     const double dz = static_cast<double>(points[pi].z) - static_cast<double>(points[pj].z);
-    if (dx * dx + dy * dy + dz * dz < bound * bound) {
+    if (dx * dx + dy * dy + dz * dz < reach * reach) {
       sets.unite(static_cast<std::size_t>(ci), static_cast<std::size_t>(cj));
       joined_i = ci;
       joined_j = cj;
@@ -241,11 +242,6 @@ int BeamGeometry::exactAzimuthBin(double x, double y) const {
   return bin >= bins_ ? bin - bins_ : bin;
 }
 
-inline BeamGeometry::SensorPoint BeamGeometry::toSensor(const Point& point) const {
-  const Eigen::Vector3d s = to_sensor_ * Eigen::Vector3d(point.x, point.y, point.z);
-  return {s.x(), s.y(), s.z(), s.norm()};
-}
-
 inline int BeamGeometry::ringOfSine(double sine) const {
   int ring = ring_below_[static_cast<std::size_t>(sineCell(sine))];
   ring += sin_midpoints_[static_cast<std::size_t>(ring)] < sine ? 1 : 0;
@@ -311,35 +307,65 @@ Expected<Clustering> sensorAwareClusters(std::span<const Point> points, const Se
   const Clustering linked = euclideanClusters(points, exact);
   const auto components = static_cast<std::size_t>(linked.cluster_count);
 
-  // The range image: each point with a beam as a word (cell << 32 | index), sorted by cell.
+  // The range image: each point a ring link could reach past eps from (see the header) as a word
+  // (cell << 32 | index), sorted by cell. A point of ring r is kept where its range times the
+  // wider link of ring r's two gaps (slack x gap) is above eps: elsewhere every reach through it
+  // is at most eps (the products are monotonic in both factors, roundings included).
   const int rings = geometry->rings();
   const int bins = geometry->azimuthBins();
+  const double eps = params.clustering.eps_m;
+  std::vector<double> gap_link(static_cast<std::size_t>(rings) - 1);
+  for (int r = 0; r + 1 < rings; ++r) {
+    gap_link[static_cast<std::size_t>(r)] = params.links.ring_gap_slack * (geometry->elevationRad(r + 1) - geometry->elevationRad(r));
+  }
+  std::vector<double> ring_link(static_cast<std::size_t>(rings));
+  for (std::size_t r = 0; r < ring_link.size(); ++r) {
+    ring_link[r] = std::max(r > 0 ? gap_link[r - 1] : 0.0, r + 1 < ring_link.size() ? gap_link[r] : 0.0);
+  }
+  // Nearer than this no ring's link reaches past eps: such points are passed over on their
+  // squared range, before the square root, with a margin of 1e-6 far above its roundings.
+  const double widest_link = *std::max_element(gap_link.begin(), gap_link.end());
+  const double near_range = eps / widest_link * (1.0 - 1e-6);
+  const double near_squared = near_range * near_range;
   const auto range_of = std::make_unique_for_overwrite<double[]>(n);
   std::vector<std::uint64_t> words;
-  words.reserve(n);
   std::vector<std::uint32_t> ring_count(static_cast<std::size_t>(rings), 0);
-  // index() in two passes over blocks of points: first the long chains of arithmetic (transform,
-  // square root, divisions, polynomial) without a branch, so that those of consecutive points
-  // overlap; then the lookups and decisions.
+  // index() in passes over blocks of points: the transform first, for every point, without a
+  // branch; then the range test, the ring and the kept points; then the azimuth of the kept ones
+  // (the fast atan2's long chain of arithmetic, consecutive points overlapping), then its bin.
   constexpr std::size_t kBlock = 256;
+  std::array<Eigen::Vector3d, kBlock> local;
   std::array<BeamGeometry::SensorPoint, kBlock> sensor;
+  std::array<std::uint32_t, kBlock> kept_index;
+  std::array<int, kBlock> kept_ring;
   std::array<double, kBlock> fast_coordinate;
   for (std::size_t first = 0; first < n; first += kBlock) {
     const std::size_t count = std::min(kBlock, n - first);
     for (std::size_t k = 0; k < count; ++k) {
-      sensor[k] = geometry->toSensor(points[first + k]);
-      fast_coordinate[k] = geometry->fastBinCoordinate(sensor[k].x, sensor[k].y);
+      local[k] = geometry->toSensorFrame(points[first + k]);
     }
+    std::size_t kept = 0;
     for (std::size_t k = 0; k < count; ++k) {
       const std::size_t i = first + k;
-      const auto& s = sensor[k];
-      if (linked.labels[i] < 0 || !(s.range > 0.0)) continue;  // non-finite, or no beam
+      // Non-finite points (label -1 under rule a) and near ones (NaN compares false) are passed.
+      if (linked.labels[i] < 0 || !(local[k].squaredNorm() > near_squared)) continue;
+      const BeamGeometry::SensorPoint s = BeamGeometry::withRange(local[k]);
       const int ring = geometry->ringOfSine(s.z / s.range);
+      if (!(s.range * ring_link[static_cast<std::size_t>(ring)] > eps)) continue;
+      sensor[kept] = s;
+      kept_ring[kept] = ring;
+      kept_index[kept] = static_cast<std::uint32_t>(i);
+      ++kept;
+    }
+    for (std::size_t k = 0; k < kept; ++k) fast_coordinate[k] = geometry->fastBinCoordinate(sensor[k].x, sensor[k].y);
+    for (std::size_t k = 0; k < kept; ++k) {
+      const auto& s = sensor[k];
+      const int ring = kept_ring[k];
       const int bin = geometry->azimuthBin(fast_coordinate[k], s.x, s.y);
-      range_of[i] = s.range;
+      range_of[kept_index[k]] = s.range;
       ++ring_count[static_cast<std::size_t>(ring)];
       const auto cell = static_cast<std::uint64_t>(ring) * static_cast<std::uint64_t>(bins) + static_cast<std::uint64_t>(bin);
-      words.push_back((cell << kIndexBits) | i);
+      words.push_back((cell << kIndexBits) | kept_index[k]);
     }
   }
   const auto cells = static_cast<std::uint64_t>(rings) * static_cast<std::uint64_t>(bins);
@@ -355,10 +381,8 @@ Expected<Clustering> sensorAwareClusters(std::span<const Point> points, const Se
 
   // Rule (b) over every pair of adjacent rings, on the components of rule (a).
   DisjointSets sets(components);
-  const double eps = params.clustering.eps_m;
   for (int r = 0; r + 1 < rings; ++r) {
-    const double gap_link = params.links.ring_gap_slack * (geometry->elevationRad(r + 1) - geometry->elevationRad(r));
-    linkAdjacentRings(image, r, points, range_of.get(), params.links.azimuth_window, eps, gap_link, sets);
+    linkAdjacentRings(image, r, points, range_of.get(), params.links.azimuth_window, eps, gap_link[static_cast<std::size_t>(r)], sets);
   }
 
   // Sizes of the joined components, then canonical labels in the order of each cluster's first point.

@@ -8,9 +8,8 @@
 #include <string>
 #include <utility>
 
-#include <Eigen/Eigenvalues>
-
 #include "common/config/topology.hpp"
+#include "common/geometry/symmetric_eigen.hpp"
 
 namespace fogmap {
 
@@ -116,8 +115,8 @@ Expected<tracking::CentroidFrame> fromProto(const v1::CentroidFrame& frame) {
       return invalidArgument(where + ": covariance has a variance above 1e8 m^2");
     }
     // Positive semi-definite, up to the float rounding of the wire.
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(centroid.covariance, Eigen::EigenvaluesOnly);
-    if (eigen.eigenvalues()(0) < -1e-6 * std::max(eigen.eigenvalues()(2), 1e-12)) {
+    const Eigen::Vector3d values = symmetricEigenvalues(centroid.covariance).values;
+    if (values(0) < -1e-6 * std::max(values(2), 1e-12)) {
       return invalidArgument(where + ": covariance is not positive semi-definite");
     }
     if (c.point_count() < 2) {

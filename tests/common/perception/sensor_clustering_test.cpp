@@ -218,11 +218,12 @@ Clustering bruteForceSensorClusters(std::span<const Point> points, const SensorC
     if (!(std::abs(a.range_m - b.range_m) < eps)) return false;
     const int lower = std::min(a.ring, b.ring);
     const double gap_rad = geometry->elevationRad(lower + 1) - geometry->elevationRad(lower);
-    const double bound = std::max(eps, (params.links.ring_gap_slack * gap_rad) * std::min(a.range_m, b.range_m));
+    const double reach = (params.links.ring_gap_slack * gap_rad) * std::min(a.range_m, b.range_m);
+    if (!(reach > eps)) return false;
     const double dx = static_cast<double>(points[i].x) - static_cast<double>(points[j].x);
     const double dy = static_cast<double>(points[i].y) - static_cast<double>(points[j].y);
     const double dz = static_cast<double>(points[i].z) - static_cast<double>(points[j].z);
-    return dx * dx + dy * dy + dz * dz < bound * bound;
+    return dx * dx + dy * dy + dz * dz < reach * reach;
   };
   DisjointSets sets(n);
   for (std::size_t i = 0; i < n; ++i) {
@@ -258,6 +259,7 @@ struct RuleBCounts {
   std::size_t beyond_eps = 0;
   std::size_t across_seam = 0;
   std::size_t depth_refused = 0;
+  std::size_t near_points = 0;  // points with a beam whose every ring link reaches no further than eps
 };
 RuleBCounts ruleBCounts(std::span<const Point> points, const SensorClusteringParams& params) {
   const auto geometry = BeamGeometry::make(params);
@@ -266,6 +268,14 @@ RuleBCounts ruleBCounts(std::span<const Point> points, const SensorClusteringPar
   std::vector<BeamIndex> beam;
   for (const auto& p : points) beam.push_back(geometry->index(p));
   RuleBCounts counts;
+  const int rings = geometry->rings();
+  for (const auto& a : beam) {
+    if (a.ring == BeamIndex::kNoBeam) continue;
+    double widest_gap = 0.0;
+    if (a.ring > 0) widest_gap = geometry->elevationRad(a.ring) - geometry->elevationRad(a.ring - 1);
+    if (a.ring + 1 < rings) widest_gap = std::max(widest_gap, geometry->elevationRad(a.ring + 1) - geometry->elevationRad(a.ring));
+    counts.near_points += params.links.ring_gap_slack * widest_gap * a.range_m <= eps ? 1 : 0;
+  }
   for (std::size_t i = 0; i < points.size(); ++i) {
     const auto& a = beam[i];
     for (std::size_t j = 0; j < points.size(); ++j) {
@@ -321,10 +331,13 @@ TEST(SensorClustering, EqualsBruteForceOnSimulatedLidarClouds) {
     const RuleBCounts c = ruleBCounts(scan.points, params);
     counts.beyond_eps += c.beyond_eps;
     counts.depth_refused += c.depth_refused;
+    counts.near_points += c.near_points;
     trials_changed += actual.labels != euclideanClusters(scan.points, params.clustering).labels ? 1 : 0;
   }
-  // The clouds need rule (b), and its depth test.
+  // The clouds need rule (b), and its depth test; and they hold points too near for a ring link
+  // to reach past eps, which the range image leaves out.
   EXPECT_GT(counts.beyond_eps, 1000U);
+  EXPECT_GT(counts.near_points, 1000U);
   EXPECT_GT(counts.depth_refused, 20U);
   EXPECT_GT(trials_changed, 18);
 }

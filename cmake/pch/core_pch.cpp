@@ -1,0 +1,1 @@
+int fogmap_core_pch_anchor = 0;

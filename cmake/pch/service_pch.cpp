@@ -1,0 +1,1 @@
+int fogmap_service_pch_anchor = 0;
