@@ -10,23 +10,26 @@ function(fogmap_set_warnings target)
   endif()
 endfunction()
 
-# The gRPC-facing targets (the services' layer, the services and their mains, the harness, the
-# pictures of runs, the view, fogctl) parse the same heavy headers in every unit: gRPC, protobuf and
-# the generated fogmap.grpc.pb.h, Eigen, Prometheus, nlohmann/json. With FOGMAP_PCH they reuse one
-# precompiled cmake/pch/service_headers.hpp, built by fogmap_service_pch with the same flags as
-# they are (GCC takes a precompiled header only from identical flags; it warns, -Winvalid-pch, and
-# parses the header as text where they differ).
-function(fogmap_use_service_pch target)
-  if(FOGMAP_PCH)
-    target_precompile_headers(${target} REUSE_FROM fogmap_service_pch)
-  endif()
+# Precompiled headers (FOGMAP_PCH). fogmap_add_pch(name HEADER file LIBS ...) makes the target
+# `name` that precompiles `file` with the flags its LIBS give; fogmap_use_pch(target name) makes
+# `target` reuse it. GCC takes a precompiled header only from identical flags (it warns,
+# -Winvalid-pch, and parses the header as text where they differ), so each header is used by
+# targets compiled exactly as its own: fogmap_service_pch (cmake/pch/service_headers.hpp: gRPC,
+# protobuf and the generated fogmap.grpc.pb.h, Eigen, Prometheus, nlohmann/json; -pthread) by the
+# services' layer, the services and their mains, the harness, the pictures of runs, the view and
+# fogctl; fogmap_core_pch (cmake/pch/core_headers.hpp: Eigen) by the Eigen-based libraries under
+# common/ and the cores built on them.
+function(fogmap_add_pch name)
+  cmake_parse_arguments(ARG "" "HEADER" "LIBS" ${ARGN})
+  add_library(${name} OBJECT ${PROJECT_SOURCE_DIR}/cmake/pch/pch_anchor.cpp)
+  target_link_libraries(${name} PRIVATE ${ARG_LIBS})
+  target_precompile_headers(${name} PRIVATE ${ARG_HEADER})
+  fogmap_set_warnings(${name})
 endfunction()
 
-# The same for the Eigen-based libraries under common/ and the cores built on them, which are
-# compiled without -pthread: they reuse cmake/pch/core_headers.hpp, built by fogmap_core_pch.
-function(fogmap_use_core_pch target)
+function(fogmap_use_pch target name)
   if(FOGMAP_PCH)
-    target_precompile_headers(${target} REUSE_FROM fogmap_core_pch)
+    target_precompile_headers(${target} REUSE_FROM ${name})
   endif()
 endfunction()
 

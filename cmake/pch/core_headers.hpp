@@ -2,7 +2,7 @@
 // The headers that the pure libraries under common/ with Eigen at their heart parse in every unit
 // (geometry, perception, tracking, sim, config, camera, classify) and the cores built on them (the
 // edge's, the aggregator's, the pictures), precompiled once and reused by those targets
-// (cmake/fogmap_helpers.cmake, fogmap_use_core_pch). A source still includes what it uses.
+// (cmake/fogmap_helpers.cmake, fogmap_use_pch). A source still includes what it uses.
 #include <algorithm>
 #include <array>
 #include <cmath>

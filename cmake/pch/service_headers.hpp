@@ -1,7 +1,7 @@
 #pragma once
 // The headers that every gRPC-facing unit of fogmap parses (the services' layer, the services, the
 // harness, the pictures of runs, the view and fogctl), precompiled once and reused by those
-// targets (cmake/fogmap_helpers.cmake, fogmap_use_service_pch). Only what a large share of them
+// targets (cmake/fogmap_helpers.cmake, fogmap_use_pch). Only what a large share of them
 // includes belongs here; a source still includes what it uses (the dev preset builds without it).
 #include <algorithm>
 #include <atomic>

@@ -1,1 +1,0 @@
-int fogmap_core_pch_anchor = 0;

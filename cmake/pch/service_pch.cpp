@@ -1,1 +1,0 @@
-int fogmap_service_pch_anchor = 0;
