@@ -406,8 +406,9 @@ std::string report(const EvalPlan& plan, const EvalResult& r, const std::filesys
      << "LiDAR, merge-aggregator as the sink) on random scenes made by "
      << "`fogctl scene random` (seed " << plan.seed << ", HDL-32E LiDARs at the paper's spots Lambda_2 .. Lambda_7, eps 0.35 m, "
      << "10 points): MAD-C (ext mode; plain MAD-C behind the limited links) as a scene's topology runs it by default "
-     << "(each edge clustering sensor-aware with its LiDAR's beam table and shipping every cluster, fragments included; "
-     << "`--clustering exact --fragment-min-points off` is the paper's MAD-C, compared in the README) and the baseline "
+     << "(each edge clustering sensor-aware with its LiDAR's beam table and shipping every cluster, fragments included, "
+     << "each ellipsoid reaching its cluster's ends along its axes up to alpha_max 2.5: alpha is the floor of its semi-axes; "
+     << "`--clustering exact --fragment-min-points off --alpha-max off` is the paper's MAD-C, compared in the README) and the baseline "
      << "(every pre-processed point shipped, clustered exactly at the sink) over the same " << plan.frames
      << " frames of each scene. Accuracy is scored against the baseline (as the paper does) and against the simulator's "
      << "per-point truth."

@@ -108,16 +108,18 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
   if (const Status s = validateAdmissionLimits(t.admission); !s) return invalidArgument("topology: " + s.error().message);
 
   if (const YAML::Node m = root["madc"]) {
-    if (const Status s = checkSection(m, "madc", {"eps_m", "min_points", "fragment_min_points", "alpha", "threads"}); !s) return s.error();
+    if (const Status s = checkSection(m, "madc", {"eps_m", "min_points", "fragment_min_points", "alpha", "alpha_max", "threads"}); !s) return s.error();
     const auto eps = scalar<double>(m, "eps_m", "madc", t.madc.clustering.eps_m);
     const auto min_points = scalar<long long>(m, "min_points", "madc", static_cast<long long>(t.madc.clustering.min_points));
     const auto fragment_min_points = scalar<long long>(m, "fragment_min_points", "madc", 0);
     const auto alpha = scalar<double>(m, "alpha", "madc", t.madc.alpha);
+    const auto alpha_max = scalar<double>(m, "alpha_max", "madc", t.madc.alpha_max);
     const auto threads = scalar<long long>(m, "threads", "madc", static_cast<long long>(t.madc.clustering.threads));
     if (!eps) return eps.error();
     if (!min_points) return min_points.error();
     if (!fragment_min_points) return fragment_min_points.error();
     if (!alpha) return alpha.error();
+    if (!alpha_max) return alpha_max.error();
     if (!threads) return threads.error();
     if (*min_points < 1 || *min_points > std::numeric_limits<std::int32_t>::max()) {
       return bad("madc.min_points", "must be in [1, 2^31)");
@@ -126,11 +128,15 @@ Expected<TopologyConfig> parseDocument(const YAML::Node& root, const std::filesy
       return bad("madc.fragment_min_points", "must be in [1, min_points] (" + std::to_string(*min_points) + ")");
     }
     if (!(*alpha > 0.0 && *alpha < 10.0)) return bad("madc.alpha", "must be in (0, 10)");
+    if (!(*alpha_max == 0.0 || (*alpha_max >= *alpha && *alpha_max < 10.0))) {
+      return bad("madc.alpha_max", "must be 0 (off) or in [alpha, 10)");
+    }
     if (*threads < 1 || *threads > 256) return bad("madc.threads", "must be in [1, 256]");
     t.madc.clustering.eps_m = *eps;
     t.madc.clustering.min_points = static_cast<std::size_t>(*min_points);
     if (m["fragment_min_points"]) t.madc.fragment_min_points = static_cast<std::size_t>(*fragment_min_points);
     t.madc.alpha = *alpha;
+    t.madc.alpha_max = *alpha_max;
     t.madc.clustering.threads = static_cast<std::size_t>(*threads);
   }
   // eps_m's range is validateClusteringParams's; its messages start with the field's name.

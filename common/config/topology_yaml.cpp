@@ -31,8 +31,9 @@ std::string toYaml(const TopologyConfig& t) {
   out << YAML::Key << "madc" << YAML::Value << YAML::BeginMap << YAML::Key << "eps_m" << YAML::Value << t.madc.clustering.eps_m
       << YAML::Key << "min_points" << YAML::Value << t.madc.clustering.min_points;
   if (t.madc.fragment_min_points) out << YAML::Key << "fragment_min_points" << YAML::Value << *t.madc.fragment_min_points;
-  out << YAML::Key << "alpha" << YAML::Value << t.madc.alpha << YAML::Key << "threads" << YAML::Value
-      << t.madc.clustering.threads << YAML::EndMap;
+  out << YAML::Key << "alpha" << YAML::Value << t.madc.alpha;
+  if (t.madc.alpha_max > 0.0) out << YAML::Key << "alpha_max" << YAML::Value << t.madc.alpha_max;
+  out << YAML::Key << "threads" << YAML::Value << t.madc.clustering.threads << YAML::EndMap;
   if (t.objects.boxes) {
     out << YAML::Key << "objects" << YAML::Value << YAML::BeginMap << YAML::Key << "boxes" << YAML::Value << true;
     if (t.objects.classifier) out << YAML::Key << "classifier" << YAML::Value << t.objects.classifier->string();

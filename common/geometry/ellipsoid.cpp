@@ -67,6 +67,29 @@ Ellipsoid ellipsoidFromSummary(const ClusterSummary& summary, const EllipsoidId&
   return e;
 }
 
+ClusterReach::ClusterReach(const ClusterSummary& summary) : count_(summary.count()), mean_(summary.mean()) {
+  const SymmetricEigen<3> eigen = symmetricEigen(summary.covariance());
+  axes_ = eigen.vectors;
+  sigma_ = eigen.values.cwiseMax(0.0).cwiseSqrt();
+}
+
+Ellipsoid ClusterReach::ellipsoid(const EllipsoidId& id, const EllipsoidParams& params) const {
+  Ellipsoid e;
+  e.id = id;
+  e.point_count = count_;
+  const bool reaches = params.reaches();
+  Eigen::Vector3d semi_axes;
+  for (int k = 0; k < 3; ++k) {
+    const double half_extent = reaches ? 0.5 * (high_[k] - low_[k]) : 0.0;
+    semi_axes[k] = std::clamp(half_extent, params.alpha * sigma_[k], std::max(params.alpha, params.alpha_max) * sigma_[k]) +
+                   params.aura_m;
+  }
+  e.center = reaches ? Eigen::Vector3d(mean_ + axes_ * (0.5 * (low_ + high_))) : mean_;
+  const Eigen::Matrix3d shape = axes_ * semi_axes.cwiseAbs2().asDiagonal() * axes_.transpose();
+  e.shape = 0.5 * (shape + shape.transpose());
+  return e;
+}
+
 Box delimitingBox(const Ellipsoid& e) {
   const Eigen::Vector3d half = e.shape.diagonal().cwiseMax(0.0).cwiseSqrt();
   return Box{e.center - half, e.center + half};

@@ -65,6 +65,11 @@ class ClusterSummary {
 struct EllipsoidParams {
   double alpha = 1.5;     // confidence step; the paper's useful range is [0.8, 2.4]
   double aura_m = 0.175;  // delta = eps / 2
+  // Reach (docs/design.md "Reaching ellipsoids"): above alpha, each semi-axis grows from
+  // alpha sigma towards the cluster's farthest point along its axis, to at most alpha_max sigma.
+  // At most alpha (the default): the paper's alpha^2 Sigma.
+  double alpha_max = 0.0;
+  bool reaches() const { return alpha_max > alpha; }
 };
 
 // The set {x : (x - center)^T shape^-1 (x - center) <= 1}; shape is symmetric positive definite
@@ -91,6 +96,35 @@ Eigen::Matrix3d withAura(const Eigen::Matrix3d& shape, double delta_m);
 // Bounding ellipsoid of a cluster: shape alpha^2 Sigma grown by the aura.
 Ellipsoid ellipsoidFromSummary(const ClusterSummary& summary, const EllipsoidId& id,
                                const EllipsoidParams& params);
+
+// A cluster's principal axes (its covariance's eigenvectors) and how far its points reach from
+// its mean along each, on both sides: made from the cluster's summary, then given every point of
+// the cluster.
+class ClusterReach {
+ public:
+  explicit ClusterReach(const ClusterSummary& summary);
+  void add(const Eigen::Vector3d& p) {
+    const Eigen::Vector3d q = axes_.transpose() * (p - mean_);
+    low_ = low_.cwiseMin(q);
+    high_ = high_.cwiseMax(q);
+  }
+  void add(const Point& p) { add(Eigen::Vector3d(p.x, p.y, p.z)); }
+  // With params.reaches(): centred on the middle of the points' extent along each axis, with
+  // semi-axis k half that extent clamped to [alpha sigma_k, alpha_max sigma_k], grown by the aura.
+  // It reaches the cluster's ends along its axes where alpha sigma falls short of them (a flat
+  // face's ends lie at sqrt(3) sigma), without the bulge a larger alpha gives every cluster, nor
+  // the one a mean-centred ellipsoid needs on the near side to reach an uneven cluster's far end.
+  // Without: the paper's ellipsoid (ellipsoidFromSummary's, up to rounding).
+  Ellipsoid ellipsoid(const EllipsoidId& id, const EllipsoidParams& params) const;
+
+ private:
+  std::uint64_t count_ = 0;
+  Eigen::Vector3d mean_ = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d axes_ = Eigen::Matrix3d::Identity();  // column k: axis k
+  Eigen::Vector3d sigma_ = Eigen::Vector3d::Zero();     // standard deviation along axis k
+  Eigen::Vector3d low_ = Eigen::Vector3d::Zero();       // smallest projection on axis k (<= 0)
+  Eigen::Vector3d high_ = Eigen::Vector3d::Zero();      // largest projection on axis k (>= 0)
+};
 
 // Axis-aligned box of the ellipsoid: half extent sqrt(M_dd) along axis d.
 Box delimitingBox(const Ellipsoid& e);

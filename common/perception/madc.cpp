@@ -14,15 +14,32 @@ Expected<LocalMapResult> genLocalMap(std::span<const Point> points, std::uint32_
   } else {
     result.clustering = euclideanClusters(points, params.clustering);
   }
-  const auto summaries = summarizeClusters(points, result.clustering);
+  result.map = localMap(clusterEllipsoids(points, result.clustering, node, frame, params.ellipsoidParams()));
+  return result;
+}
+
+std::vector<Ellipsoid> clusterEllipsoids(std::span<const Point> points, const Clustering& clustering, std::uint32_t node,
+                                         std::uint64_t frame, const EllipsoidParams& params) {
+  const std::vector<ClusterSummary> summaries = summarizeClusters(points, clustering);
   std::vector<Ellipsoid> ellipsoids;
   ellipsoids.reserve(summaries.size());
-  const EllipsoidParams ellipsoid_params = params.ellipsoidParams();
-  for (std::size_t k = 0; k < summaries.size(); ++k) {
-    ellipsoids.push_back(ellipsoidFromSummary(summaries[k], {node, frame, static_cast<std::uint32_t>(k)}, ellipsoid_params));
+  if (!params.reaches()) {
+    for (std::size_t k = 0; k < summaries.size(); ++k) {
+      ellipsoids.push_back(ellipsoidFromSummary(summaries[k], {node, frame, static_cast<std::uint32_t>(k)}, params));
+    }
+    return ellipsoids;
   }
-  result.map = localMap(std::move(ellipsoids));
-  return result;
+  std::vector<ClusterReach> reaches;
+  reaches.reserve(summaries.size());
+  for (const ClusterSummary& summary : summaries) reaches.emplace_back(summary);
+  for (std::size_t i = 0; i < points.size() && i < clustering.labels.size(); ++i) {
+    const auto label = clustering.labels[i];
+    if (label >= 0) reaches[static_cast<std::size_t>(label)].add(points[i]);
+  }
+  for (std::size_t k = 0; k < reaches.size(); ++k) {
+    ellipsoids.push_back(reaches[k].ellipsoid({node, frame, static_cast<std::uint32_t>(k)}, params));
+  }
+  return ellipsoids;
 }
 
 }  // namespace fogmap

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <optional>
 #include <span>
+#include <vector>
 
 #include "common/geometry/cloud.hpp"
 #include "common/geometry/ellipsoid.hpp"
@@ -22,6 +23,9 @@ struct MadcParams {
   // an object a sparse LiDAR sees as one cluster where its rings lie further apart than eps.
   std::optional<SensorLinks> sensor_links;
   double alpha = 1.5;           // confidence step
+  // Above alpha: each ellipsoid reaches its cluster's extent along its axes, up to alpha_max
+  // (EllipsoidParams, ClusterReach). At most alpha: off, the paper's ellipsoids.
+  double alpha_max = 0.0;
   // An edge ships every local cluster of at least this many points: those below
   // clustering.min_points are fragments, and min_points applies to a global object's points over
   // all its sensors, at the root (withoutFragments, common/geometry/map.hpp). Unset: min_points,
@@ -30,13 +34,18 @@ struct MadcParams {
   std::optional<std::size_t> fragment_min_points;
   std::size_t edgeMinPoints() const { return fragment_min_points.value_or(clustering.min_points); }
   // The aura is eps / 2 so that "two clusters closer than eps" becomes "two ellipsoids meet".
-  EllipsoidParams ellipsoidParams() const { return {alpha, clustering.eps_m / 2.0}; }
+  EllipsoidParams ellipsoidParams() const { return {alpha, clustering.eps_m / 2.0, alpha_max}; }
 };
 
 struct LocalMapResult {
   Map map;                // one object per local cluster, ellipsoid index = cluster label
   Clustering clustering;  // per-point labels, for MAD-C-ext and accuracy checks
 };
+
+// One bounding ellipsoid per cluster of `clustering`, in label order, with ids (node, frame, label):
+// from the clusters' summaries, or with params.reaches() from a second pass over their points.
+std::vector<Ellipsoid> clusterEllipsoids(std::span<const Point> points, const Clustering& clustering, std::uint32_t node,
+                                         std::uint64_t frame, const EllipsoidParams& params);
 
 // Errors only in the sensor-aware mode, when validateSensorClusteringParams refuses its parameters.
 Expected<LocalMapResult> genLocalMap(std::span<const Point> points, std::uint32_t node, std::uint64_t frame,

@@ -134,6 +134,7 @@ TopologyConfig sceneTopology(const Scene& scene, const std::filesystem::path& sc
     }
   }
   t.madc.fragment_min_points = options.mapping.fragment_min_points;
+  t.madc.alpha_max = options.mapping.alpha_max;
   return t;  // edges are leaves: renaming them leaves every parent link as it was
 }
 

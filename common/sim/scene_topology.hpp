@@ -24,8 +24,16 @@ namespace fogmap::sim {
 struct SceneMapping {
   ClusteringMode clustering = ClusteringMode::kSensor;
   std::optional<std::size_t> fragment_min_points = 1;
+  // madc.alpha_max: each ellipsoid reaches its cluster's extent along its axes, to at most 2.5
+  // standard deviations (ClusterReach), so that the faces of an object that several LiDARs see
+  // meet where the baseline's pooled points join them (docs/evaluation.md; 0: off)
+  double alpha_max = 2.5;
   ObjectsConfig objects{};  // boxes and classes at the edges (off: ellipsoids only)
 };
+
+// The MAD-C paper's edges: exact clustering, no fragments, alpha for every ellipsoid. The default
+// for recorded scans, whose LiDAR models fogmap does not know.
+inline SceneMapping paperMapping() { return SceneMapping{ClusteringMode::kExact, std::nullopt, 0.0, ObjectsConfig{}}; }
 
 struct SceneTopologyOptions {
   bool tree = false;       // a balanced tree of aggregators instead of a star

@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "common/perception/clustering.hpp"
+#include "common/perception/madc.hpp"
 
 namespace fogmap {
 namespace {
@@ -77,16 +78,8 @@ GlobalMapMessage clusterCentrally(BaselineJob job) {
   Cloud all;
   for (const auto& [sensor, cloud] : job.scans) all.insert(all.end(), cloud.begin(), cloud.end());
   const Clustering clustering = euclideanClusters(all, job.madc.clustering);
-  const auto summaries = summarizeClusters(all, clustering);
-  std::vector<Ellipsoid> ellipsoids;
-  ellipsoids.reserve(summaries.size());
-  for (std::size_t k = 0; k < summaries.size(); ++k) {
-    ellipsoids.push_back(ellipsoidFromSummary(summaries[k],
-                                              {job.node, global.header.epoch, static_cast<std::uint32_t>(k)},
-                                              job.madc.ellipsoidParams()));
-  }
   // Ids (node, epoch, k) sort by k, so object k of the canonical map is central cluster k.
-  global.map = localMap(std::move(ellipsoids));
+  global.map = localMap(clusterEllipsoids(all, clustering, job.node, global.header.epoch, job.madc.ellipsoidParams()));
   global.merge_seconds = secondsSince(start);
   global.pairs_all = 0;
   global.pairs_tested = 0;

@@ -211,6 +211,13 @@ Expected<sim::SceneMapping> sceneMapping(const Args& args, const sim::SceneMappi
     if (!n || *n < 1 || *n > 1000) return invalidArgument("--fragment-min-points must be off or in [1, 1000]");
     mapping.fragment_min_points = static_cast<std::size_t>(*n);
   }
+  if (args.get("alpha-max") == "off") {
+    mapping.alpha_max = 0.0;
+  } else if (args.has("alpha-max")) {
+    const auto a = args.getDouble("alpha-max", 0.0);
+    if (!a || !(*a > 0.0 && *a < 10.0)) return invalidArgument("--alpha-max must be off or in (0, 10)");
+    mapping.alpha_max = *a;
+  }
   const std::string objects = args.get("objects", "none");
   if (objects != "none" && objects != "boxes" && objects != "classes") {
     return invalidArgument("--objects must be none, boxes or classes, got '" + objects + "'");

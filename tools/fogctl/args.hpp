@@ -84,7 +84,7 @@ inline constexpr const char* kDefaultClassifierModel = "data/models/lidar_classi
 // bundled model when it is there, else none (nullptr): objects then get boxes without classes.
 Expected<std::shared_ptr<const ObjectClassifier>> classifierFlag(const Args& args);
 
-// --clustering exact|sensor, --fragment-min-points N|off (N from 1 to 1000) and --objects
+// --clustering exact|sensor, --fragment-min-points N|off (N from 1 to 1000), --alpha-max A|off and --objects
 // none|boxes|classes with --classifier FILE: how a scene's edges make their maps (demo, topology
 // --scene), over `defaults`.
 Expected<sim::SceneMapping> sceneMapping(const Args& args, const sim::SceneMapping& defaults);
@@ -96,6 +96,9 @@ inline constexpr const char* kSceneMappingUsage =
     "                 as fragments, and min_points applies to a global object's points over all its\n"
     "                 sensors, at the root; off: an edge drops its clusters below min_points (the paper's\n"
     "                 MAD-C, the default for recorded scans)\n"
+    "  --alpha-max A|off           each ellipsoid reaches its cluster's farthest point along each of its\n"
+    "                 axes, from alpha up to A standard deviations (madc.alpha_max; default for a scene:\n"
+    "                 2.5); off: alpha for every ellipsoid (the paper's, the default for recorded scans)\n"
     "  --objects none|boxes|classes  what the edges say of each cluster of min_points beyond its\n"
     "                 ellipsoid: nothing (default), its oriented box (L-shape fit, up to 16 bytes more an\n"
     "                 ellipsoid on the wire), or its box and LiDAR class (topology section objects:)\n"

@@ -269,7 +269,7 @@ int runDemo(int argc, char** argv) {
   const auto args =
       Args::parse(argc, argv, 2,
                   {"input", "scene", "nodes", "topology", "frames", "report", "png", "base-port", "state", "alpha", "miss-rate",
-                   "association", "tracker-input", "track-frames", "tracks-png", "clustering", "fragment-min-points", "objects", "classifier"},
+                   "association", "tracker-input", "track-frames", "tracks-png", "clustering", "fragment-min-points", "alpha-max", "objects", "classifier"},
                   {});
   if (!args) return fail(args.error(), "fogctl demo");
   if (args->has("scene")) {
@@ -295,7 +295,7 @@ int runDemo(int argc, char** argv) {
   if (shape != "star" && shape != "tree") return fail(invalidArgument("--topology must be star or tree"), "fogctl demo");
   const std::filesystem::path dir = args->get("state", ".fogmap/demo");
   // Recorded scans: the paper's MAD-C unless told (the sensor's model is not known here).
-  const auto mapping = sceneMapping(*args, sim::SceneMapping{ClusteringMode::kExact, std::nullopt});
+  const auto mapping = sceneMapping(*args, sim::paperMapping());
   if (!mapping) return fail(mapping.error(), "fogctl demo");
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
@@ -308,6 +308,7 @@ int runDemo(int argc, char** argv) {
     t.name = std::string(modeName(mode)) + "-" + t.name;
     t.madc.alpha = *alpha;
     t.madc.fragment_min_points = mapping->fragment_min_points;
+    t.madc.alpha_max = mapping->alpha_max;
     t.objects = mapping->objects;
     for (auto& n : t.nodes) {
       if (n.sensor) n.sensor->frames = static_cast<std::uint64_t>(*frames);

@@ -101,7 +101,7 @@ int runTopology(int argc, char** argv) {
       argc, argv, 2,
       {"edges", "source", "scene", "base-port", "mode", "frames", "out", "fanout", "deadline-ms", "tls-ca", "association",
        "miss-rate", "box-jitter-px", "latency-ms", "cameras", "calib", "camera-rate-hz", "tracker-input", "clustering",
-       "fragment-min-points", "objects", "classifier"},
+       "fragment-min-points", "alpha-max", "objects", "classifier"},
       {"tracker"});
   if (!args) return fail(args.error());
   const bool from_scene = args->has("scene");
@@ -109,7 +109,7 @@ int runTopology(int argc, char** argv) {
     return fail(invalidArgument("--clustering and --fragment-min-points go with --scene (its LiDARs name their models)"));
   }
   // Recorded scans take boxes and classes too: the mapping's other fields stay the scene's.
-  const auto objects = sceneMapping(*args, sim::SceneMapping{});
+  const auto objects = sceneMapping(*args, sim::paperMapping());
   if (!objects) return fail(objects.error());
   std::string shape = from_scene ? "star" : "";  // a scene's topology is a star unless told
   if (args->positional().size() == 1) shape = args->positional()[0];
@@ -200,6 +200,7 @@ int runTopology(int argc, char** argv) {
     t = shape == "star" ? makeStarTopology(static_cast<int>(*edges), source, static_cast<int>(*base))
                         : makeTreeTopology(static_cast<int>(*edges), source, static_cast<int>(*base), static_cast<int>(*fanout));
     t.objects = objects->objects;
+    t.madc.alpha_max = objects->alpha_max;
     if (t.objects.classifier) t.objects.classifier = relativeTo(*t.objects.classifier, topology_dir);
     if (with_tracker) t.nodes.push_back(trackerNode(static_cast<int>(*base), tracking));
     if (args->has("cameras")) {
@@ -285,7 +286,7 @@ Command topologyCommand() {
           "                   --latency-ms L (0); --tracker-input centroids: every edge streams the tracker\n"
           "                   the displacement centroids of its scans instead of the root's maps (global_map)\n"
           "  --clustering, --fragment-min-points   with --scene: how the edges make their maps (below)\n"
-          "  --objects, --classifier                the edges' boxes and classes (below; also for --source)\n"
+          "  --objects, --classifier, --alpha-max   the edges' boxes, classes and ellipsoids (below; also for --source)\n"
           "  --fanout F       a tree's aggregators have at most F children (default 2)\n"
           "  --deadline-ms D  an aggregator's deadline per level (default 80)\n"
           "  --tls-ca FILE    mutual TLS on every link, certificates next to FILE (fogctl certs)\n" +

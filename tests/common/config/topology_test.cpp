@@ -41,6 +41,7 @@ void expectSameTopology(const TopologyConfig& a, const TopologyConfig& b) {
   EXPECT_EQ(a.madc.fragment_min_points, b.madc.fragment_min_points);
   EXPECT_EQ(a.objects, b.objects);
   EXPECT_DOUBLE_EQ(a.madc.alpha, b.madc.alpha);
+  EXPECT_DOUBLE_EQ(a.madc.alpha_max, b.madc.alpha_max);
   ASSERT_EQ(a.preprocess.crop.has_value(), b.preprocess.crop.has_value());
   if (a.preprocess.crop) {
     EXPECT_EQ(a.preprocess.crop->min_m, b.preprocess.crop->min_m);
@@ -127,6 +128,7 @@ void customize(TopologyConfig& t) {
   t.madc.clustering.threads = 4;
   t.madc.fragment_min_points = 3;
   t.madc.alpha = 2.25;
+  t.madc.alpha_max = 2.75;
   t.objects.boxes = true;
   t.objects.classifier = "/models/forest.yml.gz";
   t.preprocess.voxel_leaf_m = 0.125;
@@ -329,6 +331,10 @@ TEST(Topology, OutOfRangeValuesNameTheirField) {
     expectRejected(topologyYaml("", std::string("  fragment_min_points: ") + v + "\n"), "madc.fragment_min_points");
   }
   for (const char* v : {"0", "10", "-1"}) expectRejected(topologyYaml("", std::string("  alpha: ") + v + "\n"), "madc.alpha");
+  // alpha_max: 0 (off) or from alpha (1.5 by default) to 10.
+  for (const char* v : {"1.4", "10", "-1", "0.5"}) {
+    expectRejected(topologyYaml("", std::string("  alpha_max: ") + v + "\n"), "madc.alpha_max");
+  }
   for (const char* v : {"0", "257", "1000", "-1"}) {
     expectRejected(topologyYaml("", std::string("  threads: ") + v + "\n"), "madc.threads");
   }

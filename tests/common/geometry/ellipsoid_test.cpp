@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <random>
 #include <sstream>
 #include <string>
@@ -280,6 +281,122 @@ TEST(EllipsoidFromSummary, SinglePointGivesABallOfTheAura) {
   const Ellipsoid e = ellipsoidFromSummary(summary, {}, EllipsoidParams{1.5, 0.2});
   EXPECT_EQ(e.center, Eigen::Vector3d(4, 5, 6));
   EXPECT_LT(relativeError(e.shape, 0.04 * Eigen::Matrix3d::Identity()), 1e-12);
+}
+
+// ---------------------------------------------------------------------------------------------
+// (3b) ClusterReach: ellipsoids that reach their clusters' ends along their axes.
+
+// (p - c)^T shape^-1 (p - c): 1 on the surface.
+double quadraticForm(const Ellipsoid& e, const Eigen::Vector3d& p) {
+  const Eigen::Vector3d d = p - e.center;
+  return d.dot(e.shape.ldlt().solve(d));
+}
+
+template <typename Points>
+ClusterReach reachOf(const Points& points) {
+  ClusterSummary summary;
+  for (const auto& p : points) summary.add(p);
+  ClusterReach reach(summary);
+  for (const auto& p : points) reach.add(p);
+  return reach;
+}
+
+TEST(ClusterReach, AFlatFaceReachesItsEndsWhereTheMeanCentredEllipsoidStopsShort) {
+  // A face 4 m long and 1.5 m high (a car's side), turned by 30 degrees, far from the origin, on a
+  // grid: its ends lie at sqrt(3 (n - 1) / (n + 1)) sigma, between alpha 1.5 and alpha_max 2.5.
+  const Eigen::Vector3d along(std::cos(std::numbers::pi / 6.0), std::sin(std::numbers::pi / 6.0), 0.0);
+  const Eigen::Vector3d up(0.0, 0.0, 1.0);
+  const Eigen::Vector3d middle(300.0, -20.0, 1.0);
+  std::vector<Eigen::Vector3d> face;
+  for (int i = 0; i <= 80; ++i) {
+    for (int j = 0; j <= 15; ++j) face.push_back(middle + (-2.0 + 0.05 * i) * along + (-0.75 + 0.1 * j) * up);
+  }
+  const EllipsoidParams params{1.5, 0.175, 2.5};
+  const Ellipsoid e = reachOf(face).ellipsoid({1, 2, 3}, params);
+  EXPECT_EQ(e.id, (EllipsoidId{1, 2, 3}));
+  EXPECT_EQ(e.point_count, face.size());
+  EXPECT_LT((e.center - middle).norm(), 1e-9);
+  // The semi-axes are the half extents plus the aura; across the face only the aura is left.
+  for (const double sign : {-1.0, 1.0}) {
+    EXPECT_NEAR(quadraticForm(e, middle + sign * (2.0 + params.aura_m) * along), 1.0, 1e-9);
+    EXPECT_NEAR(quadraticForm(e, middle + sign * (0.75 + params.aura_m) * up), 1.0, 1e-9);
+    EXPECT_NEAR(quadraticForm(e, middle + sign * params.aura_m * along.cross(up)), 1.0, 1e-9);
+  }
+  // The paper's ellipsoid at the same alpha does not hold the face's ends, even with its aura.
+  ClusterSummary summary;
+  for (const auto& p : face) summary.add(p);
+  const Ellipsoid paper = ellipsoidFromSummary(summary, {}, params);
+  EXPECT_GT(quadraticForm(paper, middle + 2.0 * along), 1.0);
+  EXPECT_GT(quadraticForm(paper, middle - 2.0 * along), 1.0);
+}
+
+TEST(ClusterReach, AnUnevenClusterIsCentredOnItsExtentNotOnItsMean) {
+  // 90 points on [0, 1] and 10 on [1, 4] along x: the mean lies at 0.7, the extent's middle at 2.
+  std::vector<Eigen::Vector3d> line;
+  for (int i = 0; i < 90; ++i) line.emplace_back(i / 89.0, 0.0, 0.0);
+  for (int i = 1; i <= 10; ++i) line.emplace_back(1.0 + 0.3 * i, 0.0, 0.0);
+  const ClusterReach reach = reachOf(line);
+  ClusterSummary summary;
+  for (const auto& p : line) summary.add(p);
+  const double sigma = std::sqrt(summary.covariance()(0, 0));
+  ASSERT_GT(3.0 * sigma, 2.0);  // the half extent lies within [1.5 sigma, 3 sigma]
+  ASSERT_LT(1.5 * sigma, 2.0);
+  const EllipsoidParams wide{1.5, 0.175, 3.0};
+  const Ellipsoid e = reach.ellipsoid({}, wide);
+  EXPECT_LT((e.center - Eigen::Vector3d(2.0, 0.0, 0.0)).norm(), 1e-9);
+  EXPECT_NEAR(quadraticForm(e, {-0.175, 0.0, 0.0}), 1.0, 1e-9);
+  EXPECT_NEAR(quadraticForm(e, {4.175, 0.0, 0.0}), 1.0, 1e-9);
+  // A mean-centred ellipsoid that reaches x = 4 bulges a metre and more past x = 0.
+  const Ellipsoid paper = ellipsoidFromSummary(summary, {}, EllipsoidParams{3.0, 0.175});
+  EXPECT_LT(quadraticForm(paper, {-1.0, 0.0, 0.0}), 1.0);
+  // With alpha_max 2.5 the half extent is cut to 2.5 sigma, still about the extent's middle.
+  const Ellipsoid capped = reach.ellipsoid({}, EllipsoidParams{1.5, 0.175, 2.5});
+  EXPECT_LT((capped.center - Eigen::Vector3d(2.0, 0.0, 0.0)).norm(), 1e-9);
+  EXPECT_NEAR(quadraticForm(capped, {2.0 + 2.5 * sigma + 0.175, 0.0, 0.0}), 1.0, 1e-9);
+}
+
+TEST(ClusterReach, AlphaBoundsTheSemiAxesFromBelowAndWithoutReachItIsThePapersEllipsoid) {
+  // Two points at +-1: sigma 1, half extent 1, below alpha sigma.
+  const std::vector<Eigen::Vector3d> pair{{-1.0, 0.0, 0.0}, {1.0, 0.0, 0.0}};
+  const Ellipsoid e = reachOf(pair).ellipsoid({}, EllipsoidParams{1.5, 0.2, 2.5});
+  EXPECT_NEAR(quadraticForm(e, {1.7, 0.0, 0.0}), 1.0, 1e-9);
+  EXPECT_NEAR(quadraticForm(e, {0.0, 0.2, 0.0}), 1.0, 1e-9);
+  // alpha_max at most alpha: the paper's ellipsoid, centred on the mean.
+  std::mt19937_64 rng(11);
+  for (const EllipsoidParams params : {EllipsoidParams{1.5, 0.175}, EllipsoidParams{2.4, 0.0, 1.0}}) {
+    const std::vector<Eigen::Vector3d> points = randomCluster(rng, {-50.0, 80.0, 2.0}, 1.0, 400);
+    ClusterSummary summary;
+    for (const auto& p : points) summary.add(p);
+    const Ellipsoid paper = ellipsoidFromSummary(summary, {}, params);
+    const Ellipsoid same = reachOf(points).ellipsoid({}, params);
+    EXPECT_FALSE(params.reaches());
+    EXPECT_LT((same.center - paper.center).norm(), 1e-12 * paper.center.norm());
+    EXPECT_LT(relativeError(same.shape, paper.shape), 1e-9);
+  }
+}
+
+TEST(ClusterReach, TwoFacesOfACornerSeenByTwoSensorsMeetAndFacesAnEpsApartDoNot) {
+  // A 4 x 4 m footprint's two faces at its corner (4, 0): one sensor sees y = 0, x in [0, 4], the
+  // other x = 4, y in [0, 4]; both 1.5 m high. The points of the two faces meet at the corner.
+  std::vector<Eigen::Vector3d> south;
+  std::vector<Eigen::Vector3d> east;
+  for (int i = 0; i <= 40; ++i) {
+    for (int j = 0; j <= 15; ++j) {
+      south.emplace_back(0.1 * i, 0.0, 0.1 * j);
+      east.emplace_back(4.0, 0.1 * i, 0.1 * j);
+    }
+  }
+  const EllipsoidParams reach{1.5, 0.175, 2.5};
+  const EllipsoidParams paper{1.5, 0.175};
+  EXPECT_TRUE(intersects(reachOf(south).ellipsoid({1, 0, 0}, reach), reachOf(east).ellipsoid({2, 0, 0}, reach)));
+  EXPECT_FALSE(intersects(reachOf(south).ellipsoid({1, 0, 0}, paper), reachOf(east).ellipsoid({2, 0, 0}, paper)));
+  // The same face continued past a gap along its axis: joined below eps = 2 x aura, apart above.
+  for (const double gap : {0.3, 0.4}) {
+    std::vector<Eigen::Vector3d> next;
+    for (const auto& p : south) next.push_back(p + Eigen::Vector3d(4.0 + gap, 0.0, 0.0));
+    EXPECT_EQ(intersects(reachOf(south).ellipsoid({1, 0, 0}, reach), reachOf(next).ellipsoid({2, 0, 0}, reach)), gap < 0.35)
+        << gap;
+  }
 }
 
 // ---------------------------------------------------------------------------------------------

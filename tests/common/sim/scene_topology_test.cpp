@@ -58,6 +58,7 @@ TEST(SceneTopology, OneSimulatedEdgePerLidarAtItsPoseInAStarAndATree) {
       EXPECT_EQ(edge.sensor->model, lidar.model);
     }
     EXPECT_EQ(parsed->madc.fragment_min_points, std::optional<std::size_t>(1)) << "every cluster ships, as a fragment";
+    EXPECT_DOUBLE_EQ(parsed->madc.alpha_max, 2.5) << "ellipsoids reach their clusters' ends";
     // The common frame is the scene's: the crop box holds the whole area and its tallest object.
     ASSERT_TRUE(parsed->preprocess.crop.has_value());
     EXPECT_DOUBLE_EQ(parsed->preprocess.crop->max_m.x(), scene.extent_m);
@@ -68,13 +69,14 @@ TEST(SceneTopology, OneSimulatedEdgePerLidarAtItsPoseInAStarAndATree) {
   }
 }
 
-TEST(SceneTopology, TheExactModeWithoutFragmentsIsOneOptionAway) {
+TEST(SceneTopology, ThePapersMadcIsOneOptionAway) {
   const Scene scene = randomScene(20, 3, 5);
   SceneTopologyOptions options;
-  options.mapping = SceneMapping{ClusteringMode::kExact, std::nullopt};
+  options.mapping = paperMapping();
   const Expected<TopologyConfig> parsed = parseTopology(toYaml(sceneTopology(scene, "s.yaml", options)), "");
   ASSERT_TRUE(parsed.ok()) << parsed.error().message;
   EXPECT_FALSE(parsed->madc.fragment_min_points.has_value());
+  EXPECT_DOUBLE_EQ(parsed->madc.alpha_max, 0.0) << "alpha for every ellipsoid";
   for (const NodeConfig* edge : edgesOf(*parsed)) {
     EXPECT_EQ(edge->sensor->clustering, ClusteringMode::kExact);
     EXPECT_TRUE(edge->sensor->model.empty());
