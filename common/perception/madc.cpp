@@ -4,18 +4,29 @@
 
 namespace fogmap {
 
-Expected<LocalMapResult> genLocalMap(std::span<const Point> points, std::uint32_t node, std::uint64_t frame,
-                                     const MadcParams& params) {
+LocalMapper::LocalMapper(MadcParams params) : params_(std::move(params)) {
+  if (params_.sensor_links) {
+    clusterer_.emplace(SensorClusterer::create(SensorClusteringParams{params_.clustering, *params_.sensor_links}));
+  }
+}
+
+Expected<LocalMapResult> LocalMapper::map(std::span<const Point> points, std::uint32_t node, std::uint64_t frame) const {
   LocalMapResult result;
-  if (params.sensor_links) {
-    auto clustering = sensorAwareClusters(points, SensorClusteringParams{params.clustering, *params.sensor_links});
+  if (clusterer_) {
+    if (!*clusterer_) return clusterer_->error();
+    auto clustering = (*clusterer_)->cluster(points);
     if (!clustering) return clustering.error();
     result.clustering = std::move(*clustering);
   } else {
-    result.clustering = euclideanClusters(points, params.clustering);
+    result.clustering = euclideanClusters(points, params_.clustering);
   }
-  result.map = localMap(clusterEllipsoids(points, result.clustering, node, frame, params.ellipsoidParams()));
+  result.map = localMap(clusterEllipsoids(points, result.clustering, node, frame, params_.ellipsoidParams()));
   return result;
+}
+
+Expected<LocalMapResult> genLocalMap(std::span<const Point> points, std::uint32_t node, std::uint64_t frame,
+                                     const MadcParams& params) {
+  return LocalMapper(params).map(points, node, frame);
 }
 
 std::vector<Ellipsoid> clusterEllipsoids(std::span<const Point> points, const Clustering& clustering, std::uint32_t node,

@@ -47,7 +47,22 @@ struct LocalMapResult {
 std::vector<Ellipsoid> clusterEllipsoids(std::span<const Point> points, const Clustering& clustering, std::uint32_t node,
                                          std::uint64_t frame, const EllipsoidParams& params);
 
-// Errors only in the sensor-aware mode, when validateSensorClusteringParams refuses its parameters.
+// GENLOCALMAP with its parameters prepared once: in the sensor-aware mode, the sensor's beam
+// geometry (SensorClusterer). An edge holds one for all its frames.
+class LocalMapper {
+ public:
+  explicit LocalMapper(MadcParams params);
+  // Errors only in the sensor-aware mode: on every frame when validateSensorClusteringParams refused
+  // its parameters (naming the field), or for more than 2^32 - 1 points.
+  Expected<LocalMapResult> map(std::span<const Point> points, std::uint32_t node, std::uint64_t frame) const;
+  const MadcParams& params() const { return params_; }
+
+ private:
+  MadcParams params_;
+  std::optional<Expected<SensorClusterer>> clusterer_;  // with sensor_links
+};
+
+// LocalMapper(params).map(points, node, frame): for one cloud.
 Expected<LocalMapResult> genLocalMap(std::span<const Point> points, std::uint32_t node, std::uint64_t frame,
                                      const MadcParams& params);
 

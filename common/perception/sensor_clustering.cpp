@@ -64,6 +64,7 @@ double atanUnit(double r) {
 struct RangeImage {
   std::vector<std::uint64_t> words;
   std::unique_ptr<std::int32_t[]> component;
+  std::unique_ptr<double[]> range;  // in image order: the pairs' first test reads neighbours in it
   std::vector<std::uint32_t> ring_begin;  // per ring, plus the end
   int bins = 1;
   int binAt(std::size_t k, int ring) const {
@@ -76,9 +77,9 @@ struct RangeImage {
 // of the upper ring moves forward with the lower point's bin b, so its ends are cursors that only
 // advance; near the seam the window wraps around into [b - w + bins, bins) or [0, b + w - bins],
 // with cursors of their own (with 2w + 1 < bins the pieces never overlap; otherwise every pair of
-// the two rings is in the window). `range_of` holds the range of every point with a beam.
-void linkAdjacentRings(const RangeImage& image, int r, std::span<const Point> points, const double* range_of, int window,
-                       double eps, double gap_link, DisjointSets& sets) {
+// the two rings is in the window).
+void linkAdjacentRings(const RangeImage& image, int r, std::span<const Point> points, int window, double eps,
+                       double gap_link, DisjointSets& sets) {
   const std::size_t a_begin = image.ring_begin[static_cast<std::size_t>(r)];
   const std::size_t a_end = image.ring_begin[static_cast<std::size_t>(r) + 1];
   const std::size_t b_begin = a_end;
@@ -92,13 +93,13 @@ void linkAdjacentRings(const RangeImage& image, int r, std::span<const Point> po
     const auto ci = component[i];
     const auto cj = component[j];
     if (ci == joined_i && cj == joined_j) return;
-    const std::size_t pi = image.indexAt(i);
-    const std::size_t pj = image.indexAt(j);
-    const double ri = range_of[pi];
-    const double rj = range_of[pj];
+    const double ri = image.range[i];
+    const double rj = image.range[j];
     if (!(std::abs(ri - rj) < eps)) return;
     const double reach = gap_link * std::min(ri, rj);
     if (!(reach > eps)) return;
+    const std::size_t pi = image.indexAt(i);
+    const std::size_t pj = image.indexAt(j);
     const double dx = static_cast<double>(points[pi].x) - static_cast<double>(points[pj].x);
     const double dy = static_cast<double>(points[pi].y) - static_cast<double>(points[pj].y);
     const double dz = static_cast<double>(points[pi].z) - static_cast<double>(points[pj].z);
@@ -291,9 +292,43 @@ BeamIndex BeamGeometry::index(const Point& point) const {
   return out;
 }
 
-Expected<Clustering> sensorAwareClusters(std::span<const Point> points, const SensorClusteringParams& params) {
-  const auto geometry = BeamGeometry::make(params);
+SensorClusterer::SensorClusterer(SensorClusteringParams params, BeamGeometry geometry)
+    : params_(std::move(params)), geometry_(std::move(geometry)) {
+  // The range image holds each point a ring link could reach past eps from (see the header): a
+  // point of ring r is kept where its range times the wider link of ring r's two gaps (slack x gap)
+  // is above eps; elsewhere every reach through it is at most eps (the products are monotonic in
+  // both factors, roundings included).
+  const int rings = geometry_.rings();
+  gap_link_.resize(static_cast<std::size_t>(rings) - 1);
+  for (int r = 0; r + 1 < rings; ++r) {
+    gap_link_[static_cast<std::size_t>(r)] = params_.links.ring_gap_slack * (geometry_.elevationRad(r + 1) - geometry_.elevationRad(r));
+  }
+  ring_link_.resize(static_cast<std::size_t>(rings));
+  for (std::size_t r = 0; r < ring_link_.size(); ++r) {
+    ring_link_[r] = std::max(r > 0 ? gap_link_[r - 1] : 0.0, r + 1 < ring_link_.size() ? gap_link_[r] : 0.0);
+  }
+  // Nearer than this no ring's link reaches past eps: such points are passed over on their
+  // squared range, before the square root, with a margin of 1e-6 far above its roundings.
+  const double widest_link = *std::max_element(gap_link_.begin(), gap_link_.end());
+  const double near_range = params_.clustering.eps_m / widest_link * (1.0 - 1e-6);
+  near_squared_ = near_range * near_range;
+}
+
+Expected<SensorClusterer> SensorClusterer::create(const SensorClusteringParams& params) {
+  auto geometry = BeamGeometry::make(params);
   if (!geometry) return geometry.error();
+  return SensorClusterer(params, std::move(*geometry));
+}
+
+Expected<Clustering> sensorAwareClusters(std::span<const Point> points, const SensorClusteringParams& params) {
+  const auto clusterer = SensorClusterer::create(params);
+  if (!clusterer) return clusterer.error();
+  return clusterer->cluster(points);
+}
+
+Expected<Clustering> SensorClusterer::cluster(std::span<const Point> points) const {
+  const SensorClusteringParams& params = params_;
+  const BeamGeometry* geometry = &geometry_;
   const std::size_t n = points.size();
   if (n == 0) return Clustering{};
   if (n > std::numeric_limits<std::uint32_t>::max()) {
@@ -307,26 +342,14 @@ Expected<Clustering> sensorAwareClusters(std::span<const Point> points, const Se
   const Clustering linked = euclideanClusters(points, exact);
   const auto components = static_cast<std::size_t>(linked.cluster_count);
 
-  // The range image: each point a ring link could reach past eps from (see the header) as a word
-  // (cell << 32 | index), sorted by cell. A point of ring r is kept where its range times the
-  // wider link of ring r's two gaps (slack x gap) is above eps: elsewhere every reach through it
-  // is at most eps (the products are monotonic in both factors, roundings included).
+  // The range image: each point kept (see the constructor) as a word (cell << 32 | index),
+  // sorted by cell.
   const int rings = geometry->rings();
   const int bins = geometry->azimuthBins();
   const double eps = params.clustering.eps_m;
-  std::vector<double> gap_link(static_cast<std::size_t>(rings) - 1);
-  for (int r = 0; r + 1 < rings; ++r) {
-    gap_link[static_cast<std::size_t>(r)] = params.links.ring_gap_slack * (geometry->elevationRad(r + 1) - geometry->elevationRad(r));
-  }
-  std::vector<double> ring_link(static_cast<std::size_t>(rings));
-  for (std::size_t r = 0; r < ring_link.size(); ++r) {
-    ring_link[r] = std::max(r > 0 ? gap_link[r - 1] : 0.0, r + 1 < ring_link.size() ? gap_link[r] : 0.0);
-  }
-  // Nearer than this no ring's link reaches past eps: such points are passed over on their
-  // squared range, before the square root, with a margin of 1e-6 far above its roundings.
-  const double widest_link = *std::max_element(gap_link.begin(), gap_link.end());
-  const double near_range = eps / widest_link * (1.0 - 1e-6);
-  const double near_squared = near_range * near_range;
+  const std::vector<double>& gap_link = gap_link_;
+  const std::vector<double>& ring_link = ring_link_;
+  const double near_squared = near_squared_;
   const auto range_of = std::make_unique_for_overwrite<double[]>(n);
   std::vector<std::uint64_t> words;
   std::vector<std::uint32_t> ring_count(static_cast<std::size_t>(rings), 0);
@@ -376,13 +399,18 @@ Expected<Clustering> sensorAwareClusters(std::span<const Point> points, const Se
   image.ring_begin.assign(1, 0);
   for (const auto count : ring_count) image.ring_begin.push_back(image.ring_begin.back() + count);
   image.component = std::make_unique_for_overwrite<std::int32_t[]>(words.size());
-  for (std::size_t k = 0; k < words.size(); ++k) image.component[k] = linked.labels[words[k] & kIndexMask];
+  image.range = std::make_unique_for_overwrite<double[]>(words.size());
+  for (std::size_t k = 0; k < words.size(); ++k) {
+    const std::size_t i = words[k] & kIndexMask;
+    image.component[k] = linked.labels[i];
+    image.range[k] = range_of[i];
+  }
   image.words = std::move(words);
 
   // Rule (b) over every pair of adjacent rings, on the components of rule (a).
   DisjointSets sets(components);
   for (int r = 0; r + 1 < rings; ++r) {
-    linkAdjacentRings(image, r, points, range_of.get(), params.links.azimuth_window, eps, gap_link[static_cast<std::size_t>(r)], sets);
+    linkAdjacentRings(image, r, points, params.links.azimuth_window, eps, gap_link[static_cast<std::size_t>(r)], sets);
   }
 
   // Sizes of the joined components, then canonical labels in the order of each cluster's first point.

@@ -95,7 +95,7 @@ Expected<std::shared_ptr<const ObjectClassifier>> loadClassifierOf(const Topolog
   return std::shared_ptr<const ObjectClassifier>(std::make_shared<ObjectClassifier>(std::move(*loaded)));
 }
 
-EdgeNode::EdgeNode(EdgeConfig config) : config_(std::move(config)) {
+EdgeNode::EdgeNode(EdgeConfig config) : config_(std::move(config)), mapper_(config_.madc) {
   // Zero would mean "no chunk can hold a point"; one point a chunk is the least that works.
   config_.max_points_per_chunk = std::max<std::size_t>(config_.max_points_per_chunk, 1);
   if (config_.displacement) detector_.emplace(tracking::DisplacementDetector::create(*config_.displacement));
@@ -169,7 +169,7 @@ Expected<EdgeOutput> EdgeNode::processFrame(const Cloud& scan_in_sensor_frame, s
   }
 
   const SteadyClock::time_point clustering_start = SteadyClock::now();
-  auto local = genLocalMap(points, config_.node, frame, config_.madc);
+  auto local = mapper_.map(points, config_.node, frame);
   if (!local) return local.error();
   if (config_.boxes) {
     const auto views = clusterViews(points, local->clustering, config_.preprocess.sensor_to_common.translation(),

@@ -103,6 +103,7 @@ class EdgeNode {
                                                                  std::int64_t sensor_time_ns);
 
   EdgeConfig config_;
+  LocalMapper mapper_;  // config_.madc, prepared once
   std::optional<Expected<tracking::DisplacementDetector>> detector_;  // with displacement
   bool has_previous_scan_ = false;
 };

@@ -3,6 +3,7 @@
 // spheres built from their parts.
 #include <random>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
@@ -49,6 +50,12 @@ inline Ellipsoid sphere(const Eigen::Vector3d& center, double radius) {
   e.center = center;
   e.shape = radius * radius * Eigen::Matrix3d::Identity();
   return e;
+}
+
+// (p - c)^T shape^-1 (p - c): 1 on the ellipsoid's surface, below 1 inside.
+inline double quadraticForm(const Ellipsoid& e, const Eigen::Vector3d& p) {
+  const Eigen::Vector3d d = p - e.center;
+  return d.dot(e.shape.ldlt().solve(d));
 }
 
 }  // namespace fogmap::test_support

@@ -24,6 +24,7 @@ namespace {
 // ---------------------------------------------------------------------------------------------
 // Helpers.
 
+using test_support::quadraticForm;
 using test_support::randomRotation;
 using test_support::randomUnitVector;
 using test_support::shapeOf;
@@ -101,12 +102,6 @@ Ellipsoid roundTrip(const Ellipsoid& e, const CompactOrigin& origin) {
   return decoded.ok() ? decoded.value() : e;
 }
 
-// (p - c)^T M^-1 (p - c): at most 1 inside the closed ellipsoid.
-double mahalanobis(const Ellipsoid& e, const Eigen::Vector3d& p) {
-  const Eigen::Vector3d d = p - e.center;
-  return d.dot(e.shape.ldlt().solve(d));
-}
-
 std::string describe(const Ellipsoid& e) {
   std::ostringstream out;
   out.precision(17);
@@ -128,7 +123,7 @@ int pushedPointsInside(const Parts& from, const Ellipsoid& to, double distance, 
     const Eigen::Vector3d p = from.center + from.rotation * from.semi_axes.cwiseProduct(u);
     const Eigen::Vector3d normal = (from.rotation * u.cwiseQuotient(from.semi_axes)).normalized();
     // A relative 1e-9 on the Mahalanobis value is a radial 5e-10: well under a micrometre here.
-    if (mahalanobis(to, p + distance * normal) < 1.0 - 1e-9) ++inside;
+    if (quadraticForm(to, p + distance * normal) < 1.0 - 1e-9) ++inside;
   }
   return inside;
 }

@@ -21,6 +21,7 @@ namespace {
 // ---------------------------------------------------------------------------------------------
 // Helpers.
 
+using test_support::quadraticForm;
 using test_support::randomRotation;
 using test_support::randomShape;
 using test_support::randomUnitVector;
@@ -285,12 +286,6 @@ TEST(EllipsoidFromSummary, SinglePointGivesABallOfTheAura) {
 
 // ---------------------------------------------------------------------------------------------
 // (3b) ClusterReach: ellipsoids that reach their clusters' ends along their axes.
-
-// (p - c)^T shape^-1 (p - c): 1 on the surface.
-double quadraticForm(const Ellipsoid& e, const Eigen::Vector3d& p) {
-  const Eigen::Vector3d d = p - e.center;
-  return d.dot(e.shape.ldlt().solve(d));
-}
 
 template <typename Points>
 ClusterReach reachOf(const Points& points) {

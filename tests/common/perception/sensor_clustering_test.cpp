@@ -450,6 +450,40 @@ TEST(SensorClustering, GenLocalMapUsesTheSensorAwareModeWhenGivenSensorLinks) {
   EXPECT_NE(bad.error().message.find("beams.elevations_deg needs at least 2 rings"), std::string::npos) << bad.error().message;
 }
 
+// An edge prepares its clusterer once and clusters frame after frame with it.
+TEST(SensorClustering, APreparedClustererAndLocalMapperGiveEachFrameItsOwnClusters) {
+  std::mt19937_64 rng(77);
+  SensorClusteringParams params;
+  params.links.beams = vlp16();
+  params.links.sensor_pose = randomPose(rng);
+  params.clustering.min_points = 3;
+  const auto clusterer = SensorClusterer::create(params);
+  ASSERT_TRUE(clusterer.ok()) << clusterer.error().message;
+  MadcParams madc;
+  madc.clustering = params.clustering;
+  madc.sensor_links = params.links;
+  const LocalMapper mapper(madc);
+  for (int frame = 0; frame < 5; ++frame) {
+    const Scan scan = randomLidarScan(rng, params.links.beams, params.links.sensor_pose, 120, 45.0);
+    const Clustering expected = bruteForceSensorClusters(scan.points, params);
+    const auto prepared = clusterer->cluster(scan.points);
+    ASSERT_TRUE(prepared.ok());
+    EXPECT_EQ(prepared->labels, expected.labels) << "frame " << frame;
+    const auto local = mapper.map(scan.points, 4, static_cast<std::uint64_t>(frame));
+    ASSERT_TRUE(local.ok());
+    EXPECT_EQ(local->clustering.labels, expected.labels) << "frame " << frame;
+    EXPECT_EQ(local->map, genLocalMap(scan.points, 4, static_cast<std::uint64_t>(frame), madc)->map) << "frame " << frame;
+  }
+  // Parameters it refuses are refused on every frame, naming the field.
+  madc.sensor_links->azimuth_window = -1;
+  const LocalMapper refused(madc);
+  for (int frame = 0; frame < 2; ++frame) {
+    const auto local = refused.map(personAt20m().points, 4, static_cast<std::uint64_t>(frame));
+    ASSERT_FALSE(local.ok());
+    EXPECT_NE(local.error().message.find("azimuth_window"), std::string::npos) << local.error().message;
+  }
+}
+
 // Each object of `world` one cluster, nothing else (min_points 1).
 void expectObjectsApart(const World& world, const Eigen::Isometry3d& pose, const std::string& what) {
   std::mt19937_64 rng(2);
