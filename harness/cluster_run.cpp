@@ -13,6 +13,7 @@
 
 #include "common/base/epochs.hpp"
 #include "common/certs/certs.hpp"
+#include "common/config/topology_parse.hpp"
 #include "common/config/topology_yaml.hpp"
 #include "common/sim/sensor_frames.hpp"
 #include "common/sim/truth.hpp"
@@ -107,8 +108,12 @@ Expected<RunResult> runCluster(const std::filesystem::path& dir, const TopologyC
   if (!tls) return Error{tls.error().code, "tls: the subscriber's identity '" + options.identity + "': " + tls.error().message};
   const auto file = dir / (topology.name + ".yaml");
   {
+    const std::string text = toYaml(topology);
+    // Read back as the services will: a topology they would refuse stops the run here, naming
+    // the key, instead of as a node that exits during start.
+    if (const auto read_back = parseTopology(text, dir); !read_back) return read_back.error();
     std::ofstream out(file);
-    out << toYaml(topology);
+    out << text;
     if (!out) return ioError("cannot write " + file.string());
   }
   Collection collection;

@@ -924,6 +924,16 @@ TEST(FogctlTopologyScene, MappingFlagsChooseClusteringAndFragments) {
     EXPECT_EQ(fragments.code, 2) << bad;
     EXPECT_TRUE(contains(fragments.err, "--fragment-min-points must be off or in [1, 1000]")) << describe(fragments);
   }
+  // --alpha-max below the topology's alpha (1.5) would make a topology every service refuses.
+  const Outcome below = fogctl({"topology", "--scene", "s.yaml", "--alpha-max", "1.2", "--out", "below.yaml"}, dir.path());
+  EXPECT_NE(below.code, 0);
+  EXPECT_TRUE(contains(below.err, "madc.alpha_max")) << describe(below);
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "below.yaml"));
+  ASSERT_EQ(fogctl({"topology", "--scene", "s.yaml", "--alpha-max", "off", "--out", "off.yaml"}, dir.path()).code, 0);
+  const auto off = loadTopology(dir.path() / "off.yaml");
+  ASSERT_TRUE(off.ok()) << off.error().message;
+  EXPECT_DOUBLE_EQ(off->madc.alpha_max, 0.0);
+  EXPECT_DOUBLE_EQ(by_default->madc.alpha_max, 2.5);
   const Outcome scans = fogctl({"topology", "star", "--edges", "2", "--source", "scans", "--clustering", "sensor"}, dir.path());
   EXPECT_EQ(scans.code, 2);
   EXPECT_TRUE(contains(scans.err, "go with --scene")) << describe(scans);
