@@ -207,13 +207,6 @@ Expected<EvalResult> runEvaluation(const EvalPlan& plan, const std::function<voi
 
 namespace {
 
-Status writeText(const std::filesystem::path& file, const std::string& text) {
-  std::ofstream out(file);
-  out << text;
-  if (!out) return ioError("cannot write " + file.string());
-  return {};
-}
-
 std::string accuracyCsv(const EvalResult& r) {
   std::ostringstream out;
   out << "lidars,alpha,frames,ri_madc_vs_baseline,ari_madc_vs_baseline,ri_ext_vs_baseline,ari_ext_vs_baseline,"
@@ -546,12 +539,12 @@ Status writeEvaluation(const EvalPlan& plan, const EvalResult& result) {
            {"costs.csv", costsCsv(result)},
            {"links.csv", linksCsv(result)},
            {"eval.json", evalJson(plan, result)}}) {
-    if (Status s = writeText(plan.out / name, text); !s) return s;
+    if (Status s = writeTextFile(plan.out / name, text); !s) return s;
   }
   if (result.tracking) {
-    if (Status s = writeText(plan.out / "tracking.csv", trackingCsv(*result.tracking)); !s) return s;
+    if (Status s = writeTextFile(plan.out / "tracking.csv", trackingCsv(*result.tracking)); !s) return s;
   }
-  return writeText(doc, report(plan, result, doc));
+  return writeTextFile(doc, report(plan, result, doc));
 }
 
 }  // namespace fogmap::harness

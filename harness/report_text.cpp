@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 
 namespace fogmap::harness {
 
@@ -22,6 +23,13 @@ Json jsonNumber(double v) {
 
 std::string jsonText(const Json& report) {
   return report.dump(2, ' ', false, Json::error_handler_t::replace) + "\n";
+}
+
+Status writeTextFile(const std::filesystem::path& file, const std::string& text) {
+  std::ofstream out(file);
+  out << text;
+  if (!out) return ioError("cannot write " + file.string());
+  return {};
 }
 
 }  // namespace fogmap::harness

@@ -1,9 +1,12 @@
 #pragma once
 // Numbers as fogctl's reports write them: fixed decimals in tables and printed figures, JSON
 // numbers in the JSON reports (eval.json, the demo's and the fault harness's reports). Pure.
+#include <filesystem>
 #include <string>
 
 #include <nlohmann/json.hpp>
+
+#include "common/base/status.hpp"
 
 namespace fogmap::harness {
 
@@ -19,5 +22,8 @@ Json jsonNumber(double v);
 // A JSON report as written to a file or stdout: indented by two spaces, one newline at the end;
 // bytes that are not UTF-8 (a path, say) replaced rather than refused.
 std::string jsonText(const Json& report);
+
+// Writes `text` to `file` (replacing it); an I/O error naming the file when it cannot.
+Status writeTextFile(const std::filesystem::path& file, const std::string& text);
 
 }  // namespace fogmap::harness

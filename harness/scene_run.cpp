@@ -9,6 +9,7 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include "common/base/angles.hpp"
 #include "common/base/clock.hpp"
 #include "common/base/epochs.hpp"
 #include "common/certs/certs.hpp"
@@ -386,6 +387,40 @@ Expected<PublishedScores> scoreSceneTracking(const sim::Scene& scene, const Scen
   if (!schedule) return schedule.error();
   return scorePublishedTracks(scene, *schedule, options.rate_hz, run.lists, options.warmup_lists, options.scored_lists,
                               tracking::MotConfig{options.match_distance_m});
+}
+
+std::string sceneTrackListsJsonLines(const sim::Scene& scene, const SceneTrackingRun& run, const PublishedScores& scores,
+                                     const SceneTrackingOptions& options) {
+  const auto schedule = EpochSchedule::create(run.topology.period_ms, run.topology.deadline_ms);
+  if (!schedule) return {};
+  const auto heading = [](const std::optional<double>& rad) { return rad ? jsonNumber(*rad / kDegToRad) : Json(nullptr); };
+  std::string out;
+  const std::size_t end = std::min(run.lists.size(), scores.first_list + scores.frames);
+  for (std::size_t i = scores.first_list; i < end; ++i) {
+    const double time_s = sceneTimeOf(scene, *schedule, options.rate_hz, run.lists[i].lidar_time_ns);
+    const TrackingFrame frame = trackingFrame(scene, time_s, run.lists[i].tracks);
+    Json line;
+    line["list"] = i;
+    line["scene_time_s"] = jsonNumber(time_s);
+    Json truth = Json::array();
+    for (std::size_t k = 0; k < frame.mot.truth.size(); ++k) {
+      const auto& o = frame.mot.truth[k];
+      truth.push_back({{"id", o.id}, {"label", frame.truth_labels[k]}, {"x", jsonNumber(o.position.x())},
+                       {"y", jsonNumber(o.position.y())}, {"heading_deg", heading(o.heading_rad)}});
+    }
+    Json tracks = Json::array();
+    for (std::size_t k = 0; k < frame.mot.hypotheses.size(); ++k) {
+      const auto& h = frame.mot.hypotheses[k];
+      const bool confirmed = std::find(frame.confirmed.begin(), frame.confirmed.end(), static_cast<std::uint64_t>(h.id)) !=
+                             frame.confirmed.end();
+      tracks.push_back({{"id", h.id}, {"label", frame.hypothesis_labels[k]}, {"confirmed", confirmed},
+                        {"x", jsonNumber(h.position.x())}, {"y", jsonNumber(h.position.y())}, {"heading_deg", heading(h.heading_rad)}});
+    }
+    line["truth"] = std::move(truth);
+    line["tracks"] = std::move(tracks);
+    out += line.dump() + "\n";
+  }
+  return out;
 }
 
 namespace {

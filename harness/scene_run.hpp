@@ -149,5 +149,11 @@ std::string sceneTrackingText(const PublishedScores& scores, const SceneTracking
 // The JSON object of a demo report's "tracking" key (non-finite numbers as null), and as its text.
 Json sceneTrackingReport(const PublishedScores& scores, const SceneTrackingOptions& options, std::size_t moving_objects);
 std::string sceneTrackingJson(const PublishedScores& scores, const SceneTrackingOptions& options, std::size_t moving_objects);
+// The scored track lists as JSON lines, one per list in order: {"list", "scene_time_s", "truth":
+// [{"id", "label", "x", "y", "heading_deg"}], "tracks": [{"id", "label", "confirmed", "x", "y",
+// "heading_deg"}]} (tracks as scored: confirmed and lost ones; headings where there is one), so
+// that what the figures count can be looked at list by list.
+std::string sceneTrackListsJsonLines(const sim::Scene& scene, const SceneTrackingRun& run, const PublishedScores& scores,
+                                     const SceneTrackingOptions& options);
 
 }  // namespace fogmap::harness

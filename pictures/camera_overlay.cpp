@@ -29,20 +29,9 @@ cv::Scalar depthColour(double depth_m) {
   return {static_cast<double>(c[0]), static_cast<double>(c[1]), static_cast<double>(c[2])};
 }
 
-// A box's 12 edges: bottom face 0-3, top face 4-7 (camera::boxCorners' order, and boxCorners below).
+// A box's 12 edges: bottom face 0-3, top face 4-7 (camera::boxCorners' order, and OrientedBox::corners').
 constexpr std::array<std::array<int, 2>, 12> kEdges{{{0, 1}, {1, 2}, {2, 3}, {3, 0}, {4, 5}, {5, 6},
                                                      {6, 7}, {7, 4}, {0, 4}, {1, 5}, {2, 6}, {3, 7}}};
-
-// An oriented box's corners: the footprint counter-clockwise at the bottom, then at the top.
-std::array<Eigen::Vector3d, 8> boxCorners(const OrientedBox& box) {
-  const auto footprint = box.footprint();
-  std::array<Eigen::Vector3d, 8> corners;
-  for (std::size_t k = 0; k < 4; ++k) {
-    corners[k] = {footprint[k].x(), footprint[k].y(), box.centre.z() - box.height / 2.0};
-    corners[k + 4] = {footprint[k].x(), footprint[k].y(), box.centre.z() + box.height / 2.0};
-  }
-  return corners;
-}
 
 // Draws the edges of a box whose corners (rectified camera frame) lie in front of the camera; returns
 // the top left of the drawn corners' bounding rectangle (the place for its caption, as a label's
@@ -105,7 +94,7 @@ Expected<OverlayCounts> writeCameraOverlay(const std::filesystem::path& image, c
       if (const auto oriented = objectBox(object)) {
         const auto label = objectLabel(object);
         std::array<Eigen::Vector3d, 8> rectified;
-        const auto corners = boxCorners(*oriented);
+        const auto corners = oriented->corners();
         for (std::size_t k = 0; k < 8; ++k) rectified[k] = calibration.velodyneToRectified(corners[k]);
         const cv::Scalar colour = bgr(label ? birdseyeClassColour(label->object_class) : kObjectColour);
         const auto top = drawWireframe(frame, p2, rectified, colour);

@@ -14,6 +14,21 @@ std::optional<Eigen::Vector2d> PinholeCamera::project(const Eigen::Vector3d& wor
   return pixelOf(Eigen::Vector2d(p.x() / p.z(), p.y() / p.z()));
 }
 
+std::optional<Box2d> projectPoints(const PinholeCamera& camera, std::span<const Eigen::Vector3d> points, double near_m) {
+  if (points.empty()) return std::nullopt;
+  Box2d out{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
+            -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
+  for (const Eigen::Vector3d& point : points) {
+    const auto pixel = camera.project(point, near_m);
+    if (!pixel) return std::nullopt;
+    out.left = std::min(out.left, pixel->x());
+    out.top = std::min(out.top, pixel->y());
+    out.right = std::max(out.right, pixel->x());
+    out.bottom = std::max(out.bottom, pixel->y());
+  }
+  return out;
+}
+
 Eigen::Vector2d PinholeCamera::pixelOf(const Eigen::Vector2d& normalized) const {
   double x = normalized.x();
   double y = normalized.y();

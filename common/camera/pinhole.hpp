@@ -4,6 +4,7 @@
 // x right, y down, z forward), with the image size. Projects 3D points of the common frame into
 // pixels, as the tracker's overlay needs. Pure.
 #include <optional>
+#include <span>
 #include <string>
 
 #include <Eigen/Geometry>
@@ -43,6 +44,11 @@ struct PinholeCamera {
 // more than `near_m` in front of the camera. The box may reach outside the image.
 std::optional<Box2d> projectEllipsoid(const PinholeCamera& camera, const Eigen::Vector3d& centre, const Eigen::Matrix3d& shape,
                                       double near_m = 0.1);
+
+// The image box around the pixels of `points` (the common frame; a 3D box's corners, say): nothing
+// unless every point lies more than `near_m` in front of the camera. The box may reach outside the
+// image.
+std::optional<Box2d> projectPoints(const PinholeCamera& camera, std::span<const Eigen::Vector3d> points, double near_m = 0.1);
 
 // Checks that the intrinsics are finite and positive and the image has pixels; the error names
 // the camera and the field.

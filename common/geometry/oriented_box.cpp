@@ -79,6 +79,16 @@ std::array<Eigen::Vector2d, 4> OrientedBox::footprint() const {
   return {c + along + across, c - along + across, c - along - across, c + along - across};
 }
 
+std::array<Eigen::Vector3d, 8> OrientedBox::corners() const {
+  const auto corners_2d = footprint();
+  std::array<Eigen::Vector3d, 8> out;
+  for (std::size_t k = 0; k < 4; ++k) {
+    out[k] = {corners_2d[k].x(), corners_2d[k].y(), centre.z() - height / 2.0};
+    out[k + 4] = {corners_2d[k].x(), corners_2d[k].y(), centre.z() + height / 2.0};
+  }
+  return out;
+}
+
 bool footprintsOverlap(const OrientedBox& a, const OrientedBox& b) {
   const auto corners_a = a.footprint();
   const auto corners_b = b.footprint();

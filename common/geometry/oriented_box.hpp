@@ -42,6 +42,8 @@ struct OrientedBox {
   BoxAnchor anchorFor(const Eigen::Vector3d& sensor) const;
   // The footprint's corners (x, y) counter-clockwise from (+length, +width).
   std::array<Eigen::Vector2d, 4> footprint() const;
+  // The box's 8 corners: the footprint's at the bottom (centre z - height / 2), then at the top.
+  std::array<Eigen::Vector3d, 8> corners() const;
 };
 
 // True when the two boxes' footprints overlap (touching counts): separating axes of both.

@@ -71,18 +71,23 @@ std::string bestLabel(const std::map<std::string, double>& votes) {
   return best;
 }
 
+// "In front of the camera" is z > 0 in the paper; a millimetre keeps the division well away from 0.
+constexpr double kInFrontM = 1e-3;
+
+// The observation's pixel lies inside `box`.
+bool overlaid(const CloudObservation& o, const camera::PinholeCamera& camera, const camera::Box2d& box) {
+  const auto pixel = camera.project(o.position, kInFrontM);
+  return pixel && pixel->x() >= box.left && pixel->x() <= box.right && pixel->y() >= box.top && pixel->y() <= box.bottom;
+}
+
 }  // namespace
 
 std::optional<std::size_t> overlay(const std::vector<CloudObservation>& observations, const camera::PinholeCamera& camera,
                                    const camera::Box2d& box, const Eigen::Vector3d& sensor_position) {
-  // "In front of the camera" is z > 0 in the paper; a millimetre keeps the division well away from 0.
-  constexpr double kInFrontM = 1e-3;
   std::optional<std::size_t> nearest;
   double nearest_distance = std::numeric_limits<double>::infinity();
   for (std::size_t g = 0; g < observations.size(); ++g) {
-    const auto pixel = camera.project(observations[g].position, kInFrontM);
-    if (!pixel) continue;
-    if (pixel->x() < box.left || pixel->x() > box.right || pixel->y() < box.top || pixel->y() > box.bottom) continue;
+    if (!overlaid(observations[g], camera, box)) continue;
     const double distance = (ground(observations[g]) - sensor_position.head<2>()).norm();
     if (distance < nearest_distance) {
       nearest_distance = distance;
@@ -90,6 +95,34 @@ std::optional<std::size_t> overlay(const std::vector<CloudObservation>& observat
     }
   }
   return nearest;
+}
+
+std::optional<std::size_t> overlayByBox(const std::vector<CloudObservation>& observations, const camera::PinholeCamera& camera,
+                                        const camera::Box2d& box, const Eigen::Vector3d& sensor_position) {
+  std::optional<std::size_t> best_boxed;
+  double best_iou = kMinOverlayIou;
+  std::optional<std::size_t> nearest_unboxed;
+  double nearest_distance = std::numeric_limits<double>::infinity();
+  for (std::size_t g = 0; g < observations.size(); ++g) {
+    const auto& o = observations[g];
+    if (!overlaid(o, camera, box)) continue;
+    if (o.box) {
+      const auto corners = o.box->corners();
+      const auto image = camera::projectPoints(camera, corners, kInFrontM);
+      const double fit = image ? camera::iou(*image, box) : 0.0;
+      if (fit >= best_iou) {
+        best_iou = fit;
+        best_boxed = g;
+      }
+      continue;
+    }
+    const double distance = (ground(o) - sensor_position.head<2>()).norm();
+    if (distance < nearest_distance) {
+      nearest_distance = distance;
+      nearest_unboxed = g;
+    }
+  }
+  return best_boxed ? best_boxed : nearest_unboxed;
 }
 
 Tracker::Tracker(TrackerConfig config, std::vector<camera::PinholeCamera> cameras)
@@ -178,6 +211,7 @@ StepStats Tracker::addCloud(const CloudFrame& frame) {
   counters_.updates_cloud_only += stats.updates_cloud_only;
   counters_.tracks_created += stats.tracks_created;
   counters_.tracks_deleted += stats.tracks_deleted;
+  counters_.tracks_recovered += stats.tracks_recovered;
   counters_.measurements_shed += stats.measurements_shed;
   return stats;
 }
@@ -304,7 +338,16 @@ Track& Tracker::spawn(const Eigen::Vector2d& position, const Eigen::Matrix2d& co
                         ConstantVelocityModel{.acceleration_sigma = config_.acceleration_sigma});
   vehicles_.emplace_back();
   label_votes_.emplace_back();
+  last_measured_.push_back(position);
   return tracks_.back();
+}
+
+void Tracker::restart(std::size_t t, const Eigen::Vector2d& position, const Eigen::Matrix2d& covariance) {
+  filters_[t] = ConstantVelocityFilter(position, covariance, config_.initial_speed_sigma,
+                                       ConstantVelocityModel{.acceleration_sigma = config_.acceleration_sigma});
+  vehicles_[t].reset();
+  tracks_[t].heading_rad.reset();
+  last_measured_[t] = position;
 }
 
 // Algorithms 2, 4 and 5, as published.
@@ -420,7 +463,7 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
   for (const auto& message : detections) {
     const auto cam = std::find_if(cameras_.begin(), cameras_.end(), [&](const auto& c) { return c.name == message.camera; });
     for (const auto& detection : message.detections) {
-      const auto g = overlay(frame.observations, *cam, detection.box, frame.sensor_position);
+      const auto g = overlayByBox(frame.observations, *cam, detection.box, frame.sensor_position);
       if (!g) continue;
       ++stats.detections_fused;
       measurements[*g].votes[detection.label] += std::max(detection.score, 1e-6);
@@ -488,6 +531,7 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
     used[*assignment[t]] = true;
     const Eigen::Vector2d& point = measuredFor(t, *assignment[t]);
     filters_[t].update(point, meas.covariance);
+    last_measured_[t] = point;
     if (vehicles_[t]) vehicles_[t]->filter.updatePosition(point, meas.covariance);
     track.heading_rad = vehicleHeading(*meas.observation, velocityOf(t), track.heading_rad);
     updateVehicle(t, *meas.observation, meas.vehicle_prior, meas.covariance);
@@ -502,6 +546,61 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
     }
     voteLidarClass(meas, label_votes_[t]);
     if (track.camera_confirmed || track.consecutive_hits >= config_.confirm_hits) track.state = TrackState::kConfirmed;
+  }
+
+  // Recovery: a confirmed or lost track no measurement gated takes the nearest one no track took
+  // within reach of where it was last measured (kRecoveryMarginM), and starts again there.
+  std::vector<std::size_t> stranded;
+  for (std::size_t t = 0; t < tracks_.size(); ++t) {
+    if (!assignment[t] && tracks_[t].state != TrackState::kTentative && tracks_[t].last_update_ns < frame.time_ns) {
+      stranded.push_back(t);
+    }
+  }
+  std::vector<std::size_t> free_measurements;
+  for (std::size_t m = 0; m < measurements.size(); ++m) {
+    if (!used[m]) free_measurements.push_back(m);
+  }
+  if (!stranded.empty() && !free_measurements.empty()) {
+    std::vector<std::vector<double>> reach_cost(stranded.size(), std::vector<double>(free_measurements.size(), inf));
+    for (std::size_t a = 0; a < stranded.size(); ++a) {
+      const std::size_t t = stranded[a];
+      const double unobserved_s = seconds(frame.time_ns - tracks_[t].last_update_ns);
+      const double reach = velocityOf(t).norm() * unobserved_s + kRecoveryMarginM;
+      for (std::size_t b = 0; b < free_measurements.size(); ++b) {
+        const std::size_t m = free_measurements[b];
+        const auto& meas = measurements[m];
+        if (vehicles_[t] && !meas.vehicle_prior) continue;  // a vehicle's track takes no person
+        if (!measured_label[m].empty() && tracks_[t].camera_confirmed && tracks_[t].label != kUnknownLabel &&
+            measured_label[m] != tracks_[t].label) {
+          continue;
+        }
+        const double d2 = (meas.position - last_measured_[t]).squaredNorm();
+        if (d2 <= reach * reach) reach_cost[a][b] = d2;
+      }
+    }
+    const auto recovered = assignMinCost(reach_cost);
+    for (std::size_t a = 0; a < stranded.size(); ++a) {
+      if (!recovered[a]) continue;
+      const std::size_t t = stranded[a];
+      const std::size_t m = free_measurements[*recovered[a]];
+      const auto& meas = measurements[m];
+      used[m] = true;
+      restart(t, meas.position, meas.covariance);
+      auto& track = tracks_[t];
+      track.last_update_ns = frame.time_ns;
+      track.consecutive_hits = 1;
+      ++stats.tracks_recovered;
+      if (meas.votes.empty()) {
+        ++stats.updates_cloud_only;
+      } else {
+        ++stats.updates_overlay;
+        track.camera_confirmed = true;
+        for (const auto& [label, score] : meas.votes) label_votes_[t][label] += score;
+      }
+      voteLidarClass(meas, label_votes_[t]);
+      // It was confirmed before: it is again.
+      track.state = TrackState::kConfirmed;
+    }
   }
 
   // Spawn: every measurement no track took starts a track; a camera-confirmed one is confirmed at
@@ -591,6 +690,7 @@ void Tracker::prune(std::int64_t now_ns, StepStats& stats) {
       filters_[kept] = std::move(filters_[t]);
       vehicles_[kept] = std::move(vehicles_[t]);
       label_votes_[kept] = std::move(label_votes_[t]);
+      last_measured_[kept] = last_measured_[t];
     }
     ++kept;
   }
@@ -598,6 +698,7 @@ void Tracker::prune(std::int64_t now_ns, StepStats& stats) {
   filters_.erase(filters_.begin() + static_cast<std::ptrdiff_t>(kept), filters_.end());
   vehicles_.erase(vehicles_.begin() + static_cast<std::ptrdiff_t>(kept), vehicles_.end());
   label_votes_.resize(kept);
+  last_measured_.resize(kept);
 }
 
 }  // namespace fogmap::tracking

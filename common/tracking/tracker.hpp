@@ -67,6 +67,15 @@ inline constexpr double kVehicleAxisSigmaRad = 0.15;
 inline constexpr double kVehicleInitialHeadingSigmaRad = 0.3;
 inline constexpr double kVehicleInitialYawRateSigma = 0.3;  // rad/s
 
+// Overlay by boxes (overlayByBox): the least IoU of an observation's projected box with a detection.
+inline constexpr double kMinOverlayIou = 0.3;
+// Recovery (docs/tracking.md, "Recovery"): a confirmed or lost track that no measurement gated takes
+// the nearest measurement no track took within its speed x the time since its last update plus
+// this of where it was last measured (an object that stopped short, or turned round, where the
+// prediction ran on), instead of that measurement starting a new track. Its filter starts again
+// there, at rest.
+inline constexpr double kRecoveryMarginM = 0.5;
+
 struct VehicleMotion {
   CtrvFilter filter;
   BoxPrior prior;  // the class's
@@ -80,6 +89,7 @@ struct StepStats {
   std::size_t updates_cloud_only = 0;     // track updates by a LiDAR observation alone
   std::size_t tracks_created = 0;
   std::size_t tracks_deleted = 0;
+  std::size_t tracks_recovered = 0;       // tracks that took a measurement by recovery, not by the gate
   std::size_t detection_frames_used = 0;  // detection frames matched to this LiDAR frame
   std::size_t measurements = 0;           // observations the step took
   std::size_t measurements_shed = 0;      // observations left out: beyond the step's budget
@@ -92,6 +102,7 @@ struct TrackerCounters {
   std::uint64_t updates_cloud_only = 0;
   std::uint64_t tracks_created = 0;
   std::uint64_t tracks_deleted = 0;
+  std::uint64_t tracks_recovered = 0;
   std::uint64_t detection_frames_stale = 0;    // older than every LiDAR frame they could match: dropped
   std::uint64_t detection_frames_overflow = 0;  // beyond max_buffered_frames: the oldest dropped
   std::uint64_t detection_frames_unknown_camera = 0;
@@ -155,6 +166,8 @@ class Tracker {
   void stepKalman(const CloudFrame& frame, const std::vector<DetectionFrame>& detections, StepStats& stats);
   void prune(std::int64_t now_ns, StepStats& stats);
   Track& spawn(const Eigen::Vector2d& position, const Eigen::Matrix2d& covariance, std::int64_t now_ns);
+  // Track t's filter started again at `position`, at rest, without a vehicle motion (recovery).
+  void restart(std::size_t t, const Eigen::Vector2d& position, const Eigen::Matrix2d& covariance);
   // Track t's estimate: its vehicle filter's where it has one, else its constant-velocity filter's.
   Eigen::Vector2d positionOf(std::size_t t) const;
   Eigen::Vector2d velocityOf(std::size_t t) const;
@@ -175,6 +188,7 @@ class Tracker {
   std::vector<ConstantVelocityFilter> filters_;                // kalman: one per track, same order
   std::vector<std::optional<VehicleMotion>> vehicles_;          // kalman: a vehicle's CTRV and size
   std::vector<std::map<std::string, double>> label_votes_;     // kalman: summed scores per label
+  std::vector<Eigen::Vector2d> last_measured_;                 // kalman: where each track was last measured
   std::uint64_t next_id_ = 1;
   std::size_t budget_ = 0;
   TrackerCounters counters_;
@@ -185,5 +199,14 @@ class Tracker {
 // when none is overlaid. Returns the index of that observation.
 std::optional<std::size_t> overlay(const std::vector<CloudObservation>& observations, const camera::PinholeCamera& camera,
                                    const camera::Box2d& box, const Eigen::Vector3d& sensor_position);
+
+// The kalman association's overlay: of the observations whose pixel lies inside `box` (as in
+// overlay), those with an oriented box compete by the IoU of their box's image (its 8 corners
+// projected) with `box`, and the best of at least kMinOverlayIou wins. When none of them fits that
+// well, the detection overlays the observation nearest the sensor of those without a box (as
+// overlay), or nothing. So the detection of a car whose image box holds a person in front of it
+// labels the car, not the person, and a detection whose object the map lacks labels nothing.
+std::optional<std::size_t> overlayByBox(const std::vector<CloudObservation>& observations, const camera::PinholeCamera& camera,
+                                        const camera::Box2d& box, const Eigen::Vector3d& sensor_position);
 
 }  // namespace fogmap::tracking

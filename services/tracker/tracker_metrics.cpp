@@ -34,6 +34,12 @@ TrackerMetrics::TrackerMetrics(Metrics& metrics, const std::string& node, const 
                   .Labels(c)
                   .Register(r)
                   .Add({});
+  recovered_ = &prometheus::BuildCounter()
+                    .Name("fogmap_tracks_recovered_total")
+                    .Help("Tracks that took a measurement beyond their gate near where they were last measured (recovery).")
+                    .Labels(c)
+                    .Register(r)
+                    .Add({});
   updates_ = &prometheus::BuildCounter()
                   .Name("fogmap_track_updates_total")
                   .Help("Track updates by kind: overlay (a camera detection fused with LiDAR) or cloud_only (LiDAR alone).")
@@ -122,6 +128,7 @@ void TrackerMetrics::fused(const FusionReport& report) {
   last_.steps = std::max(last_.steps, counters.steps);
   addDelta(*created_, counters.tracks_created, last_.tracks_created);
   addDelta(*deleted_, counters.tracks_deleted, last_.tracks_deleted);
+  addDelta(*recovered_, counters.tracks_recovered, last_.tracks_recovered);
   addDelta(updates_->Add({{"kind", "overlay"}}), counters.updates_overlay, last_.updates_overlay);
   addDelta(updates_->Add({{"kind", "cloud_only"}}), counters.updates_cloud_only, last_.updates_cloud_only);
   addDelta(dropped_->Add({{"reason", "stale"}}), counters.detection_frames_stale, last_.detection_frames_stale);

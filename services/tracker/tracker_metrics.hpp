@@ -51,6 +51,7 @@ class TrackerMetrics {
   prometheus::Family<prometheus::Gauge>* tracks_;
   prometheus::Counter* created_;
   prometheus::Counter* deleted_;
+  prometheus::Counter* recovered_;
   prometheus::Family<prometheus::Counter>* updates_;
   prometheus::Family<prometheus::Counter>* dropped_;
   prometheus::Family<prometheus::Gauge>* staleness_;

@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <fstream>
 #include <map>
 #include <numeric>
 #include <optional>
@@ -219,6 +218,11 @@ int runSceneDemo(const Args& args) {
       return fail(drawn.error(), "fogctl demo");
     }
     std::printf("  bird's-eye view of the last scored track list, with 3 s trails: %s\n", tracks_png.c_str());
+    const std::filesystem::path track_lists = dir / "track_lists.jsonl";
+    if (Status written = harness::writeTextFile(track_lists, sceneTrackListsJsonLines(uncycled, *run, *scored, tracking_options)); !written) {
+      return fail(written.error(), "fogctl demo");
+    }
+    std::printf("  the scored track lists and the truth, one JSON line a list: %s\n", track_lists.c_str());
   }
   const std::filesystem::path report = args.get("report", (dir / "report.json").string());
   Json j;
@@ -258,9 +262,7 @@ int runSceneDemo(const Args& args) {
   j["e2e_p50_ms"] = jsonNumber(s.madc_e2e_p50_ms);
   j["baseline_e2e_p50_ms"] = jsonNumber(s.baseline_e2e_p50_ms);
   if (tracking_report) j["tracking"] = *tracking_report;
-  std::ofstream out(report);
-  out << jsonText(j);
-  if (!out) return fail(ioError("cannot write " + report.string()), "fogctl demo");
+  if (Status written = harness::writeTextFile(report, jsonText(j)); !written) return fail(written.error(), "fogctl demo");
   std::printf("  report: %s\n", report.c_str());
   return 0;
 }
@@ -442,9 +444,7 @@ int runDemo(int argc, char** argv) {
   j["epochs_without_sensor_time"] = latencies.without_sensor_time;
   j["merge_p50_ms"] = jsonNumber(percentile(merge_ms, 0.5));
   j["merge_p99_ms"] = jsonNumber(percentile(merge_ms, 0.99));
-  std::ofstream out(report);
-  out << jsonText(j);
-  if (!out) return fail(ioError("cannot write " + report.string()), "fogctl demo");
+  if (Status written = harness::writeTextFile(report, jsonText(j)); !written) return fail(written.error(), "fogctl demo");
   std::printf("  report: %s\n", report.c_str());
   return 0;
 }
