@@ -12,6 +12,7 @@
 #include "common/config/topology_parse.hpp"
 #include "common/io/cloud_io.hpp"
 #include "common/perception/preprocess.hpp"
+#include "harness/launcher.hpp"
 #include "services/common/grpc_options.hpp"
 
 namespace fogmap::cli {
@@ -218,16 +219,31 @@ Expected<sim::SceneMapping> sceneMapping(const Args& args, const sim::SceneMappi
     if (!a || !(*a > 0.0 && *a < 10.0)) return invalidArgument("--alpha-max must be off or in (0, 10)");
     mapping.alpha_max = *a;
   }
-  const std::string objects = args.get("objects", "none");
-  if (objects != "none" && objects != "boxes" && objects != "classes") {
-    return invalidArgument("--objects must be none, boxes or classes, got '" + objects + "'");
+  if (args.has("objects")) {
+    const std::string objects = args.get("objects");
+    if (objects != "none" && objects != "boxes" && objects != "classes") {
+      return invalidArgument("--objects must be none, boxes or classes, got '" + objects + "'");
+    }
+    mapping.objects.boxes = objects != "none";
+    mapping.objects.classifier.reset();
+    if (objects == "classes") {
+      const auto bundled = bundledClassifierModel();
+      mapping.objects.classifier = std::filesystem::absolute(args.get("classifier", bundled ? bundled->string() : kDefaultClassifierModel));
+    }
   }
-  if (args.has("classifier") && objects != "classes") return invalidArgument("--classifier goes with --objects classes");
-  mapping.objects.boxes = objects != "none";
-  if (objects == "classes") {
-    mapping.objects.classifier = std::filesystem::absolute(args.get("classifier", std::string(kDefaultClassifierModel)));
+  if (args.has("classifier")) {
+    if (!mapping.objects.classifier) return invalidArgument("--classifier goes with --objects classes");
+    mapping.objects.classifier = std::filesystem::absolute(args.get("classifier"));
   }
   return mapping;
+}
+
+std::optional<std::filesystem::path> bundledClassifierModel() {
+  for (const auto& candidate : {harness::binaryDir() / ".." / ".." / kDefaultClassifierModel, std::filesystem::path(kDefaultClassifierModel)}) {
+    std::error_code error;
+    if (std::filesystem::is_regular_file(candidate, error)) return std::filesystem::absolute(candidate).lexically_normal();
+  }
+  return std::nullopt;
 }
 
 Expected<std::shared_ptr<const ObjectClassifier>> classifierFlag(const Args& args) {

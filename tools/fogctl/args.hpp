@@ -79,14 +79,17 @@ Expected<ClusteringParams> clusteringParams(const Args& args);
 
 // The committed LiDAR classifier (fogctl train-classifier), from the project's folder.
 inline constexpr const char* kDefaultClassifierModel = "data/models/lidar_classifier.yml.gz";
+// Where the committed classifier is: beside the build that holds this fogctl (its bin/../..), else
+// under the working directory; none when neither has it.
+std::optional<std::filesystem::path> bundledClassifierModel();
 
 // The classifier of --classifier FILE (an error naming the file when it does not load), else the
 // bundled model when it is there, else none (nullptr): objects then get boxes without classes.
 Expected<std::shared_ptr<const ObjectClassifier>> classifierFlag(const Args& args);
 
 // --clustering exact|sensor, --fragment-min-points N|off (N from 1 to 1000), --alpha-max A|off and --objects
-// none|boxes|classes with --classifier FILE: how a scene's edges make their maps (demo, topology
-// --scene), over `defaults`.
+// none|boxes|classes with --classifier FILE (default the bundled model): how a scene's edges make
+// their maps (demo, topology --scene), over `defaults` (their objects too, when --objects is not given).
 Expected<sim::SceneMapping> sceneMapping(const Args& args, const sim::SceneMapping& defaults);
 inline constexpr const char* kSceneMappingUsage =
     "  --clustering exact|sensor   how the edges cluster: exact (PCL's Euclidean partition) or sensor (with\n"
@@ -100,9 +103,10 @@ inline constexpr const char* kSceneMappingUsage =
     "                 axes, from alpha up to A standard deviations (madc.alpha_max; default for a scene:\n"
     "                 2.5); off: alpha for every ellipsoid (the paper's, the default for recorded scans)\n"
     "  --objects none|boxes|classes  what the edges say of each cluster of min_points beyond its\n"
-    "                 ellipsoid: nothing (default), its oriented box (L-shape fit, up to 16 bytes more an\n"
-    "                 ellipsoid on the wire), or its box and LiDAR class (topology section objects:)\n"
-    "  --classifier FILE           with --objects classes: the model (default data/models/lidar_classifier.yml.gz)\n";
+    "                 ellipsoid: nothing, its oriented box (L-shape fit, up to 16 bytes more an ellipsoid on\n"
+    "                 the wire), or its box and LiDAR class (topology section objects:); default classes for\n"
+    "                 demo --scene (boxes where the bundled model is not found), none otherwise\n"
+    "  --classifier FILE           with classes: the model (default data/models/lidar_classifier.yml.gz)\n";
 
 // Reads --input within --max-scan-bytes (--remove-ground: the points above the ground); non-finite
 // points are kept in place (they cluster as noise) when `keep_non_finite`, so that the cloud lines

@@ -131,7 +131,12 @@ int runSceneDemo(const Args& args) {
     tracking_options.scored_lists = static_cast<std::size_t>(*track_frames);
     tracking_options.base_port = static_cast<int>(*base) + 800;
   }
-  const auto mapping = sceneMapping(args, sim::SceneMapping{});
+  // A scene's edges fit boxes and classify (the bundled model) unless --objects says otherwise: the
+  // tracker measures vehicles at their boxes and fuses camera detections by them.
+  sim::SceneMapping scene_defaults;
+  scene_defaults.objects.boxes = true;
+  scene_defaults.objects.classifier = bundledClassifierModel();
+  const auto mapping = sceneMapping(args, scene_defaults);
   if (!mapping) return fail(mapping.error(), "fogctl demo");
   tracking_options.mapping = *mapping;
   installStopHandlers();
