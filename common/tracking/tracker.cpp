@@ -518,6 +518,19 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
   }
   const auto assignment = assignMinCost(cost);
 
+  // What an update by `meas` adds to track t's labels: the cameras' votes (which confirm it as
+  // camera-seen) and its LiDAR class.
+  const auto takeLabels = [&](std::size_t t, const Measurement& meas) {
+    if (meas.votes.empty()) {
+      ++stats.updates_cloud_only;
+    } else {
+      ++stats.updates_overlay;
+      tracks_[t].camera_confirmed = true;
+      for (const auto& [label, score] : meas.votes) label_votes_[t][label] += score;
+    }
+    voteLidarClass(meas, label_votes_[t]);
+  };
+
   // Update the matched tracks; the others miss a hit.
   std::vector<bool> used(measurements.size(), false);
   for (std::size_t t = 0; t < tracks_.size(); ++t) {
@@ -537,14 +550,7 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
     updateVehicle(t, *meas.observation, meas.vehicle_prior, meas.covariance);
     track.last_update_ns = frame.time_ns;
     ++track.consecutive_hits;
-    if (meas.votes.empty()) {
-      ++stats.updates_cloud_only;
-    } else {
-      ++stats.updates_overlay;
-      track.camera_confirmed = true;
-      for (const auto& [label, score] : meas.votes) label_votes_[t][label] += score;
-    }
-    voteLidarClass(meas, label_votes_[t]);
+    takeLabels(t, meas);
     if (track.camera_confirmed || track.consecutive_hits >= config_.confirm_hits) track.state = TrackState::kConfirmed;
   }
 
@@ -590,14 +596,7 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
       track.last_update_ns = frame.time_ns;
       track.consecutive_hits = 1;
       ++stats.tracks_recovered;
-      if (meas.votes.empty()) {
-        ++stats.updates_cloud_only;
-      } else {
-        ++stats.updates_overlay;
-        track.camera_confirmed = true;
-        for (const auto& [label, score] : meas.votes) label_votes_[t][label] += score;
-      }
-      voteLidarClass(meas, label_votes_[t]);
+      takeLabels(t, meas);
       // It was confirmed before: it is again.
       track.state = TrackState::kConfirmed;
     }
