@@ -478,6 +478,12 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
   for (std::size_t m = 0; m < measurements.size(); ++m) {
     if (!measurements[m].votes.empty()) measured_label[m] = bestLabel(measurements[m].votes);
   }
+  // Never across labels cameras have told apart. (A label only LiDAR classes gave, camera_confirmed
+  // false, does not gate: a camera may rename it.)
+  const auto labelsAllow = [&](std::size_t t, std::size_t m) {
+    return measured_label[m].empty() || !tracks_[t].camera_confirmed || tracks_[t].label == kUnknownLabel ||
+           measured_label[m] == tracks_[t].label;
+  };
   // A pair is gated only if |d|^2 <= gate tr(S) (d' S^-1 d >= |d|^2 / tr(S) for the 2 x 2 S = P + R),
   // a cheap test that leaves the exact one to the few pairs that may pass it.
   std::vector<double> measurement_spread(measurements.size());
@@ -506,11 +512,7 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
       }
       const Eigen::Vector2d& position = measuredFor(t, m);
       if ((position - predicted).squaredNorm() > config_.gate_chi2 * (track_spread + measurement_spread[m])) continue;
-      // (A label only LiDAR classes gave, camera_confirmed false, does not gate: a camera may rename it.)
-      if (!measured_label[m].empty() && tracks_[t].camera_confirmed && tracks_[t].label != kUnknownLabel &&
-          measured_label[m] != tracks_[t].label) {
-        continue;
-      }
+      if (!labelsAllow(t, m)) continue;
       const double d2 = vehicle ? vehicle->filter.mahalanobis2(position, meas.covariance)
                                 : filters_[t].mahalanobis2(position, meas.covariance);
       if (d2 <= config_.gate_chi2) cost[t][m] = d2;
@@ -556,33 +558,37 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
 
   // Recovery: a confirmed or lost track no measurement gated takes the nearest one no track took
   // within reach of where it was last measured (kRecoveryMarginM), and starts again there.
-  std::vector<std::size_t> stranded;
+  // The pairs within reach first: the assignment then runs over the few tracks and measurements
+  // they hold, not over every stranded track and free measurement (clutter makes many of both).
+  struct Reach {
+    std::size_t track, measurement;
+    double d2;
+  };
+  std::vector<Reach> within;
   for (std::size_t t = 0; t < tracks_.size(); ++t) {
-    if (!assignment[t] && tracks_[t].state != TrackState::kTentative && tracks_[t].last_update_ns < frame.time_ns) {
-      stranded.push_back(t);
+    if (assignment[t] || tracks_[t].state == TrackState::kTentative || tracks_[t].last_update_ns >= frame.time_ns) continue;
+    const double reach = velocityOf(t).norm() * seconds(frame.time_ns - tracks_[t].last_update_ns) + kRecoveryMarginM;
+    for (std::size_t m = 0; m < measurements.size(); ++m) {
+      // A vehicle's track takes no person.
+      if (used[m] || (vehicles_[t] && !measurements[m].vehicle_prior) || !labelsAllow(t, m)) continue;
+      const double d2 = (measurements[m].position - last_measured_[t]).squaredNorm();
+      if (d2 <= reach * reach) within.push_back({t, m, d2});
     }
   }
-  std::vector<std::size_t> free_measurements;
-  for (std::size_t m = 0; m < measurements.size(); ++m) {
-    if (!used[m]) free_measurements.push_back(m);
-  }
-  if (!stranded.empty() && !free_measurements.empty()) {
-    std::vector<std::vector<double>> reach_cost(stranded.size(), std::vector<double>(free_measurements.size(), inf));
-    for (std::size_t a = 0; a < stranded.size(); ++a) {
-      const std::size_t t = stranded[a];
-      const double unobserved_s = seconds(frame.time_ns - tracks_[t].last_update_ns);
-      const double reach = velocityOf(t).norm() * unobserved_s + kRecoveryMarginM;
-      for (std::size_t b = 0; b < free_measurements.size(); ++b) {
-        const std::size_t m = free_measurements[b];
-        const auto& meas = measurements[m];
-        if (vehicles_[t] && !meas.vehicle_prior) continue;  // a vehicle's track takes no person
-        if (!measured_label[m].empty() && tracks_[t].camera_confirmed && tracks_[t].label != kUnknownLabel &&
-            measured_label[m] != tracks_[t].label) {
-          continue;
-        }
-        const double d2 = (meas.position - last_measured_[t]).squaredNorm();
-        if (d2 <= reach * reach) reach_cost[a][b] = d2;
+  if (!within.empty()) {
+    std::vector<std::size_t> stranded, free_measurements;
+    for (const auto& r : within) {
+      if (std::find(stranded.begin(), stranded.end(), r.track) == stranded.end()) stranded.push_back(r.track);
+      if (std::find(free_measurements.begin(), free_measurements.end(), r.measurement) == free_measurements.end()) {
+        free_measurements.push_back(r.measurement);
       }
+    }
+    std::vector<std::vector<double>> reach_cost(stranded.size(), std::vector<double>(free_measurements.size(), inf));
+    for (const auto& r : within) {
+      const auto a = static_cast<std::size_t>(std::find(stranded.begin(), stranded.end(), r.track) - stranded.begin());
+      const auto b = static_cast<std::size_t>(std::find(free_measurements.begin(), free_measurements.end(), r.measurement) -
+                                              free_measurements.begin());
+      reach_cost[a][b] = r.d2;
     }
     const auto recovered = assignMinCost(reach_cost);
     for (std::size_t a = 0; a < stranded.size(); ++a) {
