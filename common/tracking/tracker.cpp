@@ -71,6 +71,11 @@ std::string bestLabel(const std::map<std::string, double>& votes) {
   return best;
 }
 
+// Recovery takes only tracks lost at most this long: an object that turns round is found again
+// within a frame or two, and a reach that grew with a long loss would revive a lost track with
+// whatever clutter appears metres away.
+constexpr double kRecoveryWindowS = 0.5;
+
 // "In front of the camera" is z > 0 in the paper; a millimetre keeps the division well away from 0.
 constexpr double kInFrontM = 1e-3;
 
@@ -566,8 +571,11 @@ void Tracker::stepKalman(const CloudFrame& frame, const std::vector<DetectionFra
   };
   std::vector<Reach> within;
   for (std::size_t t = 0; t < tracks_.size(); ++t) {
-    if (assignment[t] || tracks_[t].state == TrackState::kTentative || tracks_[t].last_update_ns >= frame.time_ns) continue;
-    const double reach = velocityOf(t).norm() * seconds(frame.time_ns - tracks_[t].last_update_ns) + kRecoveryMarginM;
+    const double unobserved_s = seconds(frame.time_ns - tracks_[t].last_update_ns);
+    if (assignment[t] || tracks_[t].state == TrackState::kTentative || !(unobserved_s > 0.0) || unobserved_s > kRecoveryWindowS) {
+      continue;
+    }
+    const double reach = velocityOf(t).norm() * unobserved_s + kRecoveryMarginM;
     for (std::size_t m = 0; m < measurements.size(); ++m) {
       // A vehicle's track takes no person.
       if (used[m] || (vehicles_[t] && !measurements[m].vehicle_prior) || !labelsAllow(t, m)) continue;

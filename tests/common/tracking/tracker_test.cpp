@@ -192,6 +192,18 @@ TEST(KalmanAssociation, ATrackWhoseObjectTurnsRoundIsRecoveredWhereItWasLastSeen
   EXPECT_EQ(tracker.counters().tracks_recovered, recovered);
 }
 
+TEST(KalmanAssociation, ATrackLostForLongerThanAMomentIsNotRevivedByWhatAppearsNearIt) {
+  auto tracker = makeTracker(TrackerConfig{}, {});
+  // A walker at 3 m/s for 1 s, then gone for 1 s; then something 2.5 m from where it was last seen,
+  // within 3 m/s x 1 s + 0.5 m but a second after the loss: a new object, not the walker.
+  for (int k = 0; k < 10; ++k) tracker.addCloud(cloudAt(k * 100 * kMs, {at(0.3 * k, 0.0)}));
+  ASSERT_EQ(tracker.tracks().size(), 1U);
+  for (int k = 10; k < 20; ++k) tracker.addCloud(cloudAt(k * 100 * kMs, {}));
+  const auto stats = tracker.addCloud(cloudAt(20 * 100 * kMs, {at(2.7 - 2.5, 0.0)}));
+  EXPECT_EQ(stats.tracks_recovered, 0U);
+  EXPECT_EQ(stats.tracks_created, 1U);
+}
+
 TEST(KalmanAssociation, RecoveryReachesNoFurtherThanTheTracksSpeedAllowsAndTakesNoTentativeTrack) {
   auto tracker = makeTracker(TrackerConfig{}, {});
   // A person standing still for a second, then gone; something appears 2 m away.
