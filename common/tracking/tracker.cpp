@@ -330,6 +330,11 @@ std::vector<StepStats> Tracker::advance(std::int64_t now_ns) {
   return out;
 }
 
+ConstantVelocityFilter Tracker::filterAt(const Eigen::Vector2d& position, const Eigen::Matrix2d& covariance) const {
+  return ConstantVelocityFilter(position, covariance, config_.initial_speed_sigma,
+                                ConstantVelocityModel{.acceleration_sigma = config_.acceleration_sigma});
+}
+
 Track& Tracker::spawn(const Eigen::Vector2d& position, const Eigen::Matrix2d& covariance, std::int64_t now_ns) {
   Track track;
   track.id = next_id_++;
@@ -339,8 +344,7 @@ Track& Tracker::spawn(const Eigen::Vector2d& position, const Eigen::Matrix2d& co
   track.last_update_ns = now_ns;
   track.consecutive_hits = 1;
   tracks_.push_back(track);
-  filters_.emplace_back(position, covariance, config_.initial_speed_sigma,
-                        ConstantVelocityModel{.acceleration_sigma = config_.acceleration_sigma});
+  filters_.push_back(filterAt(position, covariance));
   vehicles_.emplace_back();
   label_votes_.emplace_back();
   last_measured_.push_back(position);
@@ -348,8 +352,7 @@ Track& Tracker::spawn(const Eigen::Vector2d& position, const Eigen::Matrix2d& co
 }
 
 void Tracker::restart(std::size_t t, const Eigen::Vector2d& position, const Eigen::Matrix2d& covariance) {
-  filters_[t] = ConstantVelocityFilter(position, covariance, config_.initial_speed_sigma,
-                                       ConstantVelocityModel{.acceleration_sigma = config_.acceleration_sigma});
+  filters_[t] = filterAt(position, covariance);
   vehicles_[t].reset();
   tracks_[t].heading_rad.reset();
   last_measured_[t] = position;

@@ -69,11 +69,11 @@ inline constexpr double kVehicleInitialYawRateSigma = 0.3;  // rad/s
 
 // Overlay by boxes (overlayByBox): the least IoU of an observation's projected box with a detection.
 inline constexpr double kMinOverlayIou = 0.3;
-// Recovery (docs/tracking.md, "Recovery"): a confirmed or lost track that no measurement gated takes
-// the nearest measurement no track took within its speed x the time since its last update plus
-// this of where it was last measured (an object that stopped short, or turned round, where the
-// prediction ran on), instead of that measurement starting a new track. Its filter starts again
-// there, at rest.
+// Recovery (docs/tracking.md, "Detections by their boxes, and recovery"): a confirmed or lost track
+// that no measurement gated, lost 0.5 s ago at most, takes the nearest measurement no track took
+// within its speed x the time since its last update plus this of where it was last measured (an
+// object that stopped short, or turned round, where the prediction ran on), instead of that
+// measurement starting a new track. Its filter starts again there, at rest.
 inline constexpr double kRecoveryMarginM = 0.5;
 
 struct VehicleMotion {
@@ -166,6 +166,8 @@ class Tracker {
   void stepKalman(const CloudFrame& frame, const std::vector<DetectionFrame>& detections, StepStats& stats);
   void prune(std::int64_t now_ns, StepStats& stats);
   Track& spawn(const Eigen::Vector2d& position, const Eigen::Matrix2d& covariance, std::int64_t now_ns);
+  // A new constant-velocity filter at `position`, at rest (spawn, restart).
+  ConstantVelocityFilter filterAt(const Eigen::Vector2d& position, const Eigen::Matrix2d& covariance) const;
   // Track t's filter started again at `position`, at rest, without a vehicle motion (recovery).
   void restart(std::size_t t, const Eigen::Vector2d& position, const Eigen::Matrix2d& covariance);
   // Track t's estimate: its vehicle filter's where it has one, else its constant-velocity filter's.
