@@ -9,7 +9,7 @@ cd "$(dirname "$0")/.."
 
 usage() {
   cat <<'EOF'
-Usage: tools/fuzz.sh [--seconds N] [--target NAME] [--jobs N]
+Usage: tools/fuzz.sh [--seconds N] [--target NAME] [--jobs N] [--build-only]
 
 Builds the fuzz targets into build-fuzz/ and runs each for N seconds, as many side by side as
 there are cores (FUZZ_PARALLEL=K: K at a time).
@@ -17,6 +17,7 @@ there are cores (FUZZ_PARALLEL=K: K at a time).
   --seconds N    seconds per target (default 60; the long run is --seconds 600)
   --target NAME  run only this target (default: all)
   --jobs N       fuzzing processes per target (default 1; more uses libFuzzer's -fork=N)
+  --build-only   build the targets and stop (tools/check.sh builds them beside the dev tests)
   --help         this text
 
 Targets: fuzz_kitti fuzz_nuscenes fuzz_pcd fuzz_upload fuzz_topology (fuzz/README.md).
@@ -28,12 +29,14 @@ EOF
 seconds=60
 jobs=1
 only=""
+build_only=0
 needs_value() { [ $# -ge 2 ] || { echo "fuzz.sh: $1 needs a value" >&2; exit 2; }; }
 while [ $# -gt 0 ]; do
   case "$1" in
     --seconds) needs_value "$@"; seconds="$2"; shift 2 ;;
     --target) needs_value "$@"; only="$2"; shift 2 ;;
     --jobs) needs_value "$@"; jobs="$2"; shift 2 ;;
+    --build-only) build_only=1; shift ;;
     --help | -h) usage; exit 0 ;;
     *) echo "fuzz.sh: unknown argument '$1'" >&2; usage >&2; exit 2 ;;
   esac
@@ -65,6 +68,7 @@ if ! cmake -S . -B "$build" -DFOGMAP_FUZZ=ON -DCMAKE_CXX_COMPILER=clang++ -DCMAK
   exit 2
 fi
 cmake --build "$build" -j "${CMAKE_BUILD_PARALLEL_LEVEL:-$(nproc)}" --target "${targets[@]}" || exit 2
+[ "$build_only" -eq 0 ] || exit 0
 
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:allocator_may_return_null=0}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
