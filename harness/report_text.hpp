@@ -16,6 +16,9 @@ using Json = nlohmann::ordered_json;
 // `v` with `digits` decimals; "n/a" when it is not finite (a ratio without a denominator).
 std::string fixedText(double v, int digits);
 
+// printf's formatting into a string (lines of a table); the compiler checks the arguments.
+[[gnu::format(printf, 1, 2)]] std::string formatText(const char* format, ...);
+
 // `v` as a JSON number rounded to 10 significant digits; null when it is not finite (JSON has no NaN).
 Json jsonNumber(double v);
 

@@ -45,7 +45,7 @@ report() {
 }
 
 # Background jobs: each in its own session (setsid), so that a failure stops the whole job.
-declare -A job_pid job_started
+declare -A job_pid
 behind() {  # behind NAME LOG COMMAND...: starts COMMAND behind, at idle priority
   local name=$1 log=$2
   shift 2
@@ -56,16 +56,18 @@ behind() {  # behind NAME LOG COMMAND...: starts COMMAND behind, at idle priorit
     lower=()
   fi
   echo "== behind: $name (log: $log)"
-  setsid "${lower[@]}" "$@" > "$log" 2>&1 &
+  rm -f "$log.seconds"
+  # The job writes its own time when it ends (joined later, it may have ended long before).
+  setsid "${lower[@]}" bash -c 'start=$(date +%s); "$@"; rc=$?; echo $(($(date +%s) - start)) > "$0"; exit $rc' \
+    "$log.seconds" "$@" > "$log" 2>&1 &
   job_pid[$name]=$!
-  job_started[$name]=$(now)
   if [ $serial -eq 1 ]; then join "$name" "$log"; fi
 }
 join() {  # join NAME LOG: waits for a background job; on failure shows its log's end and stops
   local name=$1 log=$2 status=0
   [ -n "${job_pid[$name]:-}" ] || return 0
   wait "${job_pid[$name]}" || status=$?
-  record "$name (behind; started to finished)" $(($(now) - job_started[$name]))
+  record "$name (behind)" "$(cat "$log.seconds" 2> /dev/null || echo 0)"
   unset "job_pid[$name]"
   if [ $status -ne 0 ]; then
     echo "check.sh: FAILED: $name (exit $status); the end of $log:" >&2

@@ -26,6 +26,13 @@ TEST(ReportText, ANumberThatIsNotFiniteIsNotApplicableInTextAndNullInJson) {
   }
 }
 
+TEST(ReportText, FormatTextIsPrintfIntoAStringOfAnyLength) {
+  EXPECT_EQ(formatText("%5zu|%-4s|%.2f", std::size_t{42}, "ab", 3.14159), "   42|ab  |3.14");
+  EXPECT_EQ(formatText("%s", ""), "");
+  const std::string long_text(5000, 'x');
+  EXPECT_EQ(formatText("<%s>", long_text.c_str()), "<" + long_text + ">");
+}
+
 TEST(ReportText, JsonNumbersKeepTenSignificantDigits) {
   EXPECT_EQ(jsonNumber(0.1).dump(), "0.1");
   EXPECT_EQ(jsonNumber(-3.0).dump(), "-3.0");

@@ -5,60 +5,49 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <map>
-#include <numeric>
 #include <optional>
 
 #include "common/config/topology.hpp"
-#include "common/base/clock.hpp"
 #include "common/config/topology_presets.hpp"
 #include "common/config/tracker_node.hpp"
-#include "common/scoring/rand_index.hpp"
 #include "common/sim/scene.hpp"
 #include "common/tracking/tracker_config.hpp"
 #include "harness/cluster_run.hpp"
-#include "harness/epoch_latency.hpp"
+#include "harness/demo_report.hpp"
 #include "harness/launcher.hpp"
-#include "harness/object_breakdown.hpp"
 #include "harness/report_text.hpp"
 #include "harness/scene_run.hpp"
 #include "harness/track_scoring.hpp"
 #include "pictures/birdseye.hpp"
 #include "pictures/scene_picture.hpp"
-#include "services/edge_cluster/scan_source.hpp"
 #include "tools/fogctl/args.hpp"
 #include "tools/fogctl/commands.hpp"
 
 namespace fogmap::cli {
 namespace {
 
-using harness::Accuracy;
 using harness::EdgeView;
-using harness::EpochLatencies;
 using harness::Json;
 using harness::RunOptions;
 using harness::SceneRunOptions;
-using harness::SceneScores;
 using harness::SceneTrackingOptions;
-using harness::accuracy;
 using harness::binaryDir;
-using harness::epochLatencies;
 using harness::installStopHandlers;
 using harness::jsonNumber;
 using harness::jsonText;
 using harness::lastCompleteView;
-using harness::kindReport;
 using harness::missedObjectCentres;
 using harness::movingObjects;
-using harness::objectBreakdownText;
-using harness::percentile;
-using harness::rangeBandReport;
-using harness::recomputeEdges;
 using harness::runCluster;
 using harness::runScene;
+using harness::recordedReport;
+using harness::recordedScoresText;
 using harness::runSceneTracking;
+using harness::sceneScoresReport;
+using harness::sceneScoresText;
 using harness::sceneTrackingReport;
 using harness::sceneTrackingText;
+using harness::scoreRecordedRuns;
 using harness::scoreSceneRuns;
 using harness::scoreSceneTracking;
 using harness::stopRequested;
@@ -164,30 +153,7 @@ int runSceneDemo(const Args& args) {
   if (!baseline) return fail(baseline.error(), "fogctl demo");
   const auto scores = scoreSceneRuns(*scene, *madc, &*baseline);
   if (!scores) return fail(scores.error(), "fogctl demo");
-  const SceneScores& s = *scores;
-  const double ratio = s.baseline_bytes_per_frame / std::max(1.0, s.madc_bytes_per_frame);
-  std::printf("\n%zu complete frames scored against the truth, %zu against the baseline\n", s.frames, s.frames_vs_baseline);
-  std::printf("  bytes per frame, edge uploads: MAD-C %.0f B   baseline %.0f B   ratio %.0fx   (raw scans %.0f B: %.0fx)\n",
-              s.madc_bytes_per_frame, s.baseline_bytes_per_frame, ratio, s.raw_bytes_per_frame,
-              s.raw_bytes_per_frame / std::max(1.0, s.madc_bytes_per_frame));
-  std::printf("  ellipsoids on the wire:        %.1f B each in the edges' map uploads (%.1f B were they sent as float32)\n",
-              s.madc_bytes_per_ellipsoid, s.exact_bytes_per_ellipsoid);
-  std::printf("  MAD-C vs baseline:             Rand index %.4f   adjusted %.4f (local clusters); points %.4f / %.4f\n",
-              s.madc_vs_baseline.rand_index, s.madc_vs_baseline.adjusted_rand_index, s.ext_vs_baseline.rand_index,
-              s.ext_vs_baseline.adjusted_rand_index);
-  std::printf("  against the truth (points):    MAD-C-ext RI %.4f ARI %.4f   baseline RI %.4f ARI %.4f\n",
-              s.madc_vs_truth.rand_index, s.madc_vs_truth.adjusted_rand_index, s.baseline_vs_truth.rand_index,
-              s.baseline_vs_truth.adjusted_rand_index);
-  std::printf("  true objects (all frames):     %zu: found whole %zu, split %zu, merged %zu, missed %zu (MAD-C)\n",
-              s.madc_objects.objects_true, s.madc_objects.found_whole, s.madc_objects.split, s.madc_objects.merged,
-              s.madc_objects.missed);
-  std::printf("                                 %zu: found whole %zu, split %zu, merged %zu, missed %zu (baseline)\n",
-              s.baseline_objects.objects_true, s.baseline_objects.found_whole, s.baseline_objects.split,
-              s.baseline_objects.merged, s.baseline_objects.missed);
-  std::fputs(objectBreakdownText(s.madc_breakdown, s.baseline_breakdown).c_str(), stdout);
-  std::printf("  times: local clustering %.2f ms per scan, MERGE %.3f ms per epoch; baseline central clustering %.2f ms\n",
-              s.clustering_ms, s.merge_ms, s.baseline_clustering_ms);
-  std::printf("  end-to-end p50: MAD-C %.1f ms   baseline %.1f ms\n", s.madc_e2e_p50_ms, s.baseline_e2e_p50_ms);
+  std::fputs(sceneScoresText(*scores).c_str(), stdout);
 
   const std::filesystem::path png = args.get("png", (dir / "global_map.png").string());
   if (auto last = lastCompleteView(*madc)) {
@@ -234,38 +200,8 @@ int runSceneDemo(const Args& args) {
   j["scene"] = scene_path.string();
   j["topology"] = shape;
   j["nodes"] = scene->lidars.size();
-  j["frames"] = s.frames;
-  j["frames_vs_baseline"] = s.frames_vs_baseline;
   j["alpha"] = jsonNumber(*alpha);
-  j["bytes_madc_per_frame"] = jsonNumber(s.madc_bytes_per_frame);
-  j["bytes_baseline_per_frame"] = jsonNumber(s.baseline_bytes_per_frame);
-  j["bytes_ratio"] = jsonNumber(ratio);
-  j["bytes_raw_per_frame"] = jsonNumber(s.raw_bytes_per_frame);
-  j["bytes_per_ellipsoid"] = jsonNumber(s.madc_bytes_per_ellipsoid);
-  j["bytes_per_ellipsoid_exact_wire"] = jsonNumber(s.exact_bytes_per_ellipsoid);
-  j["rand_index_mean"] = jsonNumber(s.madc_vs_baseline.rand_index);
-  j["ari_mean"] = jsonNumber(s.madc_vs_baseline.adjusted_rand_index);
-  j["rand_index_points_mean"] = jsonNumber(s.ext_vs_baseline.rand_index);
-  j["rand_index_truth_mean"] = jsonNumber(s.madc_vs_truth.rand_index);
-  j["ari_truth_mean"] = jsonNumber(s.madc_vs_truth.adjusted_rand_index);
-  j["baseline_rand_index_truth_mean"] = jsonNumber(s.baseline_vs_truth.rand_index);
-  j["baseline_ari_truth_mean"] = jsonNumber(s.baseline_vs_truth.adjusted_rand_index);
-  j["objects_true"] = s.madc_objects.objects_true;
-  j["objects_found_whole"] = s.madc_objects.found_whole;
-  j["objects_split"] = s.madc_objects.split;
-  j["objects_merged"] = s.madc_objects.merged;
-  j["objects_missed"] = s.madc_objects.missed;
-  j["baseline_objects_found_whole"] = s.baseline_objects.found_whole;
-  j["baseline_objects_split"] = s.baseline_objects.split;
-  j["baseline_objects_merged"] = s.baseline_objects.merged;
-  j["baseline_objects_missed"] = s.baseline_objects.missed;
-  j["by_range_band"] = rangeBandReport(s.madc_breakdown, s.baseline_breakdown);
-  j["by_kind"] = kindReport(s.madc_breakdown, s.baseline_breakdown);
-  j["clustering_ms"] = jsonNumber(s.clustering_ms);
-  j["merge_ms"] = jsonNumber(s.merge_ms);
-  j["baseline_clustering_ms"] = jsonNumber(s.baseline_clustering_ms);
-  j["e2e_p50_ms"] = jsonNumber(s.madc_e2e_p50_ms);
-  j["baseline_e2e_p50_ms"] = jsonNumber(s.baseline_e2e_p50_ms);
+  j.update(sceneScoresReport(*scores));
   if (tracking_report) j["tracking"] = *tracking_report;
   if (Status written = harness::writeTextFile(report, jsonText(j)); !written) return fail(written.error(), "fogctl demo");
   std::printf("  report: %s\n", report.c_str());
@@ -340,115 +276,24 @@ int runDemo(int argc, char** argv) {
   options.point_labels = true;
   auto baseline = runCluster(dir, baseline_topology, options);
   if (!baseline) return fail(baseline.error(), "fogctl demo");
-  // Pair every complete MAD-C epoch with a complete baseline epoch that replayed the same scan.
-  const auto scans = ScanSource::open(*madc_topology.nodes.back().sensor);
-  if (!scans) return fail(scans.error(), "fogctl demo");
-  const std::size_t n_scans = scans->files().size();
-  std::map<std::size_t, const GlobalMapMessage*> baseline_by_scan;
-  for (const auto& [e, g] : baseline->epochs) {
-    if (g.header.missing_nodes.empty()) baseline_by_scan.emplace(e % n_scans, &g);
-  }
-  std::vector<std::uint64_t> compared;
-  std::size_t incomplete = 0;
-  for (const auto& [e, g] : madc->epochs) {
-    if (!g.header.missing_nodes.empty()) {
-      ++incomplete;
-    } else if (baseline_by_scan.count(e % n_scans) > 0) {
-      compared.push_back(e);
-    }
-  }
-  auto views = recomputeEdges(madc_topology, compared);
-  if (!views) return fail(views.error(), "fogctl demo");
-
-  std::printf("\n%12s %5s %8s %8s %12s %14s %8s %9s %9s %8s %8s\n", "epoch", "scan", "objects", "baseline", "bytes MAD-C",
-              "bytes baseline", "ratio", "merge ms", "e2e ms", "RI", "ARI");
-  std::vector<double> ri;
-  std::vector<double> ari;
-  std::vector<double> ri_points;
-  std::size_t map_bytes = 0;
-  std::size_t exact_map_bytes = 0;
-  std::size_t ellipsoids = 0;
-  // Epochs without a sensor time (every node missing) have no end-to-end latency: counted apart.
-  const EpochLatencies latencies = epochLatencies(madc->epochs);
-  const std::vector<double>& e2e_ms = latencies.e2e_ms;
-  const std::vector<double>& e2e_all_ms = latencies.e2e_all_ms;
-  const std::vector<double>& merge_ms = latencies.merge_ms;
-  const GlobalMapMessage* last = nullptr;
-  std::uint64_t last_epoch = 0;
-  for (const auto e : compared) {
-    const GlobalMapMessage& m = madc->epochs.at(e);
-    const GlobalMapMessage& b = *baseline_by_scan.at(e % n_scans);
-    const EdgeView& view = views->at(e);
-    const Accuracy a = accuracy(m, b, view);
-    map_bytes += view.madc_bytes;
-    exact_map_bytes += view.madc_exact_bytes;
-    ellipsoids += view.madc_ellipsoids;
-    if (a.ok) {
-      ri.push_back(a.clusters.rand_index);
-      ari.push_back(a.clusters.adjusted_rand_index);
-      ri_points.push_back(a.points.rand_index);
-    }
-    std::printf("%12lu %5zu %8zu %8zu %12zu %14zu %7.0fx %9.3f %9.1f %8.4f %8.4f%s\n", static_cast<unsigned long>(e), e % n_scans,
-                m.map.objects.size(), b.map.objects.size(), view.madc_bytes, view.baseline_bytes,
-                static_cast<double>(view.baseline_bytes) / static_cast<double>(std::max<std::size_t>(view.madc_bytes, 1)),
-                m.merge_seconds * 1e3, nsToMs(m.published_time_ns - m.header.sensor_time_ns),
-                a.ok ? a.clusters.rand_index : 0.0, a.ok ? a.clusters.adjusted_rand_index : 0.0,
-                a.ok ? "" : ("  (" + a.problem + ")").c_str());
-    last = &m;
-    last_epoch = e;
-  }
-  if (compared.empty()) return fail(Error{ErrorCode::kInternal, "no complete epoch from both clusters; see the logs in " + dir.string()}, "fogctl demo");
-  auto mean = [](const std::vector<double>& v) { return v.empty() ? 0.0 : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size()); };
-  const double madc_per_frame = madc->bytes_moved / static_cast<double>(std::max<std::size_t>(madc->epochs.size(), 1));
-  const double baseline_per_frame = baseline->bytes_moved / static_cast<double>(std::max<std::size_t>(baseline->epochs.size(), 1));
-  const double ratio = baseline_per_frame / std::max(1.0, madc_per_frame);
-  std::printf("\n%zu epochs published by MAD-C (%zu incomplete: a node missing; %zu without a sensor time: every node missing, "
-              "no end-to-end latency), %zu compared with the baseline%s\n",
-              madc->epochs.size(), incomplete, latencies.without_sensor_time, compared.size(), latencies.incomplete_list.c_str());
-  std::printf("  bytes per frame, all links:  MAD-C %.0f B   baseline %.0f B   ratio %.0fx\n", madc_per_frame, baseline_per_frame, ratio);
-  const double per_ellipsoid = static_cast<double>(map_bytes) / static_cast<double>(std::max<std::size_t>(ellipsoids, 1));
-  const double exact_per_ellipsoid =
-      static_cast<double>(exact_map_bytes) / static_cast<double>(std::max<std::size_t>(ellipsoids, 1));
-  std::printf("  ellipsoids on the wire:      %.1f B each in the edges' map uploads (%.1f B were they sent as float32)\n",
-              per_ellipsoid, exact_per_ellipsoid);
-  std::printf("  merge latency at the sink:   p50 %.3f ms   p99 %.3f ms\n", percentile(merge_ms, 0.5), percentile(merge_ms, 0.99));
-  std::printf("  end-to-end latency:          p50 %.1f ms   p99 %.1f ms   (sensor timestamp to global map, complete epochs)\n",
-              percentile(e2e_ms, 0.5), percentile(e2e_ms, 0.99));
-  std::printf("                               p50 %.1f ms   p99 %.1f ms   (every epoch with a sensor time, start-up included)\n",
-              percentile(e2e_all_ms, 0.5), percentile(e2e_all_ms, 0.99));
-  std::printf("  accuracy vs baseline:        Rand index %.4f   adjusted %.4f   (local clusters); Rand index %.4f (points)\n",
-              mean(ri), mean(ari), mean(ri_points));
+  // Every complete MAD-C epoch against a complete baseline epoch that replayed the same scan.
+  const auto scores = scoreRecordedRuns(madc_topology, *madc, *baseline);
+  if (!scores) return fail(Error{scores.error().code, scores.error().message + "; see the logs in " + dir.string()}, "fogctl demo");
+  std::fputs(recordedScoresText(*scores).c_str(), stdout);
 
   const std::filesystem::path png = args->get("png", (dir / "global_map.png").string());
-  if (last != nullptr) {
-    if (const Status s = drawRecordedBirdseye(png, *last, views->at(last_epoch), static_cast<int>(*nodes)); !s) {
-      return fail(s.error(), "fogctl demo");
-    }
-    std::printf("  bird's-eye view of frame %lu: %s\n", static_cast<unsigned long>(last_epoch), png.c_str());
+  const std::uint64_t last_epoch = scores->epochs.back().epoch;
+  if (const Status s = drawRecordedBirdseye(png, madc->epochs.at(last_epoch), scores->last_view, static_cast<int>(*nodes)); !s) {
+    return fail(s.error(), "fogctl demo");
   }
+  std::printf("  bird's-eye view of frame %lu: %s\n", static_cast<unsigned long>(last_epoch), png.c_str());
   const std::filesystem::path report = args->get("report", (dir / "report.json").string());
   Json j;
   j["topology"] = shape;
   j["nodes"] = *nodes;
   j["input"] = input.string();
-  j["frames"] = compared.size();
-  j["epochs_published"] = madc->epochs.size();
   j["alpha"] = jsonNumber(*alpha);
-  j["bytes_madc_per_frame"] = jsonNumber(madc_per_frame);
-  j["bytes_baseline_per_frame"] = jsonNumber(baseline_per_frame);
-  j["bytes_ratio"] = jsonNumber(ratio);
-  j["bytes_per_ellipsoid"] = jsonNumber(per_ellipsoid);
-  j["bytes_per_ellipsoid_exact_wire"] = jsonNumber(exact_per_ellipsoid);
-  j["rand_index_mean"] = jsonNumber(mean(ri));
-  j["ari_mean"] = jsonNumber(mean(ari));
-  j["rand_index_points_mean"] = jsonNumber(mean(ri_points));
-  j["e2e_p50_ms"] = jsonNumber(percentile(e2e_ms, 0.5));
-  j["e2e_p99_ms"] = jsonNumber(percentile(e2e_ms, 0.99));
-  j["e2e_all_epochs_p99_ms"] = jsonNumber(percentile(e2e_all_ms, 0.99));
-  j["epochs_incomplete"] = incomplete;
-  j["epochs_without_sensor_time"] = latencies.without_sensor_time;
-  j["merge_p50_ms"] = jsonNumber(percentile(merge_ms, 0.5));
-  j["merge_p99_ms"] = jsonNumber(percentile(merge_ms, 0.99));
+  j.update(recordedReport(*scores));
   if (Status written = harness::writeTextFile(report, jsonText(j)); !written) return fail(written.error(), "fogctl demo");
   std::printf("  report: %s\n", report.c_str());
   return 0;
@@ -459,7 +304,7 @@ int runDemo(int argc, char** argv) {
 Command demoCommand() {
   return {"demo",
           "[--input DIR | --scene FILE] [--nodes 4] [--topology star|tree] [--frames 20] [--report FILE] [--png FILE]",
-          "usage: fogctl demo [--input DIR] [--nodes 4] [--topology star|tree] [--frames 20] [--report FILE] [--png FILE]\n"
+          std::string("usage: fogctl demo [--input DIR] [--nodes 4] [--topology star|tree] [--frames 20] [--report FILE] [--png FILE]\n"
           "                   [--alpha 1.5] [--base-port 46000] [--state DIR] [--fragment-min-points N|off]\n"
           "                   [--objects none|boxes|classes] [--classifier FILE]\n"
           "       fogctl demo --scene FILE [--topology star|tree] [--frames 10] [--report FILE] [--png FILE] [--alpha 1.5]\n"
@@ -480,8 +325,8 @@ Command demoCommand() {
           "                 cycle of the scene are scored against the truth (CLEAR MOT, IDF1, localization error,\n"
           "                 sensor time to published tracks: the report's \"tracking\" object), and --tracks-png\n"
           "                 (default tracks.png under --state) shows the last with the tracks, their ids, labels\n"
-          "                 and trails\n" +
-              std::string(kSceneMappingUsage),
+          "                 and trails\n")
+              .append(kSceneMappingUsage),
           runDemo};
 }
 

@@ -266,7 +266,7 @@ int runTopology(int argc, char** argv) {
 Command topologyCommand() {
   return {"topology",
           "star|tree --edges K --source DIR | --scene FILE [--base-port P] [--mode madc|baseline|ext] [--frames N] [--out FILE]",
-          "usage: fogctl topology star|tree --edges K --source DIR [--base-port 50000] [--mode madc|baseline|ext]\n"
+          std::string("usage: fogctl topology star|tree --edges K --source DIR [--base-port 50000] [--mode madc|baseline|ext]\n"
           "                       [--frames N] [--fanout 2] [--deadline-ms 80] [--tls-ca FILE]\n"
           "                       [--tracker [--association paper|kalman] [--cameras DIR[,DIR...] [--calib FILE]\n"
           "                       [--camera-rate-hz 10]]] [--out FILE]\n"
@@ -295,8 +295,8 @@ Command topologyCommand() {
           "  --objects, --classifier, --alpha-max   the edges' boxes, classes and ellipsoids (below; also for --source)\n"
           "  --fanout F       a tree's aggregators have at most F children (default 2)\n"
           "  --deadline-ms D  an aggregator's deadline per level (default 80)\n"
-          "  --tls-ca FILE    mutual TLS on every link, certificates next to FILE (fogctl certs)\n" +
-              std::string(kSceneMappingUsage),
+          "  --tls-ca FILE    mutual TLS on every link, certificates next to FILE (fogctl certs)\n")
+              .append(kSceneMappingUsage),
           runTopology};
 }
 
