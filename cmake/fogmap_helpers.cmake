@@ -6,7 +6,10 @@ function(fogmap_set_warnings target)
   endif()
   target_compile_options(${target} PRIVATE -Wall -Wextra -Wpedantic -Wno-deprecated-declarations)
   if(FOGMAP_WERROR)
-    target_compile_options(${target} PRIVATE -Werror)
+    # GCC 12's maybe-uninitialized stays a warning: it reports the disengaged payload of a copied
+    # std::optional (CloudObservation::box) as read, depending on what was inlined (the Release
+    # build shows it in map_test too).
+    target_compile_options(${target} PRIVATE -Werror -Wno-error=maybe-uninitialized)
   endif()
 endfunction()
 
