@@ -53,9 +53,7 @@ endfunction()
 # use-after-scope checks (a poisoned stack slot for every temporary of every gtest body): on
 # tracker_test.cpp that took 66 s to compile, 31 s now. The libraries and services under test keep
 # the preset's -O2 and every check. The sampling oracles of ellipsoid_test.cpp run on inlined Eigen
-# code, which under the sanitizers at -O1 took minutes per test, and clustering_test.cpp runs PCL's
-# templates on whole scans (its two largest tests 35 s at -O2, 100 s at -O1):
-# fogmap_keep_optimised keeps them at -O2.
+# code, which under the sanitizers at -O1 took minutes per test: fogmap_keep_optimised keeps -O2.
 function(fogmap_test_flags target)
   target_compile_definitions(${target} PRIVATE FOGMAP_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
   target_compile_options(${target} PRIVATE $<$<CONFIG:Release>:-O1>)
