@@ -50,8 +50,9 @@ behind() {  # behind NAME LOG COMMAND...: starts COMMAND behind, at idle priorit
   local name=$1 log=$2
   shift 2
   local lower=(nice -n 19)
-  command -v chrt > /dev/null && lower=(chrt --idle 0 "${lower[@]}")
-  command -v ionice > /dev/null && lower+=(ionice -c 3)
+  # Each only where this system allows it (a container may not).
+  chrt --idle 0 true 2> /dev/null && lower=(chrt --idle 0 "${lower[@]}")
+  ionice -c 3 true 2> /dev/null && lower+=(ionice -c 3)
   if [ $serial -eq 1 ]; then
     lower=()
   fi
