@@ -93,8 +93,8 @@ if ! docker info > /dev/null 2>&1; then
   # At normal priority, also when this script runs behind the tests at the idle class
   # (tools/check.sh): the daemon and the containers it starts would inherit it.
   normal=(nice -n "$((-$(nice)))")
-  command -v ionice > /dev/null && normal=(ionice -c 2 -n 4 "${normal[@]}")
-  command -v chrt > /dev/null && normal=(chrt --other 0 "${normal[@]}")
+  ionice -c 2 -n 4 true 2> /dev/null && normal=(ionice -c 2 -n 4 "${normal[@]}")
+  chrt --other 0 true 2> /dev/null && normal=(chrt --other 0 "${normal[@]}")
   ("${normal[@]}" service docker start > /dev/null 2>&1 || true)
   if ! docker info > /dev/null 2>&1; then
     nohup "${normal[@]}" dockerd > /var/log/fogmap-dockerd.log 2>&1 &
