@@ -342,6 +342,38 @@ TEST(SensorClustering, EqualsBruteForceOnSimulatedLidarClouds) {
   EXPECT_GT(trials_changed, 18);
 }
 
+// The range image is sorted by counting with a table of where each cell starts where it has few
+// cells per point (at most 8, plus 1024), and by a radix sort with cursors over the windows where
+// it has many. Both ways, across the seam: a VLP-16's 16 rings of 120 bins (3 degrees: 1,920 cells
+// for 600 to 1,700 points) and of 36,000 bins (0.01 degrees: 576,000 cells), with windows of about
+// the same angle, and wide enough (+-1.5 degrees) at the fine step for the random rays to link.
+TEST(SensorClustering, EqualsBruteForceWithFewAndWithManyCellsPerPoint) {
+  std::mt19937_64 rng(4417);
+  std::size_t fine_links = 0, coarse_links = 0, across_seam = 0;  // rule (b) links beyond eps
+  for (int trial = 0; trial < 8; ++trial) {
+    const bool fine = trial % 2 == 1;
+    BeamTable beams{evenly(-15.0, 2.0, 16), fine ? 0.01 : 3.0};
+    const Eigen::Isometry3d pose = randomPose(rng);
+    // The last four turned by half a turn: their rays' sector, +-20 degrees, is across the seam.
+    const Scan scan = randomLidarScan(rng, beams, pose, 110, 40.0, trial < 4 ? 60.0 : 20.0);
+    SensorClusteringParams params;
+    params.links.beams = beams;
+    params.links.sensor_pose = trial < 4 ? pose : pose * Eigen::AngleAxisd(std::numbers::pi, Eigen::Vector3d::UnitZ());
+    params.links.azimuth_window = fine ? 150 : 1;
+    params.links.ring_gap_slack = 2.0;
+    params.clustering.min_points = 2;
+    ASSERT_GE(scan.points.size(), 600U) << "trial " << trial;
+    const Clustering expected = bruteForceSensorClusters(scan.points, params);
+    EXPECT_EQ(sensorAware(scan.points, params).labels, expected.labels) << "trial " << trial;
+    const RuleBCounts c = ruleBCounts(scan.points, params);
+    (fine ? fine_links : coarse_links) += c.beyond_eps;
+    across_seam += c.across_seam;
+  }
+  EXPECT_GT(fine_links, 100U);
+  EXPECT_GT(coarse_links, 100U);
+  EXPECT_GT(across_seam, 5U);
+}
+
 // The seam of the azimuth bins (behind the sensor, atan2 = +-pi) is crossed by the windows, and
 // windows as wide as the ring take every pair of adjacent rings.
 TEST(SensorClustering, EqualsBruteForceAcrossTheAzimuthSeamAndWithWholeRingWindows) {
