@@ -389,10 +389,10 @@ Expected<PublishedScores> scoreSceneTracking(const sim::Scene& scene, const Scen
                               tracking::MotConfig{options.match_distance_m});
 }
 
-std::string sceneTrackListsJsonLines(const sim::Scene& scene, const SceneTrackingRun& run, const PublishedScores& scores,
-                                     const SceneTrackingOptions& options) {
+Expected<std::string> sceneTrackListsJsonLines(const sim::Scene& scene, const SceneTrackingRun& run, const PublishedScores& scores,
+                                               const SceneTrackingOptions& options) {
   const auto schedule = EpochSchedule::create(run.topology.period_ms, run.topology.deadline_ms);
-  if (!schedule) return {};
+  if (!schedule) return schedule.error();
   const auto heading = [](const std::optional<double>& rad) { return rad ? jsonNumber(*rad / kDegToRad) : Json(nullptr); };
   std::string out;
   const std::size_t end = std::min(run.lists.size(), scores.first_list + scores.frames);

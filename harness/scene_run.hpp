@@ -152,8 +152,9 @@ std::string sceneTrackingJson(const PublishedScores& scores, const SceneTracking
 // The scored track lists as JSON lines, one per list in order: {"list", "scene_time_s", "truth":
 // [{"id", "label", "x", "y", "heading_deg"}], "tracks": [{"id", "label", "confirmed", "x", "y",
 // "heading_deg"}]} (tracks as scored: confirmed and lost ones; headings where there is one), so
-// that what the figures count can be looked at list by list.
-std::string sceneTrackListsJsonLines(const sim::Scene& scene, const SceneTrackingRun& run, const PublishedScores& scores,
-                                     const SceneTrackingOptions& options);
+// that what the figures count can be looked at list by list. Errors where the run's topology has no
+// valid epoch schedule (its period and deadline), as scoreSceneTracking.
+Expected<std::string> sceneTrackListsJsonLines(const sim::Scene& scene, const SceneTrackingRun& run, const PublishedScores& scores,
+                                               const SceneTrackingOptions& options);
 
 }  // namespace fogmap::harness

@@ -11,7 +11,10 @@
 #include <functional>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "common/sim/generators.hpp"
+#include "harness/scene_run.hpp"
 #include "services/edge_cluster/edge_runner.hpp"
 
 namespace fogmap::harness {
@@ -210,6 +213,53 @@ TEST(TrackScoring, PublishedTracksAreScoredInsideOneCycleWithTheirLatency) {
   const auto too_short = scorePublishedTracks(s, *schedule, 10.0, std::span(lists).first(50), 5, 30);
   ASSERT_FALSE(too_short.ok());
   EXPECT_NE(too_short.error().message.find("50 track lists"), std::string::npos) << too_short.error().message;
+}
+
+// The demo's track_lists.jsonl: one JSON line per scored list, in order, with the list's scene
+// instant, the truth there and the tracks as scored; a run whose topology has no valid epoch
+// schedule is refused with the reason, not written as an empty file.
+TEST(TrackScoring, TheScoredListsAreOneJsonLineEachAndARunWithoutAScheduleIsRefused) {
+  const sim::Scene s = scene();
+  const auto schedule = EpochSchedule::create(100.0, 80.0);
+  ASSERT_TRUE(schedule.ok());
+  SceneTrackingRun run;
+  run.topology.period_ms = 100.0;
+  run.topology.deadline_ms = 80.0;
+  run.lists = published(s, *schedule, 600ULL * 28'000'000ULL + 10, 12, [](int) { return 40.0; });
+  run.lists[5].tracks[0].state = tracking::TrackState::kLost;
+  SceneTrackingOptions options;
+  const auto scored = scorePublishedTracks(s, *schedule, options.rate_hz, run.lists, 2, 8);
+  ASSERT_TRUE(scored.ok()) << scored.error().message;
+  ASSERT_EQ(scored->first_list, 2U) << "list 5, with its lost track, among the scored ones";
+  const auto text = sceneTrackListsJsonLines(s, run, *scored, options);
+  ASSERT_TRUE(text.ok()) << text.error().message;
+  std::vector<nlohmann::json> lines;
+  for (std::size_t at = 0, end = 0; (end = text->find('\n', at)) != std::string::npos; at = end + 1) {
+    lines.push_back(nlohmann::json::parse(text->substr(at, end - at)));
+  }
+  ASSERT_EQ(lines.size(), 8U);
+  for (std::size_t k = 0; k < lines.size(); ++k) {
+    const auto& line = lines[k];
+    const std::size_t list = scored->first_list + k;
+    EXPECT_EQ(line["list"].get<std::size_t>(), list);
+    const double time_s = sceneTimeOf(s, *schedule, options.rate_hz, run.lists[list].lidar_time_ns);
+    EXPECT_NEAR(line["scene_time_s"].get<double>(), time_s, 1e-9);
+    ASSERT_EQ(line["truth"].size(), 3U);
+    ASSERT_EQ(line["tracks"].size(), 3U);
+    for (std::size_t i = 0; i < 3; ++i) {
+      const auto& truth = line["truth"][i];
+      const auto& track = line["tracks"][i];
+      EXPECT_EQ(truth["label"], track["label"]);
+      EXPECT_EQ(track["id"].get<std::int64_t>(), 100 + truth["id"].get<std::int64_t>());
+      EXPECT_NEAR(track["x"].get<double>(), truth["x"].get<double>(), 1e-9);
+      EXPECT_NEAR(track["y"].get<double>(), truth["y"].get<double>(), 1e-9);
+      EXPECT_EQ(track["confirmed"].get<bool>(), !(list == 5 && i == 0)) << "a lost track is scored, not confirmed";
+    }
+  }
+  run.topology.period_ms = 0.0;
+  const auto refused = sceneTrackListsJsonLines(s, run, *scored, options);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.error().message.find("period_ms"), std::string::npos) << refused.error().message;
 }
 
 }  // namespace

@@ -190,9 +190,9 @@ int runSceneDemo(const Args& args) {
     }
     std::printf("  bird's-eye view of the last scored track list, with 3 s trails: %s\n", tracks_png.c_str());
     const std::filesystem::path track_lists = dir / "track_lists.jsonl";
-    if (Status written = harness::writeTextFile(track_lists, sceneTrackListsJsonLines(uncycled, *run, *scored, tracking_options)); !written) {
-      return fail(written.error(), "fogctl demo");
-    }
+    const auto lines = sceneTrackListsJsonLines(uncycled, *run, *scored, tracking_options);
+    if (!lines) return fail(lines.error(), "fogctl demo");
+    if (Status written = harness::writeTextFile(track_lists, *lines); !written) return fail(written.error(), "fogctl demo");
     std::printf("  the scored track lists and the truth, one JSON line a list: %s\n", track_lists.c_str());
   }
   const std::filesystem::path report = args.get("report", (dir / "report.json").string());
