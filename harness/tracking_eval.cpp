@@ -368,7 +368,7 @@ Expected<TrackingEvalResult> runTrackingEval(const TrackingEvalConfig& config) {
         const auto before = Clock::now();
         tracker->addCloud(instant.cloud);
         step_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - before).count());
-        scored.push_back(trackingFrame(scene, instant.time_s, tracker->tracks()));
+        scored.push_back(trackingFrame(scene, instant.time_s, tracker->publishedTracks()));
       }
       auto scores = scoreTracking(scored, mot_config);
       if (!scores) return scores.error();

@@ -325,7 +325,7 @@ Expected<CameraNodeConfig> parseCamera(const YAML::Node& node, const std::string
 Expected<TrackerNodeConfig> parseTracker(const YAML::Node& node, const std::string& where) {
   if (const Status st = checkSection(node, where, {"input", "centroid_merge_m", "visible_side_max_radius_m", "association", "eps_sync_s", "rho_overlay_m", "rho_purecloud_m", "gate_chi2",
                                                     "acceleration_sigma", "initial_speed_sigma", "min_measurement_sigma_m",
-                                                    "confirm_hits", "tentative_timeout_s", "track_timeout_s",
+                                                    "confirm_hits", "tentative_timeout_s", "track_timeout_s", "publish_lost_s",
                                                     "max_buffered_frames", "max_detection_wait_s", "lidar_class_weight"});
       !st) {
     return st.error();
@@ -371,6 +371,7 @@ Expected<TrackerNodeConfig> parseTracker(const YAML::Node& node, const std::stri
            {"gate_chi2", &c.gate_chi2}, {"acceleration_sigma", &c.acceleration_sigma},
            {"initial_speed_sigma", &c.initial_speed_sigma}, {"min_measurement_sigma_m", &c.min_measurement_sigma_m},
            {"tentative_timeout_s", &c.tentative_timeout_s}, {"track_timeout_s", &c.track_timeout_s},
+           {"publish_lost_s", &c.publish_lost_s},
            {"max_detection_wait_s", &c.max_detection_wait_s}, {"lidar_class_weight", &c.lidar_class_weight}}) {
     if (const Status st = number(key, *value); !st) return st.error();
   }

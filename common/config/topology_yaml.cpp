@@ -203,7 +203,8 @@ std::string toYaml(const TopologyConfig& t) {
           << YAML::Value << c.initial_speed_sigma << YAML::Key << "min_measurement_sigma_m" << YAML::Value
           << c.min_measurement_sigma_m << YAML::Key << "confirm_hits" << YAML::Value << c.confirm_hits << YAML::Key
           << "tentative_timeout_s" << YAML::Value << c.tentative_timeout_s << YAML::Key << "track_timeout_s"
-          << YAML::Value << c.track_timeout_s << YAML::Key << "max_buffered_frames" << YAML::Value
+          << YAML::Value << c.track_timeout_s << YAML::Key << "publish_lost_s" << YAML::Value << c.publish_lost_s
+          << YAML::Key << "max_buffered_frames" << YAML::Value
           << c.max_buffered_frames << YAML::Key << "max_detection_wait_s" << YAML::Value << c.max_detection_wait_s
           << YAML::Key << "lidar_class_weight" << YAML::Value << c.lidar_class_weight << YAML::EndMap;
     }

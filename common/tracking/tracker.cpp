@@ -689,6 +689,17 @@ void Tracker::updateVehicle(std::size_t t, const CloudObservation& o, const std:
   tracks_[t].heading_rad = vehicle->filter.heading();
 }
 
+std::vector<Track> Tracker::publishedTracks() const {
+  std::vector<Track> out;
+  out.reserve(tracks_.size());
+  const std::int64_t window_ns = nanoseconds(config_.publish_lost_s);
+  for (const auto& track : tracks_) {
+    if (track.state == TrackState::kLost && last_cloud_ns_ && *last_cloud_ns_ - track.last_update_ns > window_ns) continue;
+    out.push_back(track);
+  }
+  return out;
+}
+
 void Tracker::prune(std::int64_t now_ns, StepStats& stats) {
   const std::int64_t tentative_ns = nanoseconds(config_.tentative_timeout_s);
   const std::int64_t timeout_ns = nanoseconds(config_.track_timeout_s);

@@ -148,6 +148,11 @@ class Tracker {
 
   // The live tracks (tentative ones too; callers usually publish confirmed and lost ones).
   const std::vector<Track>& tracks() const { return tracks_; }
+  // The tracks to publish after the last LiDAR frame fused: the live ones, except lost ones whose
+  // last update is more than publish_lost_s before that frame. A lost track coasts on its last
+  // velocity; past the time recovery could take it back it is a guess, kept to be gated again,
+  // not shown (a car turned round on the spot left one coasting ahead for its 2 s of timeout).
+  std::vector<Track> publishedTracks() const;
   const TrackerCounters& counters() const { return counters_; }
   const TrackerConfig& config() const { return config_; }
   // When each camera's newest detection frame was captured (absent until one arrived).

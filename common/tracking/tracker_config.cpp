@@ -32,6 +32,9 @@ Status validate(const TrackerConfig& c) {
   if (c.confirm_hits < 1) return invalidArgument("tracker: confirm_hits must be at least 1");
   if (!positive(c.tentative_timeout_s)) return invalidArgument("tracker: tentative_timeout_s must be positive");
   if (!positive(c.track_timeout_s)) return invalidArgument("tracker: track_timeout_s must be positive");
+  if (!(std::isfinite(c.publish_lost_s) && c.publish_lost_s >= 0.0 && c.publish_lost_s <= c.track_timeout_s)) {
+    return invalidArgument("tracker: publish_lost_s must be in [0, track_timeout_s] seconds");
+  }
   if (c.max_buffered_frames < 1) return invalidArgument("tracker: max_buffered_frames must be at least 1");
   if (!(std::isfinite(c.max_detection_wait_s) && c.max_detection_wait_s >= 0.0 && c.max_detection_wait_s <= 10.0)) {
     return invalidArgument("tracker: max_detection_wait_s must be in [0, 10] seconds");

@@ -27,6 +27,10 @@ struct TrackerConfig {
   int confirm_hits = 3;                 // consecutive LiDAR hits that confirm a track without a camera
   double tentative_timeout_s = 0.3;     // a tentative track unobserved this long is dropped
   double track_timeout_s = 2.0;         // a track unobserved this long is deleted (both associations)
+  // A lost track is published this long after its last update (Tracker::publishedTracks), as long
+  // as recovery can still take it back; it stays live (gated, recovered) until track_timeout_s.
+  // In [0, track_timeout_s].
+  double publish_lost_s = 0.5;
   std::size_t max_buffered_frames = 64;  // detection frames kept per camera while waiting for LiDAR
   // Asynchronous fusion (Tracker::offerCloud): a LiDAR frame waits until every camera has sent a
   // frame captured at or after it (its nearest detection frame is then known), or this long.

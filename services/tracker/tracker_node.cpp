@@ -235,10 +235,10 @@ void TrackerNode::publishFused(std::unique_lock<std::mutex>& lock, std::vector<t
   TrackSnapshot snapshot;
   snapshot.lidar_time_ns = steps.back().time_ns;
   snapshot.association = tracker_.config().association;
-  snapshot.tracks = tracker_.tracks();
+  snapshot.tracks = tracker_.publishedTracks();
   report.counters = tracker_.counters();
   if (centroids_) report.centroids = centroids_->counters();
-  report.tracks = snapshot.tracks;
+  report.tracks = tracker_.tracks();  // the gauges count every live track, published or not
   const std::int64_t now = now_();
   report.camera_staleness_s = staleness(now);
   report.steps = std::move(steps);

@@ -83,6 +83,10 @@ void expectSameTopology(const TopologyConfig& a, const TopologyConfig& b) {
       EXPECT_DOUBLE_EQ(x.tracker->centroid_merge_m, y.tracker->centroid_merge_m);
       EXPECT_DOUBLE_EQ(x.tracker->visible_side_max_radius_m, y.tracker->visible_side_max_radius_m);
       EXPECT_EQ(x.tracker->tracking.association, y.tracker->tracking.association);
+      EXPECT_DOUBLE_EQ(x.tracker->tracking.rho_overlay_m, y.tracker->tracking.rho_overlay_m);
+      EXPECT_EQ(x.tracker->tracking.confirm_hits, y.tracker->tracking.confirm_hits);
+      EXPECT_DOUBLE_EQ(x.tracker->tracking.track_timeout_s, y.tracker->tracking.track_timeout_s);
+      EXPECT_DOUBLE_EQ(x.tracker->tracking.publish_lost_s, y.tracker->tracking.publish_lost_s);
     }
     ASSERT_EQ(x.displacement.has_value(), y.displacement.has_value());
     if (x.displacement) {
@@ -756,7 +760,7 @@ std::string fusionNodes(const std::string& camera_extra = "", const std::string&
 TEST(Topology, DetectionAndTrackerNodesRoundTripThroughYaml) {
   const Expected<TopologyConfig> parsed = parseTopology(
       topologyYaml("", "", fusionNodes("      detector: {kind: truth, truth: {miss_rate: 0.3, box_jitter_px: 2, latency_ms: 40}}\n",
-                                       ", tracker: {association: paper, rho_overlay_m: 5, confirm_hits: 4}")),
+                                       ", tracker: {association: paper, rho_overlay_m: 5, confirm_hits: 4, publish_lost_s: 0.2}")),
       "base");
   ASSERT_TRUE(parsed.ok()) << parsed.error().message;
   EXPECT_EQ(parsed->root()->name, "sink");
@@ -766,6 +770,7 @@ TEST(Topology, DetectionAndTrackerNodesRoundTripThroughYaml) {
   EXPECT_EQ(tracker.tracker->tracking.association, tracking::Association::kPaper);
   EXPECT_DOUBLE_EQ(tracker.tracker->tracking.rho_overlay_m, 5.0);
   EXPECT_EQ(tracker.tracker->tracking.confirm_hits, 4);
+  EXPECT_DOUBLE_EQ(tracker.tracker->tracking.publish_lost_s, 0.2);
   const auto cameras = parsed->camerasOf("fusion");
   ASSERT_EQ(cameras.size(), 1U);
   const CameraNodeConfig& cam = *cameras[0]->camera;
@@ -830,6 +835,8 @@ TEST(Topology, DetectionAndTrackerMistakesAreNamed) {
   expectRejectedWith(topologyYaml("", "", fusionNodes("", ", tracker: {association: greedy}")),
                      {"nodes[2].tracker.association", "'greedy'"});
   expectRejectedWith(topologyYaml("", "", fusionNodes("", ", tracker: {eps_sync_s: 0}")), {"nodes[2].tracker", "eps_sync_s"});
+  expectRejectedWith(topologyYaml("", "", fusionNodes("", ", tracker: {publish_lost_s: 3}")), {"nodes[2].tracker", "publish_lost_s"});
+  expectRejectedWith(topologyYaml("", "", fusionNodes("", ", tracker: {publish_lost_s: -0.1}")), {"nodes[2].tracker", "publish_lost_s"});
   expectRejectedWith(topologyYaml("", "", fusionNodes("", ", tracker: {eps_sync: 0.1}")), {"nodes[2].tracker.eps_sync", "unknown key"});
   // A camera without a calibration, and truth without a simulated scene.
   expectRejectedWith(topologyYaml("", "", head + "  - {name: t, id: 3, role: tracker, port: 3, metrics_port: 2}\n"

@@ -204,6 +204,51 @@ TEST(KalmanAssociation, ATrackLostForLongerThanAMomentIsNotRevivedByWhatAppearsN
   EXPECT_EQ(stats.tracks_created, 1U);
 }
 
+// A lost track is published for publish_lost_s after its last update, then only held: it is still
+// gated (an object back on its predicted path keeps its id) and deleted after track_timeout_s.
+TEST(KalmanAssociation, ALostTrackIsPublishedForPublishLostSecondsThenHeldUntilItsTimeout) {
+  TrackerConfig config;
+  config.publish_lost_s = 0.3;
+  auto tracker = makeTracker(config, {});
+  const auto published = [&] { return tracker.publishedTracks(); };
+  // A walker at 1 m/s along x for 1 s, then unseen.
+  for (int k = 0; k < 10; ++k) tracker.addCloud(cloudAt(k * 100 * kMs, {at(0.1 * k, 0.0)}));
+  ASSERT_EQ(tracker.tracks().size(), 1U);
+  const std::uint64_t walker = tracker.tracks()[0].id;
+  for (int k = 10; k <= 12; ++k) {  // 0.1 to 0.3 s unseen: lost and published
+    tracker.addCloud(cloudAt(k * 100 * kMs, {}));
+    ASSERT_EQ(tracker.tracks()[0].state, TrackState::kLost);
+    ASSERT_EQ(published().size(), 1U) << "k " << k;
+  }
+  tracker.addCloud(cloudAt(13 * 100 * kMs, {}));  // 0.4 s unseen
+  EXPECT_EQ(tracker.tracks().size(), 1U) << "held";
+  EXPECT_TRUE(published().empty()) << "not published";
+  // Back on its path at 1.4 s (1.4 m): the same track, published again (confirmed again after
+  // confirm_hits consecutive hits).
+  tracker.addCloud(cloudAt(14 * 100 * kMs, {at(1.4, 0.0)}));
+  ASSERT_EQ(published().size(), 1U);
+  EXPECT_EQ(published()[0].id, walker);
+  for (int k = 15; k <= 16; ++k) tracker.addCloud(cloudAt(k * 100 * kMs, {at(0.1 * k, 0.0)}));
+  ASSERT_EQ(published().size(), 1U);
+  EXPECT_EQ(published()[0].id, walker);
+  EXPECT_EQ(published()[0].state, TrackState::kConfirmed);
+  // Unseen for good after 1.6 s: published for 0.3 s, held until the 2 s timeout, then gone.
+  for (int k = 17; k <= 36; ++k) {
+    tracker.addCloud(cloudAt(k * 100 * kMs, {}));
+    EXPECT_EQ(published().size(), k <= 19 ? 1U : 0U) << "k " << k;
+    EXPECT_EQ(tracker.tracks().size(), 1U) << "k " << k;
+  }
+  tracker.addCloud(cloudAt(37 * 100 * kMs, {}));
+  EXPECT_TRUE(tracker.tracks().empty());
+  // The window is within [0, track_timeout_s].
+  config.publish_lost_s = config.track_timeout_s + 0.1;
+  EXPECT_FALSE(validate(config));
+  config.publish_lost_s = -0.1;
+  EXPECT_FALSE(validate(config));
+  config.publish_lost_s = 0.0;
+  EXPECT_TRUE(validate(config));
+}
+
 TEST(KalmanAssociation, RecoveryReachesNoFurtherThanTheTracksSpeedAllowsAndTakesNoTentativeTrack) {
   auto tracker = makeTracker(TrackerConfig{}, {});
   // A person standing still for a second, then gone; something appears 2 m away.
