@@ -133,7 +133,6 @@ void linkAdjacentRings(const RangeImage& image, int r, std::span<const Point> po
     for (auto i = a_begin; i < a_end; ++i) scan(i, b_begin, b_end);
     return;
   }
-  if (a_begin == a_end || b_begin == b_end) return;
   if (!image.cell_begin.empty()) {
     // The window's ends from the table: two loads, independent from one point to the next.
     const std::uint32_t* upper = image.cell_begin.data() + static_cast<std::size_t>(r + 1) * static_cast<std::size_t>(bins);
@@ -391,7 +390,6 @@ Expected<Clustering> SensorClusterer::cluster(std::span<const Point> points) con
   std::vector<std::uint64_t> words;
   words.reserve(n);
   const auto cells = static_cast<std::uint64_t>(rings) * static_cast<std::uint64_t>(bins);
-  std::vector<std::uint32_t> ring_count(static_cast<std::size_t>(rings), 0);
   // index() in passes over blocks of points, each pass one loop over arrays (a vector loop where
   // the compiler can make one): the transform; the squared range, the range and the sine of the
   // elevation; the tests and the ring, keeping the points a ring link could reach past eps from;
@@ -435,7 +433,6 @@ Expected<Clustering> SensorClusterer::cluster(std::span<const Point> points) con
       const int bin = geometry->azimuthBin(fast_coordinate[k], kept_x[k], kept_y[k]);
       range_of[kept_index[k]] = kept_range[k];
       const auto cell = static_cast<std::uint64_t>(ring) * static_cast<std::uint64_t>(bins) + static_cast<std::uint64_t>(bin);
-      ring_count[static_cast<std::size_t>(ring)] += 1;
       words.push_back((cell << kIndexBits) | kept_index[k]);
     }
   }
@@ -457,7 +454,13 @@ Expected<Clustering> SensorClusterer::cluster(std::span<const Point> points) con
     image.cell_begin = std::move(tally);
   } else {
     radixSort(words, kIndexBits, std::bit_width(cells - 1));
-    for (const auto c : ring_count) image.ring_begin.push_back(image.ring_begin.back() + c);
+    // Each ring's start: the first word whose cell lies in a later ring.
+    const auto bins64 = static_cast<std::uint64_t>(bins);
+    std::size_t k = 0;
+    for (int r = 1; r <= rings; ++r) {
+      while (k < words.size() && (words[k] >> kIndexBits) / bins64 < static_cast<std::uint64_t>(r)) ++k;
+      image.ring_begin.push_back(static_cast<std::uint32_t>(k));
+    }
   }
 
   image.component = std::make_unique_for_overwrite<std::int32_t[]>(words.size());

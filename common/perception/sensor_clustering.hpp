@@ -24,6 +24,7 @@
 // connect to nothing and are noise, as in euclideanClusters. A point at the sensor's origin
 // (range 0) has no beam and is linked by rule (a) only; rule (b) could give it nothing more (its
 // bound would be eps).
+#include <cmath>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -99,7 +100,7 @@ class BeamGeometry {
     double x, y, z, range;
   };
   Eigen::Vector3d toSensorFrame(const Point& point) const { return to_sensor_ * Eigen::Vector3d(point.x, point.y, point.z); }
-  static SensorPoint withRange(const Eigen::Vector3d& s) { return {s.x(), s.y(), s.z(), s.norm()}; }
+  static SensorPoint withRange(const Eigen::Vector3d& s) { return {s.x(), s.y(), s.z(), std::sqrt(s.squaredNorm())}; }
   SensorPoint toSensor(const Point& point) const { return withRange(toSensorFrame(point)); }
   int ringOfSine(double sine) const;  // sine = z / range
   // (angle + pi) / step_rad from a fast atan2 (NaN where x = y = 0).
