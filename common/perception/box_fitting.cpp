@@ -141,21 +141,28 @@ double closenessScore(std::span<const Point> points, double yaw, double min_dist
   return score;
 }
 
-Expected<OrientedBox> fitOrientedBox(std::span<const Point> points, const std::optional<Eigen::Vector3d>& sensor,
-                                     const BoxFitParams& params) {
-  if (Status valid = validateBoxFitParams(params); !valid) return valid.error();
+namespace {
+
+// The finite points' footprint about their mean, and their heights.
+struct Footprint3 {
   Footprint f;
+  double z_lo = std::numeric_limits<double>::infinity();
+  double z_hi = -std::numeric_limits<double>::infinity();
+};
+
+Expected<Footprint3> footprintOf(std::span<const Point> points) {
+  Footprint3 out;
+  Footprint& f = out.f;
   f.x.reserve(points.size());
   f.y.reserve(points.size());
   double sx = 0.0, sy = 0.0;
-  double z_lo = std::numeric_limits<double>::infinity(), z_hi = -z_lo;
   std::size_t finite = 0;
   for (const Point& p : points) {
     if (!isFinitePoint(p)) continue;
     sx += p.x;
     sy += p.y;
-    z_lo = std::min(z_lo, static_cast<double>(p.z));
-    z_hi = std::max(z_hi, static_cast<double>(p.z));
+    out.z_lo = std::min(out.z_lo, static_cast<double>(p.z));
+    out.z_hi = std::max(out.z_hi, static_cast<double>(p.z));
     ++finite;
   }
   if (finite == 0) return invalidArgument("an oriented box needs at least one finite point, got none of " + std::to_string(points.size()));
@@ -166,6 +173,60 @@ Expected<OrientedBox> fitOrientedBox(std::span<const Point> points, const std::o
     f.x.push_back(static_cast<float>(p.x - f.mean_x));
     f.y.push_back(static_cast<float>(p.y - f.mean_y));
   }
+  return out;
+}
+
+// The box at yaw t, in double from the points as given.
+OrientedBox boxAt(const Footprint3& footprint, double t, const std::optional<Eigen::Vector3d>& sensor) {
+  const Footprint& f = footprint.f;
+  const double c = std::cos(t);
+  const double s = std::sin(t);
+  double lo1 = std::numeric_limits<double>::infinity(), hi1 = -lo1, lo2 = lo1, hi2 = -lo1;
+  for (std::size_t i = 0; i < f.x.size(); ++i) {
+    const double x = f.x[i];
+    const double y = f.y[i];
+    const double a = c * x + s * y;
+    const double b = -s * x + c * y;
+    lo1 = std::min(lo1, a);
+    hi1 = std::max(hi1, a);
+    lo2 = std::min(lo2, b);
+    hi2 = std::max(hi2, b);
+  }
+  const double m1 = 0.5 * (lo1 + hi1);
+  const double m2 = 0.5 * (lo2 + hi2);
+  OrientedBox box;
+  box.centre = Eigen::Vector3d(f.mean_x + c * m1 - s * m2, f.mean_y + s * m1 + c * m2, 0.5 * (footprint.z_lo + footprint.z_hi));
+  box.height = footprint.z_hi - footprint.z_lo;
+  const double extent1 = hi1 - lo1;
+  const double extent2 = hi2 - lo2;
+  if (extent1 >= extent2) {
+    box.length = extent1;
+    box.width = extent2;
+    box.yaw = foldedYaw(t);
+  } else {
+    box.length = extent2;
+    box.width = extent1;
+    box.yaw = foldedYaw(t + 0.5 * std::numbers::pi);
+  }
+  if (sensor) box.anchor = box.anchorFor(*sensor);
+  return box;
+}
+
+}  // namespace
+
+Expected<OrientedBox> orientedBoxAtYaw(std::span<const Point> points, double yaw, const std::optional<Eigen::Vector3d>& sensor) {
+  if (!std::isfinite(yaw)) return invalidArgument("an oriented box's yaw must be finite, got " + std::to_string(yaw));
+  const auto footprint = footprintOf(points);
+  if (!footprint) return footprint.error();
+  return boxAt(*footprint, yaw, sensor);
+}
+
+Expected<OrientedBox> fitOrientedBox(std::span<const Point> points, const std::optional<Eigen::Vector3d>& sensor,
+                                     const BoxFitParams& params) {
+  if (Status valid = validateBoxFitParams(params); !valid) return valid.error();
+  const auto footprint = footprintOf(points);
+  if (!footprint) return footprint.error();
+  const Footprint& f = footprint->f;
 
   // The score repeats every 90 degrees (the same rectangle with its axes swapped): the fine search
   // around the best coarse yaw may cross 0 or 90 freely.
@@ -183,38 +244,7 @@ Expected<OrientedBox> fitOrientedBox(std::span<const Point> points, const std::o
     step = next;
   }
 
-  // The box at yaw t, in double from the points as given.
-  const double c = std::cos(t);
-  const double s = std::sin(t);
-  double lo1 = std::numeric_limits<double>::infinity(), hi1 = -lo1, lo2 = lo1, hi2 = -lo1;
-  for (std::size_t i = 0; i < f.x.size(); ++i) {
-    const double x = f.x[i];
-    const double y = f.y[i];
-    const double a = c * x + s * y;
-    const double b = -s * x + c * y;
-    lo1 = std::min(lo1, a);
-    hi1 = std::max(hi1, a);
-    lo2 = std::min(lo2, b);
-    hi2 = std::max(hi2, b);
-  }
-  const double m1 = 0.5 * (lo1 + hi1);
-  const double m2 = 0.5 * (lo2 + hi2);
-  OrientedBox box;
-  box.centre = Eigen::Vector3d(f.mean_x + c * m1 - s * m2, f.mean_y + s * m1 + c * m2, 0.5 * (z_lo + z_hi));
-  box.height = z_hi - z_lo;
-  const double extent1 = hi1 - lo1;
-  const double extent2 = hi2 - lo2;
-  if (extent1 >= extent2) {
-    box.length = extent1;
-    box.width = extent2;
-    box.yaw = foldedYaw(t);
-  } else {
-    box.length = extent2;
-    box.width = extent1;
-    box.yaw = foldedYaw(t + 0.5 * std::numbers::pi);
-  }
-  if (sensor) box.anchor = box.anchorFor(*sensor);
-  return box;
+  return boxAt(*footprint, t, sensor);
 }
 
 OrientedBox grownToPrior(const OrientedBox& box, const Eigen::Vector3d& sensor, const BoxPrior& prior,

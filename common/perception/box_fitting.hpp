@@ -43,6 +43,11 @@ double closenessScore(std::span<const Point> points, double yaw, double min_dist
 Expected<OrientedBox> fitOrientedBox(std::span<const Point> points, const std::optional<Eigen::Vector3d>& sensor,
                                      const BoxFitParams& params = {});
 
+// The box of the finite points of `points` with its axes at `yaw` (radians; the longer extent is
+// the length, and the yaw follows it), anchored as fitOrientedBox does. Errors when no point is
+// finite or the yaw is not.
+Expected<OrientedBox> orientedBoxAtYaw(std::span<const Point> points, double yaw, const std::optional<Eigen::Vector3d>& sensor);
+
 // What a class's boxes measure, for the faces a sensor cannot see (a car seen from behind shows
 // its width and little of its length).
 struct BoxPrior {

@@ -172,9 +172,17 @@ Expected<EdgeOutput> EdgeNode::processFrame(const Cloud& scan_in_sensor_frame, s
   auto local = mapper_.map(points, config_.node, frame);
   if (!local) return local.error();
   if (config_.boxes) {
-    const auto views = clusterViews(points, local->clustering, config_.preprocess.sensor_to_common.translation(),
-                                    config_.classifier.get(), config_.box_min_points);
+    const Eigen::Vector3d sensor = config_.preprocess.sensor_to_common.translation();
+    auto views = clusterViews(points, local->clustering, sensor, config_.classifier.get(), config_.box_min_points);
     if (!views) return views.error();
+    // A vehicle seen in pieces is one cluster before it is summarised (joinedVehicleParts).
+    auto joined = joinedVehicleParts(points, local->clustering, *views, sensor);
+    if (!joined) return joined.error();
+    if (*joined) {
+      local->clustering = std::move((*joined)->clustering);
+      local->map = localMap(clusterEllipsoids(points, local->clustering, config_.node, frame, mapper_.params().ellipsoidParams()));
+      *views = std::move((*joined)->views);
+    }
     attachViews(*views, local->map);
   }
   output.clustering_seconds = secondsSince(clustering_start);

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <iostream>
 #include <set>
 #include <string>
 #include <vector>
@@ -147,11 +148,21 @@ TEST(EdgeNode, WithObjectsEachClusterOfMinPointsCarriesItsBoxAndClassAndFragment
 
   const EdgeOutput output = process(EdgeNode(config), realScan());
   ASSERT_TRUE(output.map.has_value());
-  // The oracle: the scan's clusters, each box containing its cluster and anchored for the sensor.
+  // The oracle: the scan's clusters with the vehicles' parts joined, each box containing its
+  // cluster and anchored for the sensor.
   const Cloud points = preprocessed(realScan(), config);
-  const Clustering clustering = euclideanClusters(points, config.madc.clustering);
-  const std::vector<Cloud> clusters = pointsByCluster(points, clustering);
   const Eigen::Vector3d sensor = config.preprocess.sensor_to_common.translation();
+  Clustering clustering = euclideanClusters(points, config.madc.clustering);
+  const auto views = clusterViews(points, clustering, sensor, config.classifier.get(), 10);
+  ASSERT_TRUE(views.ok()) << views.error().message;
+  const auto joined = joinedVehicleParts(points, clustering, *views, sensor);
+  ASSERT_TRUE(joined.ok()) << joined.error().message;
+  if (*joined) {
+    std::cout << "vehicle parts joined: " << clustering.cluster_count << " clusters became " << (*joined)->clustering.cluster_count << "\n";
+    clustering = (*joined)->clustering;
+  }
+  ASSERT_EQ(output.map->map.objects.size(), static_cast<std::size_t>(clustering.cluster_count));
+  const std::vector<Cloud> clusters = pointsByCluster(points, clustering);
   std::size_t boxes = 0;
   std::size_t fragments = 0;
   std::set<ObjectClass> classes;

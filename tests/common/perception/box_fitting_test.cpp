@@ -291,7 +291,8 @@ TEST(BoxFitting, RefusesNoFinitePointAndBadParametersNamingTheField) {
 // label's and whose yaw is within 15 degrees (modulo 180). Measured: the car is two clusters of 28
 // and 17 points in both clustering modes (its rear shows a gap wider than eps), and the box of the
 // larger, grown to the car prior, has its centre 0.53 m from the label's and its yaw 4.8 degrees
-// off. Checked: the yaw within 15 degrees, and the centre within 1 m until the car is one object.
+// off. Checked: the yaw within 15 degrees, and the centre within 1 m. The edge joins the two parts
+// (joinedVehicleParts); VehicleParts.TheLabelledKittiCarIsOneObjectWithItsCentreAndYaw checks the goal.
 TEST(BoxFitting, LabelledKittiCarsGetTheirCentreAndYaw) {
   int checked = 0;
   for (const std::string id : {"000001", "000002"}) {
