@@ -19,7 +19,8 @@ Scene randomScene(int objects, int lidars, std::uint64_t seed);
 // along the aisles, people walking, a crane.
 Scene factoryScene(std::uint64_t seed);
 // People and vehicles on crossing and parallel straight paths across a 40 x 40 m area (looping),
-// K static LiDARs and C cameras around it looking inwards.
+// K static LiDARs and C cameras around it looking inwards. Vehicles keep to lanes: parallel
+// vehicle paths lie at least 3 m apart (offsets drawn again, at most 64 times each).
 Scene movingScene(int people, int vehicles, int lidars, int cameras, std::uint64_t seed);
 
 // A camera pose at `position` looking at `target` (x right, y down, z forward; the image's up is

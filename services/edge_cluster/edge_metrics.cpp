@@ -25,6 +25,12 @@ MetricsObserver::MetricsObserver(Metrics& metrics, std::size_t max_points_per_ch
                     .Labels(c)
                     .Register(r)
                     .Add({});
+  vehicle_parts_joined_ = &prometheus::BuildCounter()
+                              .Name("fogmap_vehicle_parts_joined_total")
+                              .Help("Local clusters joined into another as parts of one vehicle before they were summarised.")
+                              .Labels(c)
+                              .Register(r)
+                              .Add({});
   centroid_frames_sent_ = &prometheus::BuildCounter()
                                .Name("fogmap_centroid_frames_sent_total")
                                .Help("Centroid frames written to the tracker's stream.")
@@ -46,6 +52,7 @@ void MetricsObserver::scanProcessed(const EdgeOutput& output) {
   if (output.map) metrics_.clusteringSeconds(output.clustering_seconds);
   if (output.displacement_seconds) displacement_seconds_->Observe(*output.displacement_seconds);
   if (output.centroids) centroids_->Increment(static_cast<double>(output.centroids->centroids.size()));
+  vehicle_parts_joined_->Increment(static_cast<double>(output.vehicle_parts_joined));
 }
 
 void MetricsObserver::shipped(const EdgeOutput& output) {

@@ -36,6 +36,7 @@ class MetricsObserver final : public EdgeObserver {
   std::size_t max_points_per_chunk_;
   prometheus::Histogram* displacement_seconds_;
   prometheus::Counter* centroids_;
+  prometheus::Counter* vehicle_parts_joined_;
   prometheus::Counter* centroid_frames_sent_;
   prometheus::Counter* centroid_frames_dropped_;
 };

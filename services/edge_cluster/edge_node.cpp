@@ -179,6 +179,8 @@ Expected<EdgeOutput> EdgeNode::processFrame(const Cloud& scan_in_sensor_frame, s
     auto joined = joinedVehicleParts(points, local->clustering, *views, sensor);
     if (!joined) return joined.error();
     if (*joined) {
+      output.vehicle_parts_joined =
+          static_cast<std::size_t>(local->clustering.cluster_count - (*joined)->clustering.cluster_count);
       local->clustering = std::move((*joined)->clustering);
       local->map = localMap(clusterEllipsoids(points, local->clustering, config_.node, frame, mapper_.params().ellipsoidParams()));
       *views = std::move((*joined)->views);

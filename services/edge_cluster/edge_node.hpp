@@ -53,6 +53,8 @@ struct EdgeOutput {
   std::size_t points_in = 0;       // points of the scan
   std::size_t points_out = 0;      // points left after pre-processing (clustered or shipped)
   std::size_t clusters = 0;        // local clusters = ellipsoids (0 in baseline mode)
+  // With boxes: clusters joined into others as parts of one vehicle (joinedVehicleParts).
+  std::size_t vehicle_parts_joined = 0;
   double preprocess_seconds = 0.0;
   double clustering_seconds = 0.0;  // clustering and ellipsoids (0 in baseline mode)
   // With displacement: the scan's centroids for the tracker, from the second scan on (the first

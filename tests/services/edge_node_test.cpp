@@ -157,11 +157,13 @@ TEST(EdgeNode, WithObjectsEachClusterOfMinPointsCarriesItsBoxAndClassAndFragment
   ASSERT_TRUE(views.ok()) << views.error().message;
   const auto joined = joinedVehicleParts(points, clustering, *views, sensor);
   ASSERT_TRUE(joined.ok()) << joined.error().message;
+  const auto clusters_before = static_cast<std::size_t>(clustering.cluster_count);
   if (*joined) {
     std::cout << "vehicle parts joined: " << clustering.cluster_count << " clusters became " << (*joined)->clustering.cluster_count << "\n";
     clustering = (*joined)->clustering;
   }
   ASSERT_EQ(output.map->map.objects.size(), static_cast<std::size_t>(clustering.cluster_count));
+  EXPECT_EQ(output.vehicle_parts_joined, clusters_before - static_cast<std::size_t>(clustering.cluster_count));
   const std::vector<Cloud> clusters = pointsByCluster(points, clustering);
   std::size_t boxes = 0;
   std::size_t fragments = 0;

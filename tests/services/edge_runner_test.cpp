@@ -730,7 +730,7 @@ HostileReplay replayToTheEnd(ScanProvider& scans, const std::vector<HostileScan>
 
 using test_support::counterValue;
 
-TEST(EdgeMetrics, DisplacementTimeCentroidsAndTheCentroidLinksFramesAreExported) {
+TEST(EdgeMetrics, DisplacementTimeCentroidsJoinedVehiclePartsAndTheCentroidLinksFramesAreExported) {
   Metrics metrics("", "edge-cluster", "edge-5");
   MetricsObserver observer(metrics, kDefaultMaxPointsPerChunk, "edge-5");
   EdgeOutput first;  // a first scan: the detector ran, nothing to send
@@ -739,6 +739,7 @@ TEST(EdgeMetrics, DisplacementTimeCentroidsAndTheCentroidLinksFramesAreExported)
   second.displacement_seconds = 0.02;
   second.centroids = tracking::CentroidFrame{};
   second.centroids->centroids.resize(3);
+  second.vehicle_parts_joined = 2;
   observer.scanProcessed(first);
   observer.scanProcessed(second);
   observer.scanProcessed(EdgeOutput{});  // displacement off
@@ -757,6 +758,7 @@ TEST(EdgeMetrics, DisplacementTimeCentroidsAndTheCentroidLinksFramesAreExported)
   EXPECT_EQ(count, 2U);
   EXPECT_DOUBLE_EQ(sum, 0.024);
   EXPECT_EQ(counterValue(metrics, "fogmap_displacement_centroids_total", "node", "edge-5"), 3.0);
+  EXPECT_EQ(counterValue(metrics, "fogmap_vehicle_parts_joined_total", "node", "edge-5"), 2.0);
   EXPECT_EQ(counterValue(metrics, "fogmap_centroid_frames_sent_total", "node", "edge-5"), 2.0);
   EXPECT_EQ(counterValue(metrics, "fogmap_centroid_frames_dropped_total", "node", "edge-5"), 1.0);
   EXPECT_EQ(counterValue(metrics, "fogmap_bytes_sent_total", "kind", "centroids"), 200.0);
