@@ -91,6 +91,12 @@ tracking::CloudFrame observationsOf(const GlobalMapMessage& global, double alpha
         observation.covariance.topLeftCorner<2, 2>() = Eigen::Matrix2d::Identity() * sigma * sigma;
         observation.covariance(0, 2) = observation.covariance(2, 0) = 0.0;
         observation.covariance(1, 2) = observation.covariance(2, 1) = 0.0;
+      } else if (observation.box->anchor != BoxAnchor::kNone && observation.box->length <= kNarrowObjectMaxM) {
+        // A narrow object one sensor saw (a person, a pole): its points lie on the side that sensor
+        // sees, their middle half its depth short of its axis. Grown to a square away from the
+        // seen face or corner, its box has its centre on the axis.
+        const double side = observation.box->length;
+        observation.position.head<2>() = grownFromAnchor(*observation.box, BoxPrior{side, side, side}).centre.head<2>();
       }
     }
     frame.observations.push_back(std::move(observation));

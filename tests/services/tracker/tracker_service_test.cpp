@@ -19,6 +19,7 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include "common/perception/box_fitting.hpp"
 #include "services/common/grpc_options.hpp"
 #include "services/common/metrics.hpp"
 #include "services/common/proto_convert.hpp"
@@ -131,6 +132,39 @@ TEST(TrackerNode, AVehicleIsObservedAtTheCentreOfItsBoxGrownFromTheFaceSeenAndAP
   EXPECT_NEAR(car.box->length, 1.8, 1e-9);  // as the view gives it
   EXPECT_LT((walker.position - Eigen::Vector3d(5.0, -3.0, 0.9)).norm(), 1e-12);  // its points' mean
   EXPECT_EQ(walker.lidar_class->object_class, ObjectClass::kPerson);
+}
+
+// A person (an upright cylinder of radius 0.25 m at (10, 0)) that one LiDAR at the origin sees: its
+// points lie on the near half, their mean 0.2 m short of the axis. With the box the edge fits (its
+// anchor the face toward the sensor), the observation is on the axis.
+TEST(TrackerNode, APersonOneSensorSawIsObservedOnItsAxisNotOnItsSeenSide) {
+  const Eigen::Vector3d sensor(0.0, 0.0, 1.7);
+  const Eigen::Vector2d axis(10.0, 0.0);
+  constexpr double kRadius = 0.25;
+  Cloud points;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (int k = -20; k <= 20; ++k) {
+    const double theta = k * (std::numbers::pi / 2) / 20;  // the half facing the sensor
+    for (double z = 0.2; z <= 1.6; z += 0.2) {
+      const Eigen::Vector3d p(axis.x() - kRadius * std::cos(theta), axis.y() + kRadius * std::sin(theta), z);
+      points.push_back({static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())});
+      mean += p;
+    }
+  }
+  mean /= static_cast<double>(points.size());
+  ASSERT_GT((mean.head<2>() - axis).norm(), 0.1) << "the points' mean must be off the axis for the case to test anything";
+  Ellipsoid person = ellipsoidAt(1, 0, mean, Eigen::Vector3d(0.05, 0.15, 0.4).asDiagonal(), points.size());
+  const auto box = fitOrientedBox(points, sensor);
+  ASSERT_TRUE(box.ok()) << box.error().message;
+  ASSERT_NE(box->anchor, BoxAnchor::kNone);
+  person.box = *box;
+  person.label = ObjectLabel{ObjectClass::kPerson, 0.9};
+  GlobalMapMessage g;
+  g.map = localMap({person});
+  const auto frame = observationsOf(g, 1.5);
+  ASSERT_EQ(frame.observations.size(), 1U);
+  EXPECT_LT((frame.observations[0].position.head<2>() - axis).norm(), 0.03);
+  EXPECT_NEAR(frame.observations[0].position.z(), mean.z(), 1e-9);
 }
 
 TEST(TrackerNode, TheTwoPartsOfACarTheMapHoldsApartAreOneObservationAtTheCarsCentre) {
