@@ -513,6 +513,12 @@ Json sceneTrackingReport(const PublishedScores& s, const SceneTrackingOptions& o
     j["yaw_matches"] = mot.heading_error_deg.count;
     j["yaw_error_mean_deg"] = jsonNumber(mot.heading_error_deg.mean_m);
   }
+  // People within kNearRangeM of a LiDAR: how far their tracks are placed from them.
+  if (s.scores.people_near && s.scores.people_near->clear.matches > 0) {
+    j["people_near_range_m"] = jsonNumber(kNearRangeM);
+    j["people_near_matches"] = s.scores.people_near->clear.matches;
+    j["people_near_loc_error_mean_m"] = jsonNumber(s.scores.people_near->localization.mean_m);
+  }
   // Per class: the truth of that class against the tracks labelled with it.
   j["per_class"] = Json::object();
   for (const auto& [label, report] : s.scores.by_label) j["per_class"][label] = motReport(report);

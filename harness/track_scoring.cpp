@@ -29,6 +29,10 @@ TrackingFrame trackingFrame(const sim::Scene& scene, double time_s, std::span<co
     const bool vehicle = object_class && isVehicle(*object_class);
     frame.mot.truth.push_back({static_cast<std::int64_t>(o->id), pose.xy, vehicle ? std::optional<double>(pose.yaw_rad) : std::nullopt});
     frame.truth_labels.push_back(o->label);
+    const bool near = std::any_of(scene.lidars.begin(), scene.lidars.end(), [&](const auto& lidar) {
+      return (lidar.pose.translation().template head<2>() - pose.xy).norm() <= kNearRangeM;
+    });
+    frame.truth_near.push_back(near);
   }
   for (const auto& track : tracks) {
     if (!isHypothesis(track)) continue;
@@ -53,13 +57,25 @@ std::vector<tracking::MotObject> withinGateOf(std::span<const tracking::MotObjec
 Expected<TrackScores> scoreTracking(std::span<const TrackingFrame> frames, const tracking::MotConfig& config) {
   TrackScores out;
   std::vector<tracking::MotFrame> all;
+  std::vector<tracking::MotFrame> people_near;
+  bool any_near = false;
   std::set<std::string> labels;
   std::set<std::uint64_t> confirmed;
   for (const auto& f : frames) {
-    if (f.truth_labels.size() != f.mot.truth.size() || f.hypothesis_labels.size() != f.mot.hypotheses.size()) {
+    if (f.truth_labels.size() != f.mot.truth.size() || f.hypothesis_labels.size() != f.mot.hypotheses.size() ||
+        (!f.truth_near.empty() && f.truth_near.size() != f.mot.truth.size())) {
       return invalidArgument("track scoring: a frame's labels do not match its truth and hypotheses");
     }
     all.push_back(f.mot);
+    tracking::MotFrame near;
+    for (std::size_t j = 0; j < f.mot.truth.size() && j < f.truth_near.size(); ++j) {
+      if (f.truth_near[j] && f.truth_labels[j] == "person") near.truth.push_back(f.mot.truth[j]);
+    }
+    for (std::size_t j = 0; j < f.mot.hypotheses.size(); ++j) {
+      if (f.hypothesis_labels[j] == "person") near.hypotheses.push_back(f.mot.hypotheses[j]);
+    }
+    any_near = any_near || !near.truth.empty();
+    people_near.push_back(std::move(near));
     labels.insert(f.truth_labels.begin(), f.truth_labels.end());
     confirmed.insert(f.confirmed.begin(), f.confirmed.end());
   }
@@ -81,6 +97,11 @@ Expected<TrackScores> scoreTracking(std::span<const TrackingFrame> frames, const
     auto scored = tracking::evaluateMot(of_label, config);
     if (!scored) return scored.error();
     out.by_label.emplace_back(label, std::move(scored).value());
+  }
+  if (any_near) {
+    auto scored = tracking::evaluateMot(people_near, config);
+    if (!scored) return scored.error();
+    out.people_near = std::move(scored).value();
   }
   out.tracks_confirmed = confirmed.size();
   return out;

@@ -29,9 +29,14 @@ std::vector<const sim::SceneObject*> movingObjects(const sim::Scene& scene);
 bool isHypothesis(const tracking::Track& track);
 
 // One frame to score.
+// People this close to their nearest LiDAR (on the ground) are also scored apart: near a sensor a
+// person is seen from one side, and where it is placed shows.
+inline constexpr double kNearRangeM = 15.0;
+
 struct TrackingFrame {
   tracking::MotFrame mot;                       // truth: movingObjects in order; hypotheses: isHypothesis tracks
   std::vector<std::string> truth_labels;        // per mot.truth entry
+  std::vector<bool> truth_near;                 // per mot.truth entry: within kNearRangeM of a LiDAR
   std::vector<std::string> hypothesis_labels;   // per mot.hypotheses entry: the track's label
   std::vector<std::uint64_t> confirmed;         // ids of the tracks confirmed in this frame
 };
@@ -49,6 +54,10 @@ struct TrackScores {
   tracking::MotReport mot;
   // Per label of the truth, in name order: the objects of that label against the tracks given it.
   std::vector<std::pair<std::string, tracking::MotReport>> by_label;
+  // The people within kNearRangeM of a LiDAR against the tracks labelled person (its localization
+  // error is what counts: a person further out, or a car, is none of its truth); none without such
+  // people.
+  std::optional<tracking::MotReport> people_near;
   std::size_t tracks_confirmed = 0;  // distinct tracks confirmed in some frame
 };
 

@@ -20,6 +20,7 @@
 #include "common/tracking/mot_metrics.hpp"
 #include "common/tracking/tracker.hpp"
 #include "harness/report_text.hpp"
+#include "harness/track_scoring.hpp"
 
 namespace fogmap::harness {
 
@@ -53,7 +54,7 @@ struct TrackingEvalConfig {
   // the side it sees (tracking::visibleSideCorrected; the merge still groups them as seen); 0: as
   // Algorithm 1 gives them.
   double visible_side_max_radius_m = tracking::kVisibleSideMaxRadiusM;
-  double near_range_m = 15.0;   // people this close to their nearest LiDAR are scored apart
+  double near_range_m = kNearRangeM;   // people this close to their nearest LiDAR are scored apart
   double match_distance_m = 1.0;  // the CLEAR MOT gate
   // The edge's ground removal before the displacement detector (none: the raw frame, as the paper).
   std::optional<GroundParams> ground = trackingEvalGround();

@@ -47,9 +47,7 @@ namespace {
 // narrower one.
 constexpr double kStackedOverlapM = 0.05;
 constexpr double kStackedAzimuthShare = 0.5;
-// ... and their near faces lie at most this much apart in range (an object behind a car, seen over
-// its roof, is further).
-constexpr double kStackedDepthM = 1.0;
+constexpr double kStackedDepthM = 1.0;  // what is seen over a car's roof lies further behind it
 
 // The azimuths of a footprint's corners, as angles from `reference` (radians, in (-pi, pi]).
 std::pair<double, double> azimuthInterval(const OrientedBox& box, const Eigen::Vector2d& sensor, const Eigen::Vector2d& reference) {

@@ -13,6 +13,23 @@
 
 namespace fogmap {
 
+namespace {
+
+// Where a view (one sensor's ellipsoid) places its object: a narrow object's (kNarrowObjectMaxM) at
+// the centre of its box grown to a square away from the face or corner its sensor saw, on its axis;
+// any other at the ellipsoid's centre.
+Eigen::Vector3d placedCentre(const Ellipsoid& e) {
+  if (!e.box || e.box->anchor == BoxAnchor::kNone || !(e.box->length <= kNarrowObjectMaxM) || vehiclePriorFor(*e.box, e.label)) {
+    return e.center;
+  }
+  const double side = e.box->length;
+  Eigen::Vector3d centre = e.center;
+  centre.head<2>() = grownFromAnchor(*e.box, BoxPrior{side, side, side}).centre.head<2>();
+  return centre;
+}
+
+}  // namespace
+
 tracking::CloudFrame observationsOf(const GlobalMapMessage& global, double alpha, double ground_merge_m) {
   tracking::CloudFrame frame;
   frame.time_ns = global.header.sensor_time_ns;
@@ -54,18 +71,22 @@ tracking::CloudFrame observationsOf(const GlobalMapMessage& global, double alpha
   for (const auto& [root, ellipsoids] : obstacles) {
     double total = 0.0;
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    std::vector<Eigen::Vector3d> placed;  // per ellipsoid: where its view places the object
+    placed.reserve(ellipsoids.size());
     for (const Ellipsoid* e : ellipsoids) {
       const double n = static_cast<double>(std::max<std::uint64_t>(e->point_count, 1));
       total += n;
-      mean += n * e->center;
+      placed.push_back(placedCentre(*e));
+      mean += n * placed.back();
     }
     if (total <= 0.0) continue;
     mean /= total;
     // The mixture's covariance: the ellipsoids' own spreads plus the spread of their centres.
     Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
-    for (const Ellipsoid* e : ellipsoids) {
+    for (std::size_t k = 0; k < ellipsoids.size(); ++k) {
+      const Ellipsoid* e = ellipsoids[k];
       const double n = static_cast<double>(std::max<std::uint64_t>(e->point_count, 1));
-      const Eigen::Vector3d d = e->center - mean;
+      const Eigen::Vector3d d = placed[k] - mean;
       covariance += n * (e->shape / alpha2 + d * d.transpose());
     }
     tracking::CloudObservation observation{mean, covariance / total, static_cast<std::size_t>(total), std::nullopt, std::nullopt};
@@ -91,12 +112,6 @@ tracking::CloudFrame observationsOf(const GlobalMapMessage& global, double alpha
         observation.covariance.topLeftCorner<2, 2>() = Eigen::Matrix2d::Identity() * sigma * sigma;
         observation.covariance(0, 2) = observation.covariance(2, 0) = 0.0;
         observation.covariance(1, 2) = observation.covariance(2, 1) = 0.0;
-      } else if (observation.box->anchor != BoxAnchor::kNone && observation.box->length <= kNarrowObjectMaxM) {
-        // A narrow object one sensor saw (a person, a pole): its points lie on the side that sensor
-        // sees, their middle half its depth short of its axis. Grown to a square away from the
-        // seen face or corner, its box has its centre on the axis.
-        const double side = observation.box->length;
-        observation.position.head<2>() = grownFromAnchor(*observation.box, BoxPrior{side, side, side}).centre.head<2>();
       }
     }
     frame.observations.push_back(std::move(observation));

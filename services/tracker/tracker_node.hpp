@@ -38,10 +38,11 @@ inline constexpr double kGroundMergeM = 0.3;
 // its class's size from the faces seen (grownFromAnchor), kVehicleCentreSigmaM apart on the ground.
 // Objects whose vehicle boxes (so grown) overlap are one obstacle too: the parts of a car that the
 // map holds as two objects.
-// A narrow object (a box no longer than kNarrowObjectMaxM that is no vehicle's: a person, a pole)
-// that one sensor saw (its box has an anchor) is observed at the centre of its box grown to a
-// square away from the face or corner seen: on its axis, where its points' centre lies half its
-// depth short of it, toward the sensor (about 0.13 m for a person).
+// Each view (one sensor's ellipsoid) of a narrow object (its box, with the face or corner its
+// sensor saw, no longer than kNarrowObjectMaxM and no vehicle's: a person, a pole) counts in the
+// obstacle's centroid at the centre of its box grown to a square away from that face or corner: on
+// the object's axis, where its points' centre lies half its depth short of it, toward the sensor
+// (about 0.13 m for a person).
 inline constexpr double kNarrowObjectMaxM = 0.8;
 inline constexpr double kVehicleCentreSigmaM = 0.3;
 tracking::CloudFrame observationsOf(const GlobalMapMessage& global, double alpha, double ground_merge_m = kGroundMergeM);

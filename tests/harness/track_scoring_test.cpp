@@ -98,6 +98,45 @@ TEST(TrackScoring, AnOffsetShowsAsTheLocalizationErrorAndBeyondTheGateAsMissesAn
   EXPECT_EQ(narrow->mot.clear.matches, 0U) << "the gate is the caller's";
 }
 
+// People within kNearRangeM of a LiDAR are scored apart, against the tracks labelled person: a
+// scene whose one LiDAR stands at the first person's start, tracks offset 0.3 m.
+TEST(TrackScoring, PeopleNearALidarAreScoredApartAgainstThePersonTracks) {
+  sim::Scene s = scene();
+  ASSERT_FALSE(s.lidars.empty());
+  const auto people = movingObjects(s);
+  const sim::SceneObject* first = nullptr;
+  for (const auto* o : people) {
+    if (o->label == "person") {
+      first = o;
+      break;
+    }
+  }
+  ASSERT_NE(first, nullptr);
+  s.lidars.resize(1);
+  s.lidars[0].pose.translation().head<2>() = sim::poseAt(*first, 0.0).xy;
+  const auto frames = framesOf(s, 20, {0.3, 0.0});
+  std::size_t near_people = 0;
+  for (const auto& f : frames) {
+    ASSERT_EQ(f.truth_near.size(), f.mot.truth.size());
+    for (std::size_t j = 0; j < f.truth_near.size(); ++j) {
+      const double distance = (s.lidars[0].pose.translation().head<2>() - f.mot.truth[j].position).norm();
+      EXPECT_EQ(f.truth_near[j], distance <= kNearRangeM);
+      if (f.truth_near[j] && f.truth_labels[j] == "person") ++near_people;
+    }
+  }
+  ASSERT_GT(near_people, 0U);
+  const auto scores = scoreTracking(frames);
+  ASSERT_TRUE(scores.ok());
+  ASSERT_TRUE(scores->people_near.has_value());
+  EXPECT_EQ(scores->people_near->clear.matches, near_people);
+  EXPECT_NEAR(scores->people_near->localization.mean_m, 0.3, 1e-9);
+  // No LiDAR: nobody is near one.
+  s.lidars.clear();
+  const auto none = scoreTracking(framesOf(s, 20));
+  ASSERT_TRUE(none.ok());
+  EXPECT_FALSE(none->people_near.has_value());
+}
+
 TEST(TrackScoring, SwappedIdentitiesCountAsSwitches) {
   const sim::Scene s = scene();
   std::vector<TrackingFrame> frames;

@@ -134,37 +134,53 @@ TEST(TrackerNode, AVehicleIsObservedAtTheCentreOfItsBoxGrownFromTheFaceSeenAndAP
   EXPECT_EQ(walker.lidar_class->object_class, ObjectClass::kPerson);
 }
 
-// A person (an upright cylinder of radius 0.25 m at (10, 0)) that one LiDAR at the origin sees: its
-// points lie on the near half, their mean 0.2 m short of the axis. With the box the edge fits (its
-// anchor the face toward the sensor), the observation is on the axis.
-TEST(TrackerNode, APersonOneSensorSawIsObservedOnItsAxisNotOnItsSeenSide) {
-  const Eigen::Vector3d sensor(0.0, 0.0, 1.7);
-  const Eigen::Vector2d axis(10.0, 0.0);
+// A person, an upright cylinder of radius 0.25 m at (10, 0): what a LiDAR at `sensor` sees of it
+// (the half facing it) as the edge ships it, an ellipsoid at its points' mean with the box fitted
+// with the sensor (anchored on the face toward it) and the class person.
+Ellipsoid personView(std::uint32_t node, const Eigen::Vector3d& sensor, Eigen::Vector3d* points_mean) {
   constexpr double kRadius = 0.25;
+  const Eigen::Vector2d axis(10.0, 0.0);
+  const Eigen::Vector2d toward = (sensor.head<2>() - axis).normalized();
+  const Eigen::Vector2d side(-toward.y(), toward.x());
   Cloud points;
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (int k = -20; k <= 20; ++k) {
-    const double theta = k * (std::numbers::pi / 2) / 20;  // the half facing the sensor
+    const double theta = k * (std::numbers::pi / 2) / 20;
+    const Eigen::Vector2d at = axis + kRadius * (std::cos(theta) * toward + std::sin(theta) * side);
     for (double z = 0.2; z <= 1.6; z += 0.2) {
-      const Eigen::Vector3d p(axis.x() - kRadius * std::cos(theta), axis.y() + kRadius * std::sin(theta), z);
-      points.push_back({static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())});
-      mean += p;
+      points.push_back({static_cast<float>(at.x()), static_cast<float>(at.y()), static_cast<float>(z)});
+      mean += Eigen::Vector3d(at.x(), at.y(), z);
     }
   }
   mean /= static_cast<double>(points.size());
-  ASSERT_GT((mean.head<2>() - axis).norm(), 0.1) << "the points' mean must be off the axis for the case to test anything";
-  Ellipsoid person = ellipsoidAt(1, 0, mean, Eigen::Vector3d(0.05, 0.15, 0.4).asDiagonal(), points.size());
+  *points_mean = mean;
+  Ellipsoid view = ellipsoidAt(node, 0, mean, Eigen::Vector3d(0.05, 0.15, 0.4).asDiagonal(), points.size());
   const auto box = fitOrientedBox(points, sensor);
-  ASSERT_TRUE(box.ok()) << box.error().message;
-  ASSERT_NE(box->anchor, BoxAnchor::kNone);
-  person.box = *box;
-  person.label = ObjectLabel{ObjectClass::kPerson, 0.9};
-  GlobalMapMessage g;
-  g.map = localMap({person});
-  const auto frame = observationsOf(g, 1.5);
-  ASSERT_EQ(frame.observations.size(), 1U);
-  EXPECT_LT((frame.observations[0].position.head<2>() - axis).norm(), 0.03);
-  EXPECT_NEAR(frame.observations[0].position.z(), mean.z(), 1e-9);
+  EXPECT_TRUE(box.ok());
+  EXPECT_NE(box->anchor, BoxAnchor::kNone);
+  view.box = *box;
+  view.label = ObjectLabel{ObjectClass::kPerson, 0.9};
+  return view;
+}
+
+// A LiDAR sees a person's near half: its points' mean lies 0.2 m short of the axis, toward it.
+// Each view counts at the centre of its box grown to a square away from the face seen: one view,
+// and two from LiDARs at right angles, give the axis.
+TEST(TrackerNode, APersonIsObservedOnItsAxisNotOnTheSidesItsSensorsSaw) {
+  const Eigen::Vector2d axis(10.0, 0.0);
+  Eigen::Vector3d mean_a, mean_b;
+  const Ellipsoid a = personView(1, Eigen::Vector3d(0.0, 0.0, 1.7), &mean_a);
+  const Ellipsoid b = personView(2, Eigen::Vector3d(10.0, -10.0, 1.7), &mean_b);
+  ASSERT_GT((mean_a.head<2>() - axis).norm(), 0.1) << "the points' mean must be off the axis for the case to test anything";
+  ASSERT_GT((0.5 * (mean_a + mean_b).head<2>() - axis).norm(), 0.1) << "and so must the mean of the two views";
+  for (const std::vector<Ellipsoid>& views : {std::vector<Ellipsoid>{a}, std::vector<Ellipsoid>{a, b}}) {
+    GlobalMapMessage g;
+    g.map = localMap(views);
+    const auto frame = observationsOf(g, 1.5);
+    ASSERT_EQ(frame.observations.size(), 1U) << views.size() << " views";
+    EXPECT_LT((frame.observations[0].position.head<2>() - axis).norm(), 0.03) << views.size() << " views";
+    EXPECT_NEAR(frame.observations[0].position.z(), mean_a.z(), 1e-9);
+  }
 }
 
 TEST(TrackerNode, TheTwoPartsOfACarTheMapHoldsApartAreOneObservationAtTheCarsCentre) {
