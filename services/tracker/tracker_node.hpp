@@ -30,7 +30,7 @@ inline constexpr double kGroundMergeM = 0.3;
 
 // The LiDAR observations of a global map: objects whose boxes, seen from above and grown by
 // `ground_merge_m`, overlap are one obstacle (transitively); per obstacle, the point-weighted
-// centroid of its ellipsoids and the spread of its points (each ellipsoid's shape is alpha^2 Sigma,
+// centroid of its ellipsoids (each where its view places the object: below) and the spread of its points (each ellipsoid's shape is alpha^2 Sigma,
 // grown by the aura; the aura is left in, a conservative measurement noise). `alpha` is the
 // topology's. Where the edges fit boxes and classify (topology objects:), each obstacle also has
 // its views' class and box (objectLabel, objectBox, the box as the views give it); a vehicle
