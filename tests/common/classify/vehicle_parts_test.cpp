@@ -53,18 +53,40 @@ std::vector<std::optional<ClusterView>> viewsOf(const Cloud& points, const Clust
   return *views;
 }
 
-// The rear of a car 20 m ahead, 1.7 m wide, seen as two bands a missing ring apart and 0.5 m apart
-// in depth (a bumper, then a sloped boot): one car, one cluster.
-TEST(VehicleParts, TheTwoBandsOfOneCarsRearAreOneCluster) {
+// Two parts each rule but `rule` would join: both classed car, their boxes grown to a car overlap;
+// joinedVehicleParts must keep them apart.
+void expectApartByTheirRule(const Cloud& points, const std::vector<std::int32_t>& labels, const std::string& rule) {
+  SCOPED_TRACE(rule);
+  const Clustering clustering = canonicalize(labels);
+  const auto views = viewsOf(points, clustering, {ObjectClass::kCar, ObjectClass::kCar});
+  ASSERT_TRUE(views[0] && views[1]);
+  ASSERT_TRUE(footprintsOverlap(grownToPrior(views[0]->box, kSensor, BoxPrior{}), grownToPrior(views[1]->box, kSensor, BoxPrior{})))
+      << "the case must test the " << rule << " rule, not the overlap";
+  const auto joined = joinedVehicleParts(points, clustering, views, kSensor);
+  ASSERT_TRUE(joined.ok()) << joined.error().message;
+  EXPECT_FALSE(joined->has_value());
+}
+
+// The lower band of a car's rear 20 m ahead, 1.7 m wide, and an upper band at `upper_x`, both
+// classed car, joined or not.
+Expected<std::optional<JoinedParts>> bandsJoined(double upper_x, Clustering* clustering) {
   Cloud points;
   std::vector<std::int32_t> labels;
   addFace(points, labels, 0, 20.0, -0.85, 0.85, 0.3, 0.5);
-  addFace(points, labels, 1, 20.5, -0.8, 0.8, 0.9, 1.2);
-  const Clustering clustering = canonicalize(labels);
-  const auto views = viewsOf(points, clustering, {ObjectClass::kCar, ObjectClass::kCar});
-  const auto joined = joinedVehicleParts(points, clustering, views, kSensor);
+  addFace(points, labels, 1, upper_x, -0.8, 0.8, 0.9, 1.2);
+  *clustering = canonicalize(labels);
+  const auto views = viewsOf(points, *clustering, {ObjectClass::kCar, ObjectClass::kCar});
+  return joinedVehicleParts(points, *clustering, views, kSensor);
+}
+
+// The rear of a car seen as two bands a missing ring apart and 0.5 m apart in depth (a bumper, then
+// a sloped boot): one car, one cluster.
+TEST(VehicleParts, TheTwoBandsOfOneCarsRearAreOneCluster) {
+  Clustering clustering;
+  const auto joined = bandsJoined(20.5, &clustering);
   ASSERT_TRUE(joined.ok()) << joined.error().message;
   ASSERT_TRUE(joined->has_value());
+  EXPECT_EQ(clustering.cluster_count, 2);
   EXPECT_EQ((*joined)->clustering.cluster_count, 1);
   EXPECT_TRUE(std::all_of((*joined)->clustering.labels.begin(), (*joined)->clustering.labels.end(), [](std::int32_t l) { return l == 0; }));
 }
@@ -94,13 +116,7 @@ TEST(VehicleParts, StackedPartsWiderThanAnyCarStayApart) {
   std::vector<std::int32_t> labels;
   addFace(points, labels, 0, 20.0, -0.9, 0.9, 0.3, 0.5);
   for (double x = 20.5; x <= 23.5 + 1e-9; x += 0.1) addFace(points, labels, 1, x, -1.5, 1.5, 1.6, 1.7);
-  const Clustering clustering = canonicalize(labels);
-  const auto views = viewsOf(points, clustering, {ObjectClass::kCar, ObjectClass::kCar});
-  ASSERT_TRUE(footprintsOverlap(grownToPrior(views[0]->box, kSensor, BoxPrior{}), grownToPrior(views[1]->box, kSensor, BoxPrior{})))
-      << "the case must test the size rule";
-  const auto joined = joinedVehicleParts(points, clustering, views, kSensor);
-  ASSERT_TRUE(joined.ok());
-  EXPECT_FALSE(joined->has_value());
+  expectApartByTheirRule(points, labels, "size");
 }
 
 // The lower band of a car's rear, and 2 m behind it, what is seen of someone over its roof, classed
@@ -111,13 +127,7 @@ TEST(VehicleParts, WhatIsSeenOverACarsRoofStaysApart) {
   std::vector<std::int32_t> labels;
   addFace(points, labels, 0, 20.0, -0.85, 0.85, 0.3, 1.3);
   addFace(points, labels, 1, 22.0, -0.2, 0.2, 1.4, 1.7);
-  const Clustering clustering = canonicalize(labels);
-  const auto views = viewsOf(points, clustering, {ObjectClass::kCar, ObjectClass::kCar});
-  ASSERT_TRUE(footprintsOverlap(grownToPrior(views[0]->box, kSensor, BoxPrior{}), grownToPrior(views[1]->box, kSensor, BoxPrior{})))
-      << "the case must test the range rule";
-  const auto joined = joinedVehicleParts(points, clustering, views, kSensor);
-  ASSERT_TRUE(joined.ok());
-  EXPECT_FALSE(joined->has_value());
+  expectApartByTheirRule(points, labels, "range");
 }
 
 // Two parts side by side, 2.0 m wide together (part of a car's rear and a wall or a parked car
@@ -125,31 +135,19 @@ TEST(VehicleParts, WhatIsSeenOverACarsRoofStaysApart) {
 // other: at the same heights, or one higher but beside the other as the sensor sees them.
 TEST(VehicleParts, PartsSideBySideStayApart) {
   for (const double upper : {0.3, 1.3}) {
-  Cloud points;
-  std::vector<std::int32_t> labels;
-  addFace(points, labels, 0, 20.0, -0.8, 0.3, 0.3, 1.2);
-  addFace(points, labels, 1, 20.0, 0.5, 1.2, upper, upper + 0.9);
-  const Clustering clustering = canonicalize(labels);
-  const auto views = viewsOf(points, clustering, {ObjectClass::kCar, ObjectClass::kCar});
-  ASSERT_TRUE(footprintsOverlap(grownToPrior(views[0]->box, kSensor, BoxPrior{}), grownToPrior(views[1]->box, kSensor, BoxPrior{})))
-      << "the case must test the stacking rule";
-  const auto joined = joinedVehicleParts(points, clustering, views, kSensor);
-  ASSERT_TRUE(joined.ok());
-  EXPECT_FALSE(joined->has_value()) << upper;
+    Cloud points;
+    std::vector<std::int32_t> labels;
+    addFace(points, labels, 0, 20.0, -0.8, 0.3, 0.3, 1.2);
+    addFace(points, labels, 1, 20.0, 0.5, 1.2, upper, upper + 0.9);
+    expectApartByTheirRule(points, labels, "stacking, upper part from " + std::to_string(upper) + " m");
   }
 }
 
-// Stacked bands whose boxes grown to a car do not overlap: the lower band of a car 20 m ahead and
-// an upper band 5 m beyond it.
+// Stacked bands whose boxes grown to a car do not overlap: the upper band 5 m beyond the lower.
 TEST(VehicleParts, StackedBandsFurtherApartThanOneCarStayApart) {
-  Cloud points;
-  std::vector<std::int32_t> labels;
-  addFace(points, labels, 0, 20.0, -0.85, 0.85, 0.3, 0.5);
-  addFace(points, labels, 1, 25.0, -0.8, 0.8, 0.9, 1.2);
-  const Clustering clustering = canonicalize(labels);
-  const auto views = viewsOf(points, clustering, {ObjectClass::kCar, ObjectClass::kCar});
-  const auto joined = joinedVehicleParts(points, clustering, views, kSensor);
-  ASSERT_TRUE(joined.ok());
+  Clustering clustering;
+  const auto joined = bandsJoined(25.0, &clustering);
+  ASSERT_TRUE(joined.ok()) << joined.error().message;
   EXPECT_FALSE(joined->has_value());
 }
 
