@@ -28,11 +28,11 @@ std::vector<const sim::SceneObject*> movingObjects(const sim::Scene& scene);
 // A track counts as a hypothesis once it is confirmed, and stays one while lost.
 bool isHypothesis(const tracking::Track& track);
 
-// One frame to score.
 // People this close to their nearest LiDAR (on the ground) are also scored apart: near a sensor a
 // person is seen from one side, and where it is placed shows.
 inline constexpr double kNearRangeM = 15.0;
 
+// One frame to score.
 struct TrackingFrame {
   tracking::MotFrame mot;                       // truth: movingObjects in order; hypotheses: isHypothesis tracks
   std::vector<std::string> truth_labels;        // per mot.truth entry
