@@ -94,7 +94,7 @@ const LidarFrame& lidarFrame(const std::string& name) {
     auto g = removeGround(cloud, GroundParams{});
     frame.points = g ? std::move(g->non_ground) : Cloud{};
   }
-  frame.params.links.beams = {model->elevations_deg, 360.0 / model->azimuth_steps};
+  frame.params.links.beams = beamTableOf(*model);
   return cache.emplace(name, std::move(frame)).first->second;
 }
 

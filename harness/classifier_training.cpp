@@ -7,7 +7,7 @@
 #include <sstream>
 #include <unordered_map>
 
-#include "common/camera/kitti.hpp"
+#include "common/classify/cluster_views.hpp"
 #include "common/io/cloud_io.hpp"
 #include "common/perception/box_fitting.hpp"
 #include "common/perception/lidar_models.hpp"
@@ -61,7 +61,7 @@ Expected<SampleSet> simulatedSamples(std::span<const std::uint64_t> seeds, const
 
       SensorClusteringParams params;
       params.clustering.min_points = options.min_points;
-      params.links.beams = {model->elevations_deg, 360.0 / model->azimuth_steps};
+      params.links.beams = beamTableOf(*model);
       const auto clustering = sensorAwareClusters(points, params);
       if (!clustering) return clustering.error();
 
@@ -113,7 +113,8 @@ Expected<std::string> readText(const std::filesystem::path& file) {
 
 }  // namespace
 
-Expected<std::vector<KittiObject>> kittiObjects(const std::filesystem::path& dir, std::size_t min_points) {
+Expected<std::vector<KittiObject>> kittiObjects(const std::filesystem::path& dir, const ObjectClassifier* classifier,
+                                                std::size_t min_points) {
   namespace fs = std::filesystem;
   std::error_code ec;
   std::vector<fs::path> scans;
@@ -145,40 +146,32 @@ Expected<std::vector<KittiObject>> kittiObjects(const std::filesystem::path& dir
     if (!ground) return ground.error();
     const Cloud& points = ground->non_ground;
     SensorClusteringParams params;
-    params.links.beams = {model->elevations_deg, 360.0 / model->azimuth_steps};
+    params.links.beams = beamTableOf(*model);
     const auto clustering = sensorAwareClusters(points, params);
     if (!clustering) return clustering.error();
+    const auto found = sensorObjects(points, *clustering, Eigen::Vector3d::Zero(), classifier);
+    if (!found) return found.error();
 
     for (const auto& label : *labels) {
       const auto truth = classOfKittiType(label.type);
       if (!truth) continue;
-      const camera::VelodyneBox box = camera::labelBoxInVelodyne(label, *calibration);
+      KittiObject object;
+      object.label_box = camera::labelBoxInVelodyne(label, *calibration);
       std::map<std::int32_t, std::size_t> votes;
-      std::size_t inside = 0;
       for (std::size_t i = 0; i < points.size(); ++i) {
-        if (box.contains(points[i].xyz().cast<double>())) {
-          ++inside;
-          ++votes[clustering->labels[i]];
+        if (object.label_box.contains(points[i].xyz().cast<double>())) {
+          ++object.points_in_box;
+          ++votes[found->clustering.labels[i]];
         }
       }
-      if (inside < min_points) continue;
-      KittiObject object;
+      if (object.points_in_box < min_points) continue;
       object.frame = id;
       object.type = label.type;
       object.truth = *truth;
-      object.points_in_box = inside;
-      object.range_m = box.centre.head<2>().norm();
+      object.range_m = object.label_box.centre.head<2>().norm();
       const auto top = std::max_element(votes.begin(), votes.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
-      if (top->first >= 0) {
-        Cloud cluster;
-        for (std::size_t i = 0; i < points.size(); ++i) {
-          if (clustering->labels[i] == top->first) cluster.push_back(points[i]);
-        }
-        const auto fitted = fitOrientedBox(cluster, Eigen::Vector3d::Zero());
-        if (!fitted) return fitted.error();
-        object.cluster_points = cluster.size();
-        object.features = objectFeatures(cluster, *fitted, Eigen::Vector3d::Zero());
-      }
+      object.clusters = votes.size() - votes.count(-1);
+      if (top->first >= 0) object.found = found->views[static_cast<std::size_t>(top->first)];
       out.push_back(std::move(object));
     }
   }

@@ -12,6 +12,8 @@
 #include <vector>
 
 #include "common/base/status.hpp"
+#include "common/camera/kitti.hpp"
+#include "common/classify/cluster_views.hpp"
 #include "common/classify/object_classifier.hpp"
 
 namespace fogmap::harness {
@@ -46,21 +48,25 @@ Expected<SampleSet> simulatedSamples(std::span<const std::uint64_t> seeds, const
 // person; Cyclist; nothing for the others (Tram, Misc, DontCare are not scored).
 std::optional<ObjectClass> classOfKittiType(std::string_view type);
 
-// A labelled object of the real KITTI frames, as an edge sees it: the cluster (ground removed,
-// sensor-aware with the HDL-64E's nominal beam table, eps 0.35 m, 10 points) holding most of the
-// points in its box, and that cluster's features.
+// A labelled object of the real KITTI frames, as an edge with boxes sees it (ground removed,
+// sensor-aware clustering with the HDL-64E's nominal beam table, eps 0.35 m, 10 points, the
+// clusters' views with vehicle parts joined: sensorObjects): the object holding most of the points
+// in its label's box.
 struct KittiObject {
   std::string frame;
   std::string type;
   ObjectClass truth = ObjectClass::kOther;
+  camera::VelodyneBox label_box;            // the label's box, in the velodyne frame
   std::size_t points_in_box = 0;
   double range_m = 0.0;                     // horizontal, from the LiDAR to the box's centre
-  std::size_t cluster_points = 0;
-  std::optional<FeatureVector> features;    // none when most of its points are noise
+  std::size_t clusters = 0;                 // objects holding some of the points in its box
+  std::optional<ClusterView> found;         // none when most of its points are noise
 };
 
 // Every scored label with at least `min_points` points in its box, in the frames of `dir` that
-// have all of velodyne/ID.bin, calib/ID.txt and label_2/ID.txt. Errors name the file.
-Expected<std::vector<KittiObject>> kittiObjects(const std::filesystem::path& dir, std::size_t min_points = 20);
+// have all of velodyne/ID.bin, calib/ID.txt and label_2/ID.txt, its objects classed by
+// `classifier` (none: no class; vehicle parts then join on their boxes alone). Errors name the file.
+Expected<std::vector<KittiObject>> kittiObjects(const std::filesystem::path& dir, const ObjectClassifier* classifier,
+                                                std::size_t min_points = 20);
 
 }  // namespace fogmap::harness

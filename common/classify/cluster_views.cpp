@@ -104,9 +104,9 @@ Expected<std::optional<JoinedParts>> joinedVehicleParts(std::span<const Point> p
     }
   }
   if (parts.size() < 2) return std::optional<JoinedParts>{};
-  std::vector<Cloud> clusters;  // the points of each cluster, filled once a part is a candidate
   DisjointSets sets(views.size());
-  std::vector<Cloud> joined(views.size());  // per set's root: the points of its clusters
+  std::vector<Cloud> joined(views.size());  // per set's root: the points of its clusters, once a pair is a candidate
+  bool filled = false;
   std::vector<BoxPrior> joined_prior(views.size());
   bool any = false;
   for (std::size_t a = 0; a < parts.size(); ++a) {
@@ -117,12 +117,13 @@ Expected<std::optional<JoinedParts>> joinedVehicleParts(std::span<const Point> p
           !footprintsOverlap(parts[a].grown, parts[b].grown)) {
         continue;
       }
-      if (clusters.empty()) {
-        clusters = pointsByCluster(points, clustering);
+      if (!filled) {
+        std::vector<Cloud> clusters = pointsByCluster(points, clustering);
         for (const Part& p : parts) {
-          joined[p.cluster] = clusters[p.cluster];
+          joined[p.cluster] = std::move(clusters[p.cluster]);
           joined_prior[p.cluster] = p.prior;
         }
+        filled = true;
       }
       Cloud together = joined[ra];
       together.insert(together.end(), joined[rb].begin(), joined[rb].end());
@@ -172,6 +173,17 @@ Expected<std::optional<JoinedParts>> joinedVehicleParts(std::span<const Point> p
     out.views[k] = ClusterView{joined[root].size(), *box, part.label};
   }
   return std::optional<JoinedParts>(std::move(out));
+}
+
+Expected<SensorObjects> sensorObjects(std::span<const Point> points, Clustering clustering, const Eigen::Vector3d& sensor,
+                                      const ObjectClassifier* classifier, std::size_t min_points) {
+  auto views = clusterViews(points, clustering, sensor, classifier, min_points);
+  if (!views) return views.error();
+  auto joined = joinedVehicleParts(points, clustering, *views, sensor);
+  if (!joined) return joined.error();
+  if (!*joined) return SensorObjects{std::move(clustering), std::move(*views), 0};
+  const auto parts_joined = static_cast<std::size_t>(clustering.cluster_count - (*joined)->clustering.cluster_count);
+  return SensorObjects{std::move((*joined)->clustering), std::move((*joined)->views), parts_joined};
 }
 
 void attachViews(std::span<const std::optional<ClusterView>> views, Map& local) {

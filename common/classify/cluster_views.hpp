@@ -60,6 +60,17 @@ Expected<std::optional<JoinedParts>> joinedVehicleParts(std::span<const Point> p
                                                        std::span<const std::optional<ClusterView>> views,
                                                        const Eigen::Vector3d& sensor);
 
+// One sensor's objects, as an edge with boxes ships them, `fogctl cluster --objects` writes them and
+// the KITTI scoring scores them: the view of every cluster of at least min_points points
+// (clusterViews), then a vehicle seen in pieces joined into one cluster (joinedVehicleParts).
+struct SensorObjects {
+  Clustering clustering;                          // with the parts joined
+  std::vector<std::optional<ClusterView>> views;  // per cluster of `clustering`
+  std::size_t parts_joined = 0;                   // clusters joined into others
+};
+Expected<SensorObjects> sensorObjects(std::span<const Point> points, Clustering clustering, const Eigen::Vector3d& sensor,
+                                      const ObjectClassifier* classifier, std::size_t min_points = 1);
+
 // Puts each cluster's view on its ellipsoid of a local map (ellipsoid index = cluster label).
 void attachViews(std::span<const std::optional<ClusterView>> views, Map& local);
 

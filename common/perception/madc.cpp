@@ -10,17 +10,23 @@ LocalMapper::LocalMapper(MadcParams params) : params_(std::move(params)) {
   }
 }
 
+Expected<Clustering> LocalMapper::cluster(std::span<const Point> points) const {
+  if (!clusterer_) return euclideanClusters(points, params_.clustering);
+  if (!*clusterer_) return clusterer_->error();
+  return (*clusterer_)->cluster(points);
+}
+
+Map LocalMapper::summarise(std::span<const Point> points, const Clustering& clustering, std::uint32_t node,
+                           std::uint64_t frame) const {
+  return localMap(clusterEllipsoids(points, clustering, node, frame, params_.ellipsoidParams()));
+}
+
 Expected<LocalMapResult> LocalMapper::map(std::span<const Point> points, std::uint32_t node, std::uint64_t frame) const {
+  auto clustering = cluster(points);
+  if (!clustering) return clustering.error();
   LocalMapResult result;
-  if (clusterer_) {
-    if (!*clusterer_) return clusterer_->error();
-    auto clustering = (*clusterer_)->cluster(points);
-    if (!clustering) return clustering.error();
-    result.clustering = std::move(*clustering);
-  } else {
-    result.clustering = euclideanClusters(points, params_.clustering);
-  }
-  result.map = localMap(clusterEllipsoids(points, result.clustering, node, frame, params_.ellipsoidParams()));
+  result.map = summarise(points, *clustering, node, frame);
+  result.clustering = std::move(*clustering);
   return result;
 }
 

@@ -55,6 +55,10 @@ class LocalMapper {
   // Errors only in the sensor-aware mode: on every frame when validateSensorClusteringParams refused
   // its parameters (naming the field), or for more than 2^32 - 1 points.
   Expected<LocalMapResult> map(std::span<const Point> points, std::uint32_t node, std::uint64_t frame) const;
+  // map's two steps, for an edge that changes the clustering between them (vehicle parts joined):
+  // the clusters of `points` (same errors), and the local map of a clustering of them.
+  Expected<Clustering> cluster(std::span<const Point> points) const;
+  Map summarise(std::span<const Point> points, const Clustering& clustering, std::uint32_t node, std::uint64_t frame) const;
   const MadcParams& params() const { return params_; }
 
  private:

@@ -16,6 +16,11 @@
 #include "common/geometry/map.hpp"
 
 namespace fogmap {
+
+BeamTable beamTableOf(const LidarModel& model) {
+  return {model.elevations_deg, 360.0 / model.azimuth_steps};
+}
+
 namespace {
 
 // The range image is sorted as 64-bit words: cell (ring x bins + bin) above, point index below.

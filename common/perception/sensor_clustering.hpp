@@ -34,6 +34,7 @@
 #include "common/base/status.hpp"
 #include "common/geometry/cloud.hpp"
 #include "common/perception/clustering.hpp"
+#include "common/perception/lidar_models.hpp"
 
 namespace fogmap {
 
@@ -42,6 +43,9 @@ struct BeamTable {
   std::vector<double> elevations_deg;  // one per ring, any order; up is positive, within [-90, 90]
   double azimuth_step_deg = 0.2;       // horizontal angle between consecutive rays of a ring
 };
+
+// A LiDAR model's beam table: its rings' elevations and one revolution's azimuth steps.
+BeamTable beamTableOf(const LidarModel& model);
 
 // What the sensor-aware mode adds to the exact links: the sensor's geometry and the reach of the
 // ring links (rule b).

@@ -73,7 +73,7 @@ EdgeConfig edgeConfigFor(const TopologyConfig& topology, const NodeConfig& node)
     // beam table on the first frame, naming it.
     const auto model = lidarModel(node.sensor->model);
     SensorLinks links;
-    if (model) links.beams = {model->elevations_deg, 360.0 / model->azimuth_steps};
+    if (model) links.beams = beamTableOf(*model);
     links.sensor_pose = sensorToCommon(*node.sensor);
     config.madc.sensor_links = links;
   }
@@ -169,29 +169,25 @@ Expected<EdgeOutput> EdgeNode::processFrame(const Cloud& scan_in_sensor_frame, s
   }
 
   const SteadyClock::time_point clustering_start = SteadyClock::now();
-  auto local = mapper_.map(points, config_.node, frame);
-  if (!local) return local.error();
+  auto clustering = mapper_.cluster(points);
+  if (!clustering) return clustering.error();
+  std::optional<SensorObjects> objects;
   if (config_.boxes) {
-    const Eigen::Vector3d sensor = config_.preprocess.sensor_to_common.translation();
-    auto views = clusterViews(points, local->clustering, sensor, config_.classifier.get(), config_.box_min_points);
-    if (!views) return views.error();
     // A vehicle seen in pieces is one cluster before it is summarised (joinedVehicleParts).
-    auto joined = joinedVehicleParts(points, local->clustering, *views, sensor);
-    if (!joined) return joined.error();
-    if (*joined) {
-      output.vehicle_parts_joined =
-          static_cast<std::size_t>(local->clustering.cluster_count - (*joined)->clustering.cluster_count);
-      local->clustering = std::move((*joined)->clustering);
-      local->map = localMap(clusterEllipsoids(points, local->clustering, config_.node, frame, mapper_.params().ellipsoidParams()));
-      *views = std::move((*joined)->views);
-    }
-    attachViews(*views, local->map);
+    auto found = sensorObjects(points, std::move(*clustering), config_.preprocess.sensor_to_common.translation(),
+                               config_.classifier.get(), config_.box_min_points);
+    if (!found) return found.error();
+    output.vehicle_parts_joined = found->parts_joined;
+    *clustering = std::move(found->clustering);
+    objects = std::move(*found);
   }
+  Map map = mapper_.summarise(points, *clustering, config_.node, frame);
+  if (objects) attachViews(objects->views, map);
   output.clustering_seconds = secondsSince(clustering_start);
-  output.clusters = static_cast<std::size_t>(local->clustering.cluster_count);
-  output.map = MapMessage{header, std::move(local->map)};
+  output.clusters = static_cast<std::size_t>(clustering->cluster_count);
+  output.map = MapMessage{header, std::move(map)};
   if (config_.mode == Mode::kExt) {
-    output.chunks = chunkPoints(points, local->clustering.labels, header, config_.max_points_per_chunk);
+    output.chunks = chunkPoints(points, clustering->labels, header, config_.max_points_per_chunk);
   }
   return output;
 }

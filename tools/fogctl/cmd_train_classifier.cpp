@@ -124,18 +124,21 @@ int runTrainClassifier(int argc, char** argv) {
   // The real labelled KITTI frames, scored apart: the model never sees them in training.
   const std::filesystem::path kitti = args->get("kitti", "data/kitti_object");
   if (std::filesystem::is_directory(kitti)) {
-    const auto objects = harness::kittiObjects(kitti);
+    const auto objects = harness::kittiObjects(kitti, &*classifier);
     if (!objects) return fail(objects.error(), kWho);
     ConfusionMatrix kitti_confusion;
-    std::printf("real KITTI objects of %s with at least 20 points in their box:\n", kitti.string().c_str());
+    std::printf("real KITTI objects of %s with at least 20 points in their box, as the edge ships them:\n", kitti.string().c_str());
     for (const auto& o : *objects) {
-      const auto found = o.features ? std::optional<ObjectLabel>(classifier->classify(*o.features)) : std::nullopt;
+      const bool classed = o.found && o.found->label;
+      std::string found = "its points are noise";
+      if (classed) {
+        found = std::string(objectClassName(o.found->label->object_class)) + " (" +
+                std::to_string(o.found->label->confidence).substr(0, 4) + "), object of " + std::to_string(o.found->points) +
+                " points";
+      }
       std::printf("  %s %-10s %4zu points at %5.1f m: %s\n", o.frame.c_str(), o.type.c_str(), o.points_in_box, o.range_m,
-                  found ? (std::string(objectClassName(found->object_class)) + " (" + std::to_string(found->confidence).substr(0, 4) +
-                           "), cluster of " + std::to_string(o.cluster_points) + " points")
-                              .c_str()
-                        : "its points are noise");
-      kitti_confusion.add(o.truth, found ? found->object_class : ObjectClass::kOther);
+                  found.c_str());
+      kitti_confusion.add(o.truth, classed ? o.found->label->object_class : ObjectClass::kOther);
     }
     printConfusion(kitti_confusion);
   } else if (args->has("kitti")) {
@@ -168,7 +171,8 @@ Command trainClassifierCommand() {
           "  --out FILE     the model (OpenCV YAML; .gz compresses)\n"
           "  --kitti DIR    also score the real labelled KITTI frames of DIR (velodyne/, calib/, label_2/; default\n"
           "                 data/kitti_object when it exists): every Car, Van, Truck, Pedestrian and Cyclist with at\n"
-          "                 least 20 points in its box, as the cluster holding most of them\n",
+          "                 least 20 points in its box, as the object holding most of them (as an edge with boxes\n"
+          "                 ships it: sensor-aware clustering, vehicle parts joined)\n",
           runTrainClassifier};
 }
 

@@ -164,7 +164,7 @@ TEST(VehicleParts, TheLabelledKittiCarIsOneObjectWithItsCentreAndYaw) {
   const auto model = lidarModel("HDL-64E");
   ASSERT_TRUE(model.ok());
   SensorClusteringParams sensor_params;
-  sensor_params.links.beams = {model->elevations_deg, 360.0 / model->azimuth_steps};
+  sensor_params.links.beams = beamTableOf(*model);
   int checked = 0;
   for (const std::string id : {"000001", "000002"}) {
     SCOPED_TRACE("kitti " + id);

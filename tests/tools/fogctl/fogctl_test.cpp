@@ -32,6 +32,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "common/camera/kitti.hpp"
 #include "common/certs/certs.hpp"
 #include "common/classify/object_classifier.hpp"
 #include "common/config/camera_node.hpp"
@@ -43,6 +44,7 @@
 #include "common/config/topology_presets.hpp"
 #include "common/config/topology_yaml.hpp"
 #include "common/config/tracker_node.hpp"
+#include "common/geometry/oriented_box.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
 #include "services/common/proto_convert.hpp"
 #include "tests/support/free_ports.hpp"
@@ -416,6 +418,53 @@ TEST(FogctlCluster, ObjectsAreWrittenWithTheirOrientedBoxes) {
                                   "--classifier", (dir.path() / "none.yml").string()});
   EXPECT_EQ(missing.code, 1) << describe(missing);
   EXPECT_TRUE(contains(missing.err, "none.yml")) << describe(missing);
+}
+
+// The real labelled KITTI car (000002, 34 m, 54 points), clustered as an edge with boxes does
+// (ground removed, sensor-aware with the HDL-64E's beam table, vehicle parts joined): one object
+// whose box lies on the label (no other object's box centre inside the label's box), classed car,
+// whose vehicle box is within 0.5 m and 15 degrees of the label's. Without the join its bumper and
+// its boot are two objects.
+TEST(FogctlCluster, TheLabelledKittiCarIsOneObjectOfItsScan) {
+  ScratchDir dir("cluster-kitti");
+  const fs::path data = fs::path(FOGMAP_SOURCE_DIR) / "data" / "kitti_object";
+  const fs::path objects = dir.path() / "objects.json";
+  const fs::path model = fs::path(FOGMAP_SOURCE_DIR) / "data" / "models" / "lidar_classifier.yml.gz";
+  const Outcome o = fogctl({"cluster", "--input", (data / "velodyne" / "000002.bin").string(), "--remove-ground", "--lidar",
+                            "HDL-64E", "--objects", objects.string(), "--classifier", model.string()});
+  ASSERT_EQ(o.code, 0) << describe(o);
+  EXPECT_TRUE(contains(o.out, "sensor-aware, HDL-64E")) << describe(o);
+  EXPECT_TRUE(contains(o.out, "vehicle parts joined")) << describe(o);
+  const auto calibration = camera::parseKittiCalibration(test_support::readFile(data / "calib" / "000002.txt"));
+  ASSERT_TRUE(calibration.ok()) << calibration.error().message;
+  const auto labels = camera::parseKittiLabels(test_support::readFile(data / "label_2" / "000002.txt"));
+  ASSERT_TRUE(labels.ok()) << labels.error().message;
+  std::ifstream in(objects);
+  const auto json = nlohmann::json::parse(in, nullptr, false);
+  ASSERT_TRUE(json.is_array()) << "not a JSON array";
+  int cars = 0;
+  for (const auto& label : *labels) {
+    if (label.type != "Car") continue;
+    ++cars;
+    const camera::VelodyneBox truth = camera::labelBoxInVelodyne(label, *calibration);
+    std::vector<nlohmann::json> on_it;
+    for (const auto& object : json) {
+      const auto& box = object.at("box");
+      const Eigen::Vector3d centre(box.at("x").get<double>(), box.at("y").get<double>(), box.at("z").get<double>());
+      if (truth.contains(centre)) on_it.push_back(object);
+    }
+    ASSERT_EQ(on_it.size(), 1U) << "objects centred in the car's box: " << nlohmann::json(on_it).dump();
+    const auto& car = on_it.front();
+    EXPECT_EQ(car.at("class").get<std::string>(), "car") << car.dump();
+    EXPECT_GE(car.at("points").get<int>(), 45) << car.dump();
+    // The goal: the car's box within 0.5 m and 15 degrees of the label's.
+    ASSERT_TRUE(car.contains("vehicle_box")) << car.dump();
+    const auto& whole = car.at("vehicle_box");
+    EXPECT_LT(std::hypot(whole.at("x").get<double>() - truth.centre.x(), whole.at("y").get<double>() - truth.centre.y()), 0.5)
+        << car.dump();
+    EXPECT_LT(axisAngleBetween(whole.at("yaw").get<double>(), truth.yaw), 15.0 * M_PI / 180.0) << car.dump();
+  }
+  EXPECT_EQ(cars, 1);
 }
 
 TEST(FogctlTrainClassifier, TrainsOnSomeSeedsScoresOthersAndWritesAModel) {
