@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <Eigen/Geometry>
 
@@ -16,6 +17,39 @@ double cross(const Eigen::Vector2d& o, const Eigen::Vector2d& a, const Eigen::Ve
 }
 
 }  // namespace
+
+double footprintGap(std::span<const Eigen::Vector2d> a, std::span<const Eigen::Vector2d> b) {
+  if (a.empty() || b.empty()) return std::numeric_limits<double>::infinity();
+  // The gap between the projections of a and b on the unit direction n (either order).
+  const auto gapAlong = [&](const Eigen::Vector2d& n) {
+    double a_lo = std::numeric_limits<double>::infinity(), a_hi = -a_lo, b_lo = a_lo, b_hi = -a_lo;
+    for (const auto& p : a) {
+      a_lo = std::min(a_lo, n.dot(p));
+      a_hi = std::max(a_hi, n.dot(p));
+    }
+    for (const auto& p : b) {
+      b_lo = std::min(b_lo, n.dot(p));
+      b_hi = std::max(b_hi, n.dot(p));
+    }
+    return std::max(b_lo - a_hi, a_lo - b_hi);
+  };
+  double gap = -std::numeric_limits<double>::infinity();
+  const auto sidesOf = [&](std::span<const Eigen::Vector2d> polygon) {
+    for (std::size_t i = 0; polygon.size() >= 2 && i < polygon.size(); ++i) {
+      const Eigen::Vector2d side = polygon[(i + 1) % polygon.size()] - polygon[i];
+      if (side.squaredNorm() > 0.0) gap = std::max(gap, gapAlong(Eigen::Vector2d(-side.y(), side.x()).normalized()));
+    }
+  };
+  sidesOf(a);
+  sidesOf(b);
+  Eigen::Vector2d centre_a = Eigen::Vector2d::Zero(), centre_b = Eigen::Vector2d::Zero();
+  for (const auto& p : a) centre_a += p / static_cast<double>(a.size());
+  for (const auto& p : b) centre_b += p / static_cast<double>(b.size());
+  const Eigen::Vector2d between = centre_b - centre_a;
+  if (between.squaredNorm() > 0.0) gap = std::max(gap, gapAlong(between.normalized()));
+  if (!std::isfinite(gap)) return 0.0;  // one point on another
+  return gap;
+}
 
 std::vector<Eigen::Vector2d> convexHull(std::vector<Eigen::Vector2d> points) {
   const auto lexicographic = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {

@@ -2,7 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <limits>
+#include <optional>
 #include <random>
+
+#include <Eigen/Geometry>
+
+#include "common/sim/footprint.hpp"
 
 namespace fogmap::sim {
 namespace {
@@ -189,7 +196,7 @@ Scene movingScene(int people, int vehicles, int lidars, int cameras, std::uint64
   std::uniform_real_distribution<double> across(-kHalf * 0.8, kHalf * 0.8);
   std::uniform_real_distribution<double> walk(1.0, 1.6);
   std::uniform_real_distribution<double> drive(3.0, 6.0);
-  std::uint32_t id = 1;
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
   auto path = [&](int i) {
     // Even paths run west-east, odd ones south-north, so they cross; the offsets keep some parallel.
     const double offset = across(rng);
@@ -197,18 +204,6 @@ Scene movingScene(int people, int vehicles, int lidars, int cameras, std::uint64
                                                  : std::vector<Eigen::Vector2d>{{offset, -kHalf}, {offset, kHalf}};
     return w;
   };
-  for (int i = 0; i < people; ++i) {
-    SceneObject o;
-    o.id = id++;
-    o.label = "person";
-    o.name = "person-" + std::to_string(o.id);
-    o.parts = {cylinder(0.25, 1.75)};
-    o.motion.waypoints = path(i);
-    o.motion.speed_mps = walk(rng);
-    o.motion.loop = true;
-    o.xy = o.motion.waypoints.front();
-    scene.objects.push_back(o);
-  }
   // Vehicles keep to lanes: a path parallel to another vehicle's lies at least a lane (kLaneM)
   // beside it, its offset drawn again (a bounded number of times) where it would not. Two cars
   // 2 m apart side by side, 0.2 m between their bodies, would collide, and no sensor separates them.
@@ -225,21 +220,115 @@ Scene movingScene(int people, int vehicles, int lidars, int cameras, std::uint64
       });
     };
     for (int draw = 1; draw < kLaneDraws && crowded(w); ++draw) w = path(i);
-    vehicle_paths.push_back(w);
     return w;
   };
+  // Nothing passes through anything: each object goes back and forth along its path from a drawn
+  // point of it in a drawn direction, and its body keeps kClearanceM from every object placed
+  // before it (kVehicleClearanceM between two vehicles) at every kClearanceStepS of the scene's
+  // cycle. Where it would not, its path, start and direction are drawn again, at most
+  // kPlacementDraws times; the draw that falls short at the fewest instants stays when none keeps
+  // enough. Vehicles are placed first, all at one speed: two on crossing lanes then meet the
+  // crossing in a fixed rhythm that a start can keep apart, and people find gaps in the traffic.
+  constexpr double kClearanceM = 0.5;
+  constexpr double kVehicleClearanceM = 1.0;
+  constexpr double kClearanceStepS = 0.02;
+  constexpr int kPlacementDraws = 256;
+  std::vector<double> times;
+  for (int k = 0; k * kClearanceStepS < scene.duration_s; ++k) times.push_back(k * kClearanceStepS);
+  struct Outlines {
+    std::vector<std::vector<Eigen::Vector2d>> at;  // per time
+    std::vector<Eigen::Vector2d> centres;          // per time: the object's position
+    double radius = 0.0;                           // of a circle about the position holding the outline
+  };
+  struct Placed {
+    bool vehicle;
+    Outlines outlines;
+  };
+  std::vector<Placed> placed;
+  const auto outlinesOf = [&](const SceneObject& object) {
+    SceneObject still = object;
+    still.motion = Motion{};
+    still.xy = Eigen::Vector2d::Zero();
+    still.yaw_deg = 0.0;
+    const std::vector<Eigen::Vector2d> local = footprint(still, 0.0);
+    Outlines out;
+    for (const auto& v : local) out.radius = std::max(out.radius, v.norm());
+    out.at.reserve(times.size());
+    out.centres.reserve(times.size());
+    for (const double t : times) {
+      const ObjectPose pose = poseAt(object, t);
+      const Eigen::Rotation2Dd turn(pose.yaw_rad);
+      std::vector<Eigen::Vector2d> outline;
+      outline.reserve(local.size());
+      for (const auto& v : local) outline.push_back(turn * v + pose.xy);
+      out.at.push_back(std::move(outline));
+      out.centres.push_back(pose.xy);
+    }
+    return out;
+  };
+  // The instants at which a body falls short of its clearance to a placed one (up to `enough`).
+  const auto shortInstants = [&](const Outlines& outlines, bool vehicle, std::size_t enough) {
+    std::size_t count = 0;
+    for (const Placed& other : placed) {
+      const double keep = vehicle && other.vehicle ? kVehicleClearanceM : kClearanceM;
+      const double apart = outlines.radius + other.outlines.radius + keep;
+      for (std::size_t k = 0; k < times.size() && count < enough; ++k) {
+        if ((outlines.centres[k] - other.outlines.centres[k]).squaredNorm() >= apart * apart) continue;
+        if (footprintGap(outlines.at[k], other.outlines.at[k]) < keep) ++count;
+      }
+    }
+    return count;
+  };
+  const auto place = [&](SceneObject& o, bool vehicle, const std::function<std::vector<Eigen::Vector2d>()>& drawPath) {
+    std::optional<std::pair<std::size_t, SceneObject>> best;
+    Outlines best_outlines;
+    for (int draw = 0; draw < kPlacementDraws; ++draw) {
+      const std::vector<Eigen::Vector2d> ends = drawPath();
+      const Eigen::Vector2d start = ends[0] + unit(rng) * (ends[1] - ends[0]);
+      const bool forward = unit(rng) < 0.5;
+      SceneObject candidate = o;
+      candidate.motion.waypoints = forward ? std::vector<Eigen::Vector2d>{start, ends[1], ends[0]}
+                                           : std::vector<Eigen::Vector2d>{start, ends[0], ends[1]};
+      candidate.xy = start;
+      Outlines outlines = outlinesOf(candidate);
+      const std::size_t short_at = shortInstants(outlines, vehicle, best ? best->first : times.size() * (placed.size() + 1));
+      if (!best || short_at < best->first) {
+        best.emplace(short_at, std::move(candidate));
+        best_outlines = std::move(outlines);
+      }
+      if (short_at == 0) break;
+    }
+    o = std::move(best->second);
+    placed.push_back({vehicle, std::move(best_outlines)});
+  };
+  const std::uint32_t first_vehicle = static_cast<std::uint32_t>(std::max(people, 0)) + 1;
+  const double vehicle_speed = drive(rng);
+  std::vector<SceneObject> vehicles_placed;
   for (int i = 0; i < vehicles; ++i) {
     SceneObject o;
-    o.id = id++;
+    o.id = first_vehicle + static_cast<std::uint32_t>(i);
     o.label = "car";
     o.name = "car-" + std::to_string(o.id);
     o.parts = catalogue()[4].parts;
-    o.motion.waypoints = lanePath(i + 1);
-    o.motion.speed_mps = drive(rng);
+    o.motion.speed_mps = vehicle_speed;
     o.motion.loop = true;
-    o.xy = o.motion.waypoints.front();
+    place(o, true, [&] { return lanePath(i + 1); });
+    const auto& w = o.motion.waypoints;
+    vehicle_paths.push_back({w[1], w[2]});
+    vehicles_placed.push_back(std::move(o));
+  }
+  for (int i = 0; i < people; ++i) {
+    SceneObject o;
+    o.id = static_cast<std::uint32_t>(i) + 1;
+    o.label = "person";
+    o.name = "person-" + std::to_string(o.id);
+    o.parts = {cylinder(0.25, 1.75)};
+    o.motion.speed_mps = walk(rng);
+    o.motion.loop = true;
+    place(o, false, [&] { return path(i); });
     scene.objects.push_back(o);
   }
+  for (SceneObject& o : vehicles_placed) scene.objects.push_back(std::move(o));
   const std::vector<Eigen::Vector2d> camera_spots = {{-kHalf - 2, 0}, {kHalf + 2, 0}, {0, -kHalf - 2}, {0, kHalf + 2},
                                                      {-kHalf - 2, -kHalf - 2}, {kHalf + 2, kHalf + 2}};
   for (int i = 0; i < std::min<int>(cameras, static_cast<int>(camera_spots.size())); ++i) {

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "common/sim/footprint.hpp"
 #include "common/sim/generators.hpp"
@@ -123,6 +124,24 @@ TEST(SimFootprint, HullsDropInnerAndCollinearPointsAndKeepDegenerateInput) {
   EXPECT_EQ(square[0], Eigen::Vector2d(0, 0)) << "starts at the lowest x, then lowest y";
   EXPECT_EQ(square[1], Eigen::Vector2d(2, 0)) << "counter-clockwise";
   EXPECT_EQ(convexHull({{1, 1}, {1, 1}, {0, 0}}).size(), 2U);
+}
+
+// footprintGap against analytic gaps: squares side by side, a diamond's vertex facing a side, two
+// outlines overlapping, and a point.
+TEST(SimFootprint, GapIsTheDistanceBetweenFacingSidesAndNegativeWhenOverlapping) {
+  const std::vector<Eigen::Vector2d> unit = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+  const auto moved = [](std::vector<Eigen::Vector2d> v, const Eigen::Vector2d& by) {
+    for (auto& p : v) p += by;
+    return v;
+  };
+  EXPECT_NEAR(footprintGap(unit, moved(unit, {1.5, 0.0})), 0.5, 1e-12);
+  EXPECT_NEAR(footprintGap(moved(unit, {0.0, -3.0}), unit), 2.0, 1e-12);
+  EXPECT_NEAR(footprintGap(unit, moved(unit, {0.5, 0.25})), -0.5, 1e-12);
+  const std::vector<Eigen::Vector2d> diamond = {{2.0, 0.5}, {2.5, 0.0}, {3.0, 0.5}, {2.5, 1.0}};
+  EXPECT_NEAR(footprintGap(unit, diamond), 1.0, 1e-12);  // its left vertex 1 m from the right side
+  const std::vector<Eigen::Vector2d> point = {{0.5, 4.0}};
+  EXPECT_NEAR(footprintGap(unit, point), 3.0, 1e-12);
+  EXPECT_EQ(footprintGap(unit, {}), std::numeric_limits<double>::infinity());
 }
 
 }  // namespace
