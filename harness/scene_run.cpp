@@ -322,11 +322,11 @@ std::string readTracks(const TopologyConfig& topology, const sim::Scene& scene, 
       }
       times.push_back(sceneTimeOf(scene, schedule, rate_hz, list.lidar_time_ns));
       lists.push_back(std::move(list));
-      if (scoringWindow(times, options.warmup_lists, options.scored_lists)) break;
+      if (scoringWindow(times, options.warmup_lists, options.scored_lists, options.scene_start_s)) break;
     }
     context.TryCancel();
     reader->Finish();
-    if (scoringWindow(times, options.warmup_lists, options.scored_lists)) return {};
+    if (scoringWindow(times, options.warmup_lists, options.scored_lists, options.scene_start_s)) return {};
   }
   return stopRequested() ? "stopped" : "the tracker published " + std::to_string(lists.size()) + " track lists in time";
 }
@@ -360,8 +360,10 @@ Expected<SceneTrackingRun> runSceneTracking(const std::filesystem::path& dir, co
   const auto schedule = EpochSchedule::create(topology.period_ms, topology.deadline_ms);
   if (!schedule) return schedule.error();
   // Time for the window, and for a second one should the scene's cycle wrap inside the first.
+  // From a given scene time on: up to one more cycle until the scene reaches it.
+  const double wait_ms = options.scene_start_s ? scene.duration_s * 1000.0 : 0.0;
   const auto lists_time = std::chrono::milliseconds(static_cast<long>(
-      2.0 * static_cast<double>(options.warmup_lists + options.scored_lists) * topology.period_ms));
+      2.0 * static_cast<double>(options.warmup_lists + options.scored_lists) * topology.period_ms + wait_ms));
   RunOptions run;
   run.frames = 1'000'000;   // keep every global map while the tracks are read
   run.complete_frames = 1;  // and stop once they are read
@@ -386,7 +388,7 @@ Expected<PublishedScores> scoreSceneTracking(const sim::Scene& scene, const Scen
   const auto schedule = EpochSchedule::create(run.topology.period_ms, run.topology.deadline_ms);
   if (!schedule) return schedule.error();
   return scorePublishedTracks(scene, *schedule, options.rate_hz, run.lists, options.warmup_lists, options.scored_lists,
-                              tracking::MotConfig{options.match_distance_m});
+                              tracking::MotConfig{options.match_distance_m}, options.scene_start_s);
 }
 
 Expected<std::string> sceneTrackListsJsonLines(const sim::Scene& scene, const SceneTrackingRun& run, const PublishedScores& scores,

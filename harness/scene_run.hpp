@@ -121,6 +121,9 @@ struct SceneTrackingOptions {
   // first maps may lack an edge that is still starting), and the track lists scored.
   std::size_t warmup_lists = 30;
   std::size_t scored_lists = 100;
+  // Unset: the first window the run reaches (the wall clock picks its stretch of the scene). Set:
+  // the window from this scene time on (scoringWindow's from_s), waited for up to one more cycle.
+  std::optional<double> scene_start_s;
   double match_distance_m = 1.0;  // the CLEAR MOT gate
   sim::SceneMapping mapping;      // the edges' clustering and fragments
 };
@@ -135,7 +138,7 @@ struct SceneTrackingRun {
 
 // Starts the cluster of `scene_file` with its tracker (sceneTopology with a tracker and one truth
 // detection node per camera, the topology `fogctl topology --scene F --tracker` writes), reads the
-// tracker's stream until the lists hold a scoringWindow(warmup_lists, scored_lists) or the time
+// tracker's stream until the lists hold a scoringWindow(warmup_lists, scored_lists, scene_start_s) or the time
 // runs out, and stops it.
 Expected<SceneTrackingRun> runSceneTracking(const std::filesystem::path& dir, const std::filesystem::path& scene_file,
                                             const sim::Scene& scene, const SceneTrackingOptions& options);

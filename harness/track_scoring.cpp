@@ -112,27 +112,40 @@ double sceneTimeOf(const sim::Scene& scene, const EpochSchedule& schedule, doubl
 }
 
 std::optional<std::pair<std::size_t, std::size_t>> scoringWindow(std::span<const double> scene_times_s,
-                                                                 std::size_t warmup, std::size_t frames) {
+                                                                 std::size_t warmup, std::size_t frames,
+                                                                 std::optional<double> from_s) {
   if (frames == 0) return std::nullopt;
-  std::size_t start = 0;  // where the current stretch without a wrap begins
+  std::size_t start = 0;                // where the current stretch without a wrap begins
+  std::optional<std::size_t> begin;     // with from_s: the window's first entry, once found
   for (std::size_t i = 0; i < scene_times_s.size(); ++i) {
-    if (i > start && scene_times_s[i] < scene_times_s[i - 1]) start = i;
-    if (i + 1 - start >= warmup + frames) return std::pair{start + warmup, start + warmup + frames};
+    if (i > start && scene_times_s[i] < scene_times_s[i - 1]) {
+      start = i;
+      begin.reset();
+    }
+    if (!from_s) {
+      if (i + 1 - start >= warmup + frames) return std::pair{start + warmup, start + warmup + frames};
+      continue;
+    }
+    const bool crosses = scene_times_s[i] >= *from_s && (i == start || scene_times_s[i - 1] < *from_s);
+    if (!begin && crosses && i - start >= warmup) begin = i;
+    if (begin && i + 1 - *begin >= frames) return std::pair{*begin, *begin + frames};
   }
   return std::nullopt;
 }
 
 Expected<PublishedScores> scorePublishedTracks(const sim::Scene& scene, const EpochSchedule& schedule, double rate_hz,
                                                std::span<const PublishedTracks> lists, std::size_t warmup,
-                                               std::size_t frames, const tracking::MotConfig& config) {
+                                               std::size_t frames, const tracking::MotConfig& config,
+                                               std::optional<double> from_s) {
   std::vector<double> times;
   times.reserve(lists.size());
   for (const auto& l : lists) times.push_back(sceneTimeOf(scene, schedule, rate_hz, l.lidar_time_ns));
-  const auto window = scoringWindow(times, warmup, frames);
+  const auto window = scoringWindow(times, warmup, frames, from_s);
   if (!window) {
     return Error{ErrorCode::kInternal, "track scoring: " + std::to_string(lists.size()) + " track lists hold no " +
                                            std::to_string(frames) + " consecutive ones after a warm-up of " +
-                                           std::to_string(warmup) + " within one cycle of the scene"};
+                                           std::to_string(warmup) + " within one cycle of the scene" +
+                                           (from_s ? " from scene time " + std::to_string(*from_s) + " s" : std::string())};
   }
   PublishedScores out;
   std::vector<TrackingFrame> scored;

@@ -79,9 +79,13 @@ double sceneTimeOf(const sim::Scene& scene, const EpochSchedule& schedule, doubl
 // The first `frames` consecutive entries of `scene_times_s` that follow `warmup` entries without a
 // wrap of the scene's cycle anywhere from the warm-up's start to the window's end (a scene time
 // below its predecessor's: every object jumps back to its start, which no tracker should follow),
-// as [begin, end); none while there is no such window yet.
+// as [begin, end); none while there is no such window yet. With `from_s`, the window starts where
+// the scene time reaches from_s (the first entry at or after it whose predecessor in the stretch
+// lies before it, or that opens the stretch), with `warmup` entries of its stretch before it: runs
+// of one scene then score the same stretch of it whenever they start.
 std::optional<std::pair<std::size_t, std::size_t>> scoringWindow(std::span<const double> scene_times_s,
-                                                                 std::size_t warmup, std::size_t frames);
+                                                                 std::size_t warmup, std::size_t frames,
+                                                                 std::optional<double> from_s = std::nullopt);
 
 // A tracker service's published tracks scored against the scene.
 struct PublishedScores {
@@ -96,10 +100,11 @@ struct PublishedScores {
   double latency_max_ms = 0.0;
 };
 
-// Scores the scoringWindow(warmup, frames) of `lists` (in the order read); an error naming what is
-// missing when the lists hold no such window.
+// Scores the scoringWindow(warmup, frames, from_s) of `lists` (in the order read); an error naming
+// what is missing when the lists hold no such window.
 Expected<PublishedScores> scorePublishedTracks(const sim::Scene& scene, const EpochSchedule& schedule, double rate_hz,
                                                std::span<const PublishedTracks> lists, std::size_t warmup,
-                                               std::size_t frames, const tracking::MotConfig& config = {});
+                                               std::size_t frames, const tracking::MotConfig& config = {},
+                                               std::optional<double> from_s = std::nullopt);
 
 }  // namespace fogmap::harness

@@ -202,6 +202,17 @@ TEST(TrackScoring, TheScoringWindowFollowsTheWarmUpAndStaysInsideOneCycleOfTheSc
   EXPECT_EQ(scoringWindow(wrapped, 2, 5), (std::pair<std::size_t, std::size_t>{6, 11}));
   EXPECT_EQ(scoringWindow(wrapped, 0, 4), (std::pair<std::size_t, std::size_t>{0, 4})) << "before the wrap";
   EXPECT_FALSE(scoringWindow(wrapped, 2, 6));
+  // From a scene time on: where the scene reaches it, after the warm-up, in any cycle.
+  const std::vector<double> cycles = {0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6};
+  EXPECT_EQ(scoringWindow(cycles, 2, 3, 0.25), (std::pair<std::size_t, std::size_t>{3, 6})) << "0.3 is the first at or after 0.25";
+  EXPECT_EQ(scoringWindow(cycles, 2, 4, 0.25), (std::pair<std::size_t, std::size_t>{9, 13})) << "the first cycle wraps too soon";
+  EXPECT_EQ(scoringWindow(cycles, 2, 3, 0.2), (std::pair<std::size_t, std::size_t>{2, 5}));
+  EXPECT_FALSE(scoringWindow(cycles, 3, 3, 0.2)) << "two lists of warm-up before it in each cycle, not three";
+  EXPECT_FALSE(scoringWindow(cycles, 0, 2, 0.7)) << "the scene never reaches it";
+  // A run that starts past the time waits for the next cycle: its first stretch opens after it.
+  const std::vector<double> late = {0.3, 0.4, 0.5, 0.0, 0.1, 0.2, 0.3, 0.4};
+  EXPECT_EQ(scoringWindow(late, 1, 2, 0.3), (std::pair<std::size_t, std::size_t>{6, 8}));
+  EXPECT_EQ(scoringWindow(late, 0, 2, 0.3), (std::pair<std::size_t, std::size_t>{0, 2})) << "no warm-up: the opening entry counts";
 }
 
 TEST(TrackScoring, ALidarFramesSceneInstantIsItsEpochsScan) {

@@ -924,6 +924,34 @@ TEST(FogctlTopologyScene, ARandomScenesTopologyRunsAsAClusterOfSimulatedLidars) 
   EXPECT_GE(complete, 5U) << run->epochs.size() << " epochs published";
 }
 
+// --scene-start scores a fixed stretch of the scene: the warm-up before it and the scored lists
+// after it must fit in the 60 s cycle (30 lists = 3 s before, --track-frames after at 10 Hz), and it
+// needs a scene with moving objects and cameras. Refused before anything starts.
+TEST(FogctlDemoScene, SceneStartLeavesRoomForTheWarmUpAndTheScoredLists) {
+  ScratchDir dir("scene-start");
+  const Outcome made = fogctl(
+      {"scene", "moving", "--people", "2", "--vehicles", "1", "--lidars", "1", "--cameras", "1", "--out", "s.yaml"}, dir.path());
+  ASSERT_EQ(made.code, 0) << describe(made);
+  const auto refused = [&](std::vector<std::string> flags, const std::string& why) {
+    std::vector<std::string> command = {"demo", "--scene", "s.yaml"};
+    command.insert(command.end(), flags.begin(), flags.end());
+    const Outcome o = fogctl(command, dir.path());
+    EXPECT_EQ(o.code, 2) << describe(o);  // a usage error
+    EXPECT_TRUE(contains(o.err, why)) << describe(o);
+  };
+  refused({"--scene-start", "2.9"}, "--scene-start must be a scene time in [3, 50] s");
+  refused({"--scene-start", "50.1"}, "in [3, 50] s");
+  refused({"--scene-start", "30", "--track-frames", "400"}, "in [3, 20] s");
+  refused({"--scene-start", "soon"}, "--scene-start");
+  const Outcome still =
+      fogctl({"scene", "moving", "--people", "2", "--vehicles", "0", "--lidars", "1", "--cameras", "0", "--out", "still.yaml"},
+             dir.path());
+  ASSERT_EQ(still.code, 0) << describe(still);
+  const Outcome o = fogctl({"demo", "--scene", "still.yaml", "--scene-start", "10"}, dir.path());
+  EXPECT_EQ(o.code, 2) << describe(o);  // a usage error
+  EXPECT_TRUE(contains(o.err, "need a scene with moving objects and cameras")) << describe(o);
+}
+
 // A scene's edges cluster sensor-aware with their LiDAR's model and ship fragments unless told; the
 // flags' mistakes are named, and they go with --scene only.
 TEST(FogctlTopologyScene, MappingFlagsChooseClusteringAndFragments) {
