@@ -169,25 +169,26 @@ Expected<EdgeOutput> EdgeNode::processFrame(const Cloud& scan_in_sensor_frame, s
   }
 
   const SteadyClock::time_point clustering_start = SteadyClock::now();
-  auto clustering = mapper_.cluster(points);
-  if (!clustering) return clustering.error();
-  std::optional<SensorObjects> objects;
+  auto clustered = mapper_.cluster(points);
+  if (!clustered) return clustered.error();
+  Clustering clustering = std::move(*clustered);
+  std::vector<std::optional<ClusterView>> views;  // with boxes: per cluster
   if (config_.boxes) {
     // A vehicle seen in pieces is one cluster before it is summarised (joinedVehicleParts).
-    auto found = sensorObjects(points, std::move(*clustering), config_.preprocess.sensor_to_common.translation(),
+    auto found = sensorObjects(points, std::move(clustering), config_.preprocess.sensor_to_common.translation(),
                                config_.classifier.get(), config_.box_min_points);
     if (!found) return found.error();
     output.vehicle_parts_joined = found->parts_joined;
-    *clustering = std::move(found->clustering);
-    objects = std::move(*found);
+    clustering = std::move(found->clustering);
+    views = std::move(found->views);
   }
-  Map map = mapper_.summarise(points, *clustering, config_.node, frame);
-  if (objects) attachViews(objects->views, map);
+  Map map = mapper_.summarise(points, clustering, config_.node, frame);
+  if (config_.boxes) attachViews(views, map);
   output.clustering_seconds = secondsSince(clustering_start);
-  output.clusters = static_cast<std::size_t>(clustering->cluster_count);
+  output.clusters = static_cast<std::size_t>(clustering.cluster_count);
   output.map = MapMessage{header, std::move(map)};
   if (config_.mode == Mode::kExt) {
-    output.chunks = chunkPoints(points, clustering->labels, header, config_.max_points_per_chunk);
+    output.chunks = chunkPoints(points, clustering.labels, header, config_.max_points_per_chunk);
   }
   return output;
 }
