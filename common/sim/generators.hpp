@@ -23,8 +23,9 @@ Scene factoryScene(std::uint64_t seed);
 // cameras around it looking inwards. Vehicles keep to lanes: parallel vehicle paths lie at least
 // 3 m apart (offsets drawn again, at most 64 times each). Nothing passes through anything: over
 // the scene's cycle (checked every 0.02 s) no two bodies come closer than 0.5 m, two vehicles 1 m
-// (footprintGap); an object's path, start and direction are drawn again, at most 256 times, and
-// the draw with the most clearance stays when none keeps enough.
+// (footprintGap); an object's path, start and direction are drawn again, at most 256 times (4,096
+// in a scene), and the draw that falls short at the fewest instants stays when none keeps enough.
+// Vehicles are placed first, all at one speed drawn per scene.
 Scene movingScene(int people, int vehicles, int lidars, int cameras, std::uint64_t seed);
 
 // A camera pose at `position` looking at `target` (x right, y down, z forward; the image's up is
