@@ -14,6 +14,7 @@
 #include "common/base/epochs.hpp"
 #include "common/certs/certs.hpp"
 #include "common/config/topology_parse.hpp"
+#include "common/geometry/compact_view.hpp"
 #include "common/config/topology_yaml.hpp"
 #include "common/sim/sensor_frames.hpp"
 #include "common/sim/truth.hpp"
@@ -293,8 +294,19 @@ Expected<std::map<std::uint64_t, EdgeView>> recomputeEdges(const TopologyConfig&
       *upload.mutable_map() = toProto(*output->map);
       view.madc_bytes += upload.ByteSizeLong();
       view.madc_ellipsoids += output->map->map.ellipsoidCount();
+      MapMessage bare = *output->map;  // the same map without its views
+      for (MapObject& object : bare.map.objects) {
+        for (Ellipsoid& ellipsoid : object.ellipsoids) {
+          if (hasView(ellipsoid)) ++view.madc_views;
+          ellipsoid.box.reset();
+          ellipsoid.label.reset();
+        }
+      }
+      v1::Upload without_views;
+      *without_views.mutable_map() = toProto(bare);
+      view.madc_view_bytes += upload.ByteSizeLong() - without_views.ByteSizeLong();
       v1::Upload exact;
-      *exact.mutable_map() = toProto(*output->map, EllipsoidWire::kExact);
+      *exact.mutable_map() = toProto(bare, EllipsoidWire::kExact);
       view.madc_exact_bytes += exact.ByteSizeLong();
       // What the parent receives: the map after its trip through the wire format.
       auto received = fromProto(upload.map());
@@ -304,6 +316,25 @@ Expected<std::map<std::uint64_t, EdgeView>> recomputeEdges(const TopologyConfig&
   }
   return views;
 }
+
+void MapWireCost::add(const EdgeView& view) {
+  bytes += view.madc_bytes;
+  view_bytes += view.madc_view_bytes;
+  exact_bytes += view.madc_exact_bytes;
+  ellipsoids += view.madc_ellipsoids;
+  views += view.madc_views;
+}
+
+namespace {
+double perEllipsoid(std::size_t amount, std::size_t ellipsoids) {
+  return static_cast<double>(amount) / static_cast<double>(std::max<std::size_t>(ellipsoids, 1));
+}
+}  // namespace
+
+double MapWireCost::bytesPerEllipsoid() const { return perEllipsoid(bytes - view_bytes, ellipsoids); }
+double MapWireCost::exactBytesPerEllipsoid() const { return perEllipsoid(exact_bytes, ellipsoids); }
+double MapWireCost::viewBytesPerEllipsoid() const { return perEllipsoid(view_bytes, ellipsoids); }
+double MapWireCost::viewShare() const { return perEllipsoid(views, ellipsoids); }
 
 Accuracy accuracy(const GlobalMapMessage& madc, const GlobalMapMessage& baseline, const EdgeView& view) {
   std::map<EllipsoidId, std::int64_t> object_of;

@@ -64,11 +64,30 @@ struct EdgeView {
   // Simulated sensors only: the true object of every point (-1: none, e.g. ground).
   std::map<std::uint32_t, std::vector<std::int64_t>> truth;
   std::size_t madc_bytes = 0;          // the local maps' uploads, on the compact wire
+  std::size_t madc_view_bytes = 0;     // of those, what the ellipsoids' views (boxes, classes) add
   std::size_t madc_ellipsoids = 0;     // in those local maps
-  std::size_t madc_exact_bytes = 0;    // the same uploads with every ellipsoid exact (EllipsoidWire::kExact)
+  std::size_t madc_views = 0;          // of those, the ones with a box or a class
+  std::size_t madc_exact_bytes = 0;    // the uploads without views, every ellipsoid exact (EllipsoidWire::kExact)
   std::size_t baseline_bytes = 0;  // the pre-processed points (what fogmap's baseline ships)
   std::size_t raw_bytes = 0;       // the scans before pre-processing, in the same wire format
 };
+// What the edges' map uploads cost, summed over edge views. An ellipsoid's bytes are its record and
+// its share of the upload (header, blocks); its view (box, class) is counted apart, as what the
+// ellipsoids carry beside them.
+struct MapWireCost {
+  std::size_t bytes = 0;
+  std::size_t view_bytes = 0;
+  std::size_t exact_bytes = 0;
+  std::size_t ellipsoids = 0;
+  std::size_t views = 0;
+
+  void add(const EdgeView& view);
+  double bytesPerEllipsoid() const;       // the uploads without their views, over the ellipsoids
+  double exactBytesPerEllipsoid() const;  // the same with every ellipsoid exact (float32)
+  double viewBytesPerEllipsoid() const;   // what the views add, over all ellipsoids
+  double viewShare() const;               // the share of the ellipsoids that carry a view
+};
+
 Expected<std::map<std::uint64_t, EdgeView>> recomputeEdges(const TopologyConfig& topology,
                                                            const std::vector<std::uint64_t>& epochs);
 

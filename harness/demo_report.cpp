@@ -17,6 +17,25 @@ double mean(const std::vector<double>& v) {
 
 double ratio(double num, double den) { return num / std::max(1.0, den); }
 
+// The ellipsoids' bytes, and what their views (boxes, classes) add beside them, as lines whose
+// labels are `width` wide.
+std::string mapWireText(const MapWireCost& c, int width) {
+  std::string out = formatText("  %-*s%.1f B each in the edges' map uploads (%.1f B were they sent as float32)\n", width,
+                               "ellipsoids on the wire:", c.bytesPerEllipsoid(), c.exactBytesPerEllipsoid());
+  if (c.views == 0) return out;
+  out += formatText("  %-*s%.1f B an ellipsoid more: %.0f %% of them carry one, %.1f B each\n", width,
+                    "their boxes and classes:", c.viewBytesPerEllipsoid(), 100.0 * c.viewShare(),
+                    static_cast<double>(c.view_bytes) / static_cast<double>(c.views));
+  return out;
+}
+
+void addMapWire(Json& j, const MapWireCost& c) {
+  j["bytes_per_ellipsoid"] = jsonNumber(c.bytesPerEllipsoid());
+  j["bytes_per_ellipsoid_exact_wire"] = jsonNumber(c.exactBytesPerEllipsoid());
+  j["view_bytes_per_ellipsoid"] = jsonNumber(c.viewBytesPerEllipsoid());
+  j["ellipsoids_with_views"] = jsonNumber(c.viewShare());
+}
+
 }  // namespace
 
 EpochPairing pairEpochsByScan(const std::map<std::uint64_t, GlobalMapMessage>& madc,
@@ -66,9 +85,6 @@ Expected<RecordedScores> scoreRecordedRuns(const TopologyConfig& madc_topology, 
   std::vector<double> ri;
   std::vector<double> ari;
   std::vector<double> ri_points;
-  std::size_t map_bytes = 0;
-  std::size_t exact_map_bytes = 0;
-  std::size_t ellipsoids = 0;
   for (const auto& [e, b] : pairing.compared) {
     const GlobalMapMessage& m = madc.epochs.at(e);
     const GlobalMapMessage& base = baseline.epochs.at(b);
@@ -83,9 +99,7 @@ Expected<RecordedScores> scoreRecordedRuns(const TopologyConfig& madc_topology, 
     row.merge_ms = m.merge_seconds * 1e3;
     row.e2e_ms = nsToMs(m.published_time_ns - m.header.sensor_time_ns);
     row.accuracy = accuracy(m, base, view);
-    map_bytes += view.madc_bytes;
-    exact_map_bytes += view.madc_exact_bytes;
-    ellipsoids += view.madc_ellipsoids;
+    s.wire.add(view);
     if (row.accuracy.ok) {
       ri.push_back(row.accuracy.clusters.rand_index);
       ari.push_back(row.accuracy.clusters.adjusted_rand_index);
@@ -93,8 +107,6 @@ Expected<RecordedScores> scoreRecordedRuns(const TopologyConfig& madc_topology, 
     }
     s.epochs.push_back(std::move(row));
   }
-  s.bytes_per_ellipsoid = static_cast<double>(map_bytes) / static_cast<double>(std::max<std::size_t>(ellipsoids, 1));
-  s.exact_bytes_per_ellipsoid = static_cast<double>(exact_map_bytes) / static_cast<double>(std::max<std::size_t>(ellipsoids, 1));
   s.rand_index = mean(ri);
   s.adjusted_rand_index = mean(ari);
   s.rand_index_points = mean(ri_points);
@@ -119,8 +131,7 @@ std::string recordedScoresText(const RecordedScores& s) {
                 s.published, s.incomplete, l.without_sensor_time, s.epochs.size(), l.incomplete_list.c_str());
   out += formatText("  bytes per frame, all links:  MAD-C %.0f B   baseline %.0f B   ratio %.0fx\n", s.madc_bytes_per_frame,
                 s.baseline_bytes_per_frame, ratio(s.baseline_bytes_per_frame, s.madc_bytes_per_frame));
-  out += formatText("  ellipsoids on the wire:      %.1f B each in the edges' map uploads (%.1f B were they sent as float32)\n",
-                s.bytes_per_ellipsoid, s.exact_bytes_per_ellipsoid);
+  out += mapWireText(s.wire, 29);
   out += formatText("  merge latency at the sink:   p50 %.3f ms   p99 %.3f ms\n", percentile(l.merge_ms, 0.5),
                 percentile(l.merge_ms, 0.99));
   out += formatText("  end-to-end latency:          p50 %.1f ms   p99 %.1f ms   (sensor timestamp to global map, complete epochs)\n",
@@ -140,8 +151,7 @@ Json recordedReport(const RecordedScores& s) {
   j["bytes_madc_per_frame"] = jsonNumber(s.madc_bytes_per_frame);
   j["bytes_baseline_per_frame"] = jsonNumber(s.baseline_bytes_per_frame);
   j["bytes_ratio"] = jsonNumber(ratio(s.baseline_bytes_per_frame, s.madc_bytes_per_frame));
-  j["bytes_per_ellipsoid"] = jsonNumber(s.bytes_per_ellipsoid);
-  j["bytes_per_ellipsoid_exact_wire"] = jsonNumber(s.exact_bytes_per_ellipsoid);
+  addMapWire(j, s.wire);
   j["rand_index_mean"] = jsonNumber(s.rand_index);
   j["ari_mean"] = jsonNumber(s.adjusted_rand_index);
   j["rand_index_points_mean"] = jsonNumber(s.rand_index_points);
@@ -161,8 +171,7 @@ std::string sceneScoresText(const SceneScores& s) {
   out += formatText("  bytes per frame, edge uploads: MAD-C %.0f B   baseline %.0f B   ratio %.0fx   (raw scans %.0f B: %.0fx)\n",
                 s.madc_bytes_per_frame, s.baseline_bytes_per_frame, ratio(s.baseline_bytes_per_frame, s.madc_bytes_per_frame),
                 s.raw_bytes_per_frame, ratio(s.raw_bytes_per_frame, s.madc_bytes_per_frame));
-  out += formatText("  ellipsoids on the wire:        %.1f B each in the edges' map uploads (%.1f B were they sent as float32)\n",
-                s.madc_bytes_per_ellipsoid, s.exact_bytes_per_ellipsoid);
+  out += mapWireText(s.madc_wire, 31);
   out += formatText("  MAD-C vs baseline:             Rand index %.4f   adjusted %.4f (local clusters); points %.4f / %.4f\n",
                 s.madc_vs_baseline.rand_index, s.madc_vs_baseline.adjusted_rand_index, s.ext_vs_baseline.rand_index,
                 s.ext_vs_baseline.adjusted_rand_index);
@@ -190,8 +199,7 @@ Json sceneScoresReport(const SceneScores& s) {
   j["bytes_baseline_per_frame"] = jsonNumber(s.baseline_bytes_per_frame);
   j["bytes_ratio"] = jsonNumber(ratio(s.baseline_bytes_per_frame, s.madc_bytes_per_frame));
   j["bytes_raw_per_frame"] = jsonNumber(s.raw_bytes_per_frame);
-  j["bytes_per_ellipsoid"] = jsonNumber(s.madc_bytes_per_ellipsoid);
-  j["bytes_per_ellipsoid_exact_wire"] = jsonNumber(s.exact_bytes_per_ellipsoid);
+  addMapWire(j, s.madc_wire);
   j["rand_index_mean"] = jsonNumber(s.madc_vs_baseline.rand_index);
   j["ari_mean"] = jsonNumber(s.madc_vs_baseline.adjusted_rand_index);
   j["rand_index_points_mean"] = jsonNumber(s.ext_vs_baseline.rand_index);

@@ -48,8 +48,7 @@ struct RecordedScores {
   EpochLatencies latencies;           // of every MAD-C epoch
   double madc_bytes_per_frame = 0.0;  // over every link, per published epoch
   double baseline_bytes_per_frame = 0.0;
-  double bytes_per_ellipsoid = 0.0;        // the edges' map uploads over their ellipsoids (compared epochs)
-  double exact_bytes_per_ellipsoid = 0.0;  // the same uploads with every ellipsoid exact
+  MapWireCost wire;                   // the edges' map uploads (compared epochs)
   // Means over the compared epochs whose labels matched (Accuracy::ok).
   double rand_index = 0.0;         // elements = local clusters (the paper)
   double adjusted_rand_index = 0.0;

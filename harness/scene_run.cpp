@@ -191,9 +191,6 @@ Expected<SceneScores> scoreSceneRuns(const sim::Scene& scene, const SceneRun& ma
   std::vector<double> true_objects;
   std::vector<double> pairs_tested;
   std::vector<double> pairs_all;
-  double map_bytes = 0.0;
-  double exact_map_bytes = 0.0;
-  double ellipsoids = 0.0;
   for (const auto e : epochs) {
     const GlobalMapMessage& g = madc.result.epochs.at(e);
     const EdgeView& view = views->at(e);
@@ -210,9 +207,7 @@ Expected<SceneScores> scoreSceneRuns(const sim::Scene& scene, const SceneRun& ma
     true_objects.push_back(static_cast<double>(truth->objects.objects_true));
     objects.push_back(static_cast<double>(g.map.objects.size()));
     madc_bytes.push_back(static_cast<double>(view.madc_bytes));
-    map_bytes += static_cast<double>(view.madc_bytes);
-    exact_map_bytes += static_cast<double>(view.madc_exact_bytes);
-    ellipsoids += static_cast<double>(view.madc_ellipsoids);
+    out.madc_wire.add(view);
     baseline_bytes.push_back(static_cast<double>(view.baseline_bytes));
     raw_bytes.push_back(static_cast<double>(view.raw_bytes));
     // Table 1: the MERGE of the maps the edges shipped, as the root merged them (the same partition).
@@ -244,8 +239,6 @@ Expected<SceneScores> scoreSceneRuns(const sim::Scene& scene, const SceneRun& ma
   out.madc_bytes_per_frame = mean(madc_bytes);
   out.baseline_bytes_per_frame = mean(baseline_bytes);
   out.raw_bytes_per_frame = mean(raw_bytes);
-  out.madc_bytes_per_ellipsoid = map_bytes / std::max(1.0, ellipsoids);
-  out.exact_bytes_per_ellipsoid = exact_map_bytes / std::max(1.0, ellipsoids);
   out.global_objects = mean(objects);
   out.true_objects = mean(true_objects);
   out.pairs_tested_per_epoch = mean(pairs_tested);

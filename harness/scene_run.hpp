@@ -74,8 +74,7 @@ struct SceneScores {
   double madc_bytes_per_frame = 0.0;   // what the edges ship per frame (the services' wire sizes)
   double baseline_bytes_per_frame = 0.0;
   double raw_bytes_per_frame = 0.0;    // the raw scans in the same wire format (the paper's baseline)
-  double madc_bytes_per_ellipsoid = 0.0;   // the edges' map uploads over their ellipsoids, all frames
-  double exact_bytes_per_ellipsoid = 0.0;  // the same with every ellipsoid exact (float32, no records)
+  MapWireCost madc_wire;               // the edges' map uploads, all frames
   double global_objects = 0.0;         // MAD-C's global objects per frame
   double true_objects = 0.0;           // true objects with points per frame
   // From the services' metrics.

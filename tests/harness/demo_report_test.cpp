@@ -48,8 +48,11 @@ RecordedScores twoEpochs() {
   s.incomplete = 1;
   s.madc_bytes_per_frame = 2'000.0;
   s.baseline_bytes_per_frame = 290'000.0;
-  s.bytes_per_ellipsoid = 21.5;
-  s.exact_bytes_per_ellipsoid = 53.0;
+  s.wire.bytes = 2'850;  // 100 ellipsoids of 21.5 B, 40 of them with a 17.5 B view
+  s.wire.view_bytes = 700;
+  s.wire.exact_bytes = 5'300;
+  s.wire.ellipsoids = 100;
+  s.wire.views = 40;
   s.rand_index = 0.98;
   s.adjusted_rand_index = 0.9;
   s.rand_index_points = 0.97;
@@ -80,7 +83,13 @@ TEST(DemoReport, RecordedTextHasARowPerComparedEpochAndTheRatiosOfTheBytes) {
   EXPECT_NE(text.find("5 epochs published by MAD-C (1 incomplete"), std::string::npos) << text;
   EXPECT_NE(text.find("2 compared with the baseline"), std::string::npos) << text;
   EXPECT_NE(text.find("MAD-C 2000 B   baseline 290000 B   ratio 145x"), std::string::npos) << text;
-  EXPECT_NE(text.find("21.5 B each"), std::string::npos) << text;
+  EXPECT_NE(text.find("ellipsoids on the wire:      21.5 B each in the edges' map uploads (53.0 B were they sent as "
+                      "float32)"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("their boxes and classes:     7.0 B an ellipsoid more: 40 % of them carry one, 17.5 B each"),
+            std::string::npos)
+      << text;
 }
 
 TEST(DemoReport, RecordedReportHoldsTheSameFigures) {
@@ -90,9 +99,33 @@ TEST(DemoReport, RecordedReportHoldsTheSameFigures) {
   EXPECT_EQ(j.at("epochs_incomplete"), 1);
   EXPECT_DOUBLE_EQ(j.at("bytes_ratio").get<double>(), 145.0);
   EXPECT_DOUBLE_EQ(j.at("bytes_per_ellipsoid").get<double>(), 21.5);
+  EXPECT_DOUBLE_EQ(j.at("bytes_per_ellipsoid_exact_wire").get<double>(), 53.0);
+  EXPECT_DOUBLE_EQ(j.at("view_bytes_per_ellipsoid").get<double>(), 7.0);
+  EXPECT_DOUBLE_EQ(j.at("ellipsoids_with_views").get<double>(), 0.4);
   EXPECT_DOUBLE_EQ(j.at("rand_index_mean").get<double>(), 0.98);
   EXPECT_DOUBLE_EQ(j.at("merge_p99_ms").get<double>(), percentile({1.0, 3.0}, 0.99));
   EXPECT_DOUBLE_EQ(j.at("e2e_all_epochs_p99_ms").get<double>(), percentile({40.0, 60.0, 200.0}, 0.99));
+}
+
+TEST(DemoReport, TheWireCostSumsEdgeViewsAndCountsTheViewsApart) {
+  EdgeView a;
+  a.madc_bytes = 300;  // 10 ellipsoids: 200 B of records and upload, 100 B of views on 5 of them
+  a.madc_view_bytes = 100;
+  a.madc_exact_bytes = 600;
+  a.madc_ellipsoids = 10;
+  a.madc_views = 5;
+  EdgeView b;
+  b.madc_bytes = 220;  // 10 more ellipsoids, no view
+  b.madc_exact_bytes = 500;
+  b.madc_ellipsoids = 10;
+  MapWireCost c;
+  c.add(a);
+  c.add(b);
+  EXPECT_DOUBLE_EQ(c.bytesPerEllipsoid(), (200.0 + 220.0) / 20.0);
+  EXPECT_DOUBLE_EQ(c.viewBytesPerEllipsoid(), 100.0 / 20.0);
+  EXPECT_DOUBLE_EQ(c.exactBytesPerEllipsoid(), 1'100.0 / 20.0);
+  EXPECT_DOUBLE_EQ(c.viewShare(), 0.25);
+  EXPECT_DOUBLE_EQ(MapWireCost{}.bytesPerEllipsoid(), 0.0) << "no ellipsoid, no division by zero";
 }
 
 TEST(DemoReport, SceneTextAndReportGiveTheBytesAgainstTheBaselineAndTheRawScans) {
@@ -109,6 +142,7 @@ TEST(DemoReport, SceneTextAndReportGiveTheBytesAgainstTheBaselineAndTheRawScans)
   EXPECT_NE(text.find("9 complete frames scored against the truth, 8 against the baseline"), std::string::npos) << text;
   EXPECT_NE(text.find("ratio 10x   (raw scans 5000 B: 100x)"), std::string::npos) << text;
   EXPECT_NE(text.find("20: found whole 17, split 0, merged 0, missed 3 (MAD-C)"), std::string::npos) << text;
+  EXPECT_EQ(text.find("their boxes and classes"), std::string::npos) << "no view was shipped\n" << text;
   const Json j = sceneScoresReport(s);
   EXPECT_DOUBLE_EQ(j.at("bytes_ratio").get<double>(), 10.0);
   EXPECT_EQ(j.at("objects_missed"), 3);
