@@ -29,6 +29,12 @@ std::string mapWireText(const MapWireCost& c, int width) {
   return out;
 }
 
+// What the ellipsoids' views add to the edges' bytes per frame (the wire cost is summed over the
+// frames scored against the truth, as madc_bytes_per_frame is a mean over them).
+double viewBytesPerFrame(const SceneScores& s) {
+  return static_cast<double>(s.madc_wire.view_bytes) / static_cast<double>(std::max<std::size_t>(s.frames, 1));
+}
+
 void addMapWire(Json& j, const MapWireCost& c) {
   j["bytes_per_ellipsoid"] = jsonNumber(c.bytesPerEllipsoid());
   j["bytes_per_ellipsoid_exact_wire"] = jsonNumber(c.exactBytesPerEllipsoid());
@@ -171,6 +177,12 @@ std::string sceneScoresText(const SceneScores& s) {
   out += formatText("  bytes per frame, edge uploads: MAD-C %.0f B   baseline %.0f B   ratio %.0fx   (raw scans %.0f B: %.0fx)\n",
                 s.madc_bytes_per_frame, s.baseline_bytes_per_frame, ratio(s.baseline_bytes_per_frame, s.madc_bytes_per_frame),
                 s.raw_bytes_per_frame, ratio(s.raw_bytes_per_frame, s.madc_bytes_per_frame));
+  const double views_per_frame = viewBytesPerFrame(s);
+  if (views_per_frame > 0.0) {
+    const double bare = s.madc_bytes_per_frame - views_per_frame;
+    out += formatText("                                 of which views %.0f B; without them %.0f B: %.0fx the baseline, %.0fx the raw scans\n",
+                      views_per_frame, bare, ratio(s.baseline_bytes_per_frame, bare), ratio(s.raw_bytes_per_frame, bare));
+  }
   out += mapWireText(s.madc_wire, 31);
   out += formatText("  MAD-C vs baseline:             Rand index %.4f   adjusted %.4f (local clusters); points %.4f / %.4f\n",
                 s.madc_vs_baseline.rand_index, s.madc_vs_baseline.adjusted_rand_index, s.ext_vs_baseline.rand_index,
@@ -199,6 +211,7 @@ Json sceneScoresReport(const SceneScores& s) {
   j["bytes_baseline_per_frame"] = jsonNumber(s.baseline_bytes_per_frame);
   j["bytes_ratio"] = jsonNumber(ratio(s.baseline_bytes_per_frame, s.madc_bytes_per_frame));
   j["bytes_raw_per_frame"] = jsonNumber(s.raw_bytes_per_frame);
+  j["bytes_views_per_frame"] = jsonNumber(viewBytesPerFrame(s));
   addMapWire(j, s.madc_wire);
   j["rand_index_mean"] = jsonNumber(s.madc_vs_baseline.rand_index);
   j["ari_mean"] = jsonNumber(s.madc_vs_baseline.adjusted_rand_index);

@@ -143,10 +143,31 @@ TEST(DemoReport, SceneTextAndReportGiveTheBytesAgainstTheBaselineAndTheRawScans)
   EXPECT_NE(text.find("ratio 10x   (raw scans 5000 B: 100x)"), std::string::npos) << text;
   EXPECT_NE(text.find("20: found whole 17, split 0, merged 0, missed 3 (MAD-C)"), std::string::npos) << text;
   EXPECT_EQ(text.find("their boxes and classes"), std::string::npos) << "no view was shipped\n" << text;
+  EXPECT_EQ(text.find("of which views"), std::string::npos) << text;
   const Json j = sceneScoresReport(s);
   EXPECT_DOUBLE_EQ(j.at("bytes_ratio").get<double>(), 10.0);
+  EXPECT_DOUBLE_EQ(j.at("bytes_views_per_frame").get<double>(), 0.0);
   EXPECT_EQ(j.at("objects_missed"), 3);
   EXPECT_EQ(j.at("frames_vs_baseline"), 8);
+}
+
+TEST(DemoReport, SceneTextGivesTheRatiosWithoutTheViewsToo) {
+  SceneScores s;
+  s.frames = 9;
+  s.madc_bytes_per_frame = 50.0;
+  s.baseline_bytes_per_frame = 480.0;
+  s.raw_bytes_per_frame = 5'000.0;
+  s.madc_wire.bytes = 450;
+  s.madc_wire.view_bytes = 90;  // 10 B a frame of the 50
+  s.madc_wire.ellipsoids = 18;
+  s.madc_wire.views = 9;
+  const std::string text = sceneScoresText(s);
+  EXPECT_NE(text.find("of which views 10 B; without them 40 B: 12x the baseline, 125x the raw scans"), std::string::npos)
+      << text;
+  EXPECT_NE(text.find("their boxes and classes:       5.0 B an ellipsoid more: 50 % of them carry one, 10.0 B each"),
+            std::string::npos)
+      << text;
+  EXPECT_DOUBLE_EQ(sceneScoresReport(s).at("bytes_views_per_frame").get<double>(), 10.0);
 }
 
 }  // namespace
