@@ -1,16 +1,11 @@
 // fogctl watch: the root's global maps (or a tracker's tracks) as they come.
 #include <algorithm>
-#include <atomic>
-#include <chrono>
 #include <cmath>
-#include <condition_variable>
 #include <cstdio>
 #include <functional>
-#include <mutex>
 #include <optional>
 #include <set>
 #include <string>
-#include <thread>
 
 #include <grpcpp/grpcpp.h>
 
@@ -21,6 +16,7 @@
 #include "harness/launcher.hpp"
 #include "services/common/grpc_options.hpp"
 #include "services/common/proto_convert.hpp"
+#include "services/common/stream_follow.hpp"
 #include "tools/fogctl/args.hpp"
 #include "tools/fogctl/commands.hpp"
 
@@ -33,32 +29,6 @@ using harness::stopRequested;
 
 // How long watch waits for the root to accept a connection when --timeout-s does not say.
 constexpr double kConnectTimeoutS = 5.0;
-
-// Connects the channel within window_s: an empty string, or why not. A refused connection is not
-// final: a root that is still starting (fogctl up, docker-compose up) is tried again, with the
-// channel's capped reconnect backoff, until the window closes.
-std::string connect(grpc::Channel& channel, double window_s) {
-  const auto deadline =
-      std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(window_s));
-  std::string last_problem = "no connection";
-  auto state = channel.GetState(true);
-  while (state != GRPC_CHANNEL_READY) {
-    if (state == GRPC_CHANNEL_SHUTDOWN) return "the channel was shut down";
-    if (state == GRPC_CHANNEL_TRANSIENT_FAILURE) last_problem = "the connection failed";
-    if (stopRequested()) return "interrupted";
-    const auto now = std::chrono::steady_clock::now();
-    if (now >= deadline) {
-      char within[48];
-      std::snprintf(within, sizeof within, " within %g s", window_s);
-      return last_problem + within;
-    }
-    // In slices, so that Ctrl-C is seen.
-    const auto slice = std::min<std::chrono::steady_clock::duration>(deadline - now, std::chrono::milliseconds(100));
-    channel.WaitForStateChange(state, std::chrono::system_clock::now() + slice);
-    state = channel.GetState(true);
-  }
-  return {};
-}
 
 void printGlobalMap(const v1::GlobalMap& message, long shown) {
   auto global = fromProto(message);
@@ -116,69 +86,29 @@ void printTrackList(const v1::TrackList& message) {
   std::fflush(stdout);
 }
 
-// Reads a server stream until --count messages, Ctrl-C, --timeout-s without a message or the end
-// of the stream; says so after every --idle-s without one: a silent server is reported, never
-// waited on silently. `what` names the messages and `who` the server in what it prints.
+// Follows the stream until --count messages, Ctrl-C, --timeout-s without a message or its end,
+// saying so after every --idle-s without one; `what` names the messages, `who` the server.
 template <class Message>
 int follow(grpc::ClientContext& context, grpc::ClientReaderInterface<Message>& reader, const std::function<void(const Message&)>& print,
            long count, double idle_s, double timeout_s, const std::string& what, const std::string& who) {
-  using Clock = std::chrono::steady_clock;
-  const auto seconds = [](double s) { return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s)); };
-  std::atomic<long> received{0};
-  std::atomic<bool> gave_up{false};
-  std::mutex mutex;
-  std::condition_variable finished_cv;
-  bool finished = false;
-  std::thread watchdog([&] {
-    long seen = 0;
-    long idle_periods = 0;
-    auto quiet_since = Clock::now();
-    std::unique_lock<std::mutex> lock(mutex);
-    while (!finished_cv.wait_for(lock, std::chrono::milliseconds(50), [&] { return finished; })) {
-      if (stopRequested()) break;
-      const auto now = Clock::now();
-      if (received.load() != seen) {
-        seen = received.load();
-        idle_periods = 0;
-        quiet_since = now;
-        continue;
-      }
-      if (timeout_s > 0.0 && now - quiet_since >= seconds(timeout_s)) {
-        gave_up = true;
-        break;
-      }
-      if (now - quiet_since >= seconds(idle_s * static_cast<double>(idle_periods + 1))) {
-        ++idle_periods;
-        std::fprintf(stderr, "fogctl: no %s from %s for %g s\n", what.c_str(), who.c_str(), idle_s * static_cast<double>(idle_periods));
-      }
-    }
-    context.TryCancel();
-  });
-
-  Message message;
-  bool counted_out = false;
-  while (reader.Read(&message)) {
-    print(message);
-    ++received;
-    if (count > 0 && received.load() >= count) {
-      counted_out = true;
+  FollowOptions options;
+  options.count = count;
+  options.idle_s = idle_s;
+  options.timeout_s = timeout_s;
+  options.stop = stopRequested;
+  options.on_idle = [&](double silent_s) { std::fprintf(stderr, "fogctl: no %s from %s for %g s\n", what.c_str(), who.c_str(), silent_s); };
+  const FollowResult result = followStream(context, reader, print, options);
+  switch (result.end) {
+    case FollowEnd::kCounted:
+    case FollowEnd::kStopped:
+      return 0;
+    case FollowEnd::kGaveUp:
+      std::fprintf(stderr, "fogctl: no %s from %s for %g s; giving up\n", what.c_str(), who.c_str(), timeout_s);
+      return 1;
+    case FollowEnd::kLost:
       break;
-    }
   }
-  {
-    std::lock_guard<std::mutex> lock(mutex);
-    finished = true;
-  }
-  finished_cv.notify_all();
-  watchdog.join();
-  const grpc::Status status = reader.Finish();
-  if (counted_out || stopRequested()) return 0;
-  if (gave_up) {
-    std::fprintf(stderr, "fogctl: no %s from %s for %g s; giving up\n", what.c_str(), who.c_str(), timeout_s);
-    return 1;
-  }
-  const std::string why = status.ok() ? "it ended the stream" : status.error_message();
-  std::fprintf(stderr, "fogctl: lost %s: %s\n", who.c_str(), why.empty() ? "the stream failed" : why.c_str());
+  std::fprintf(stderr, "fogctl: lost %s: %s\n", who.c_str(), result.why.c_str());
   return 1;
 }
 
@@ -202,7 +132,7 @@ int runWatch(int argc, char** argv) {
   installStopHandlers();
   const std::string who = std::string(tracks ? "the tracker" : "the root") + " at " + target;
   auto channel = makeChannel(target, connection->credentials, 64U << 20);
-  if (const std::string problem = connect(*channel, *timeout_s > 0.0 ? *timeout_s : kConnectTimeoutS); !problem.empty()) {
+  if (const std::string problem = waitForChannel(*channel, *timeout_s > 0.0 ? *timeout_s : kConnectTimeoutS, stopRequested); !problem.empty()) {
     if (stopRequested()) return 0;
     std::fprintf(stderr, "fogctl: cannot reach %s: %s (is the cluster up?)\n", who.c_str(), problem.c_str());
     return 1;
