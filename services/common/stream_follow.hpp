@@ -6,6 +6,7 @@
 #include <string>
 
 #include <grpcpp/grpcpp.h>
+#include <grpcpp/support/sync_stream.h>
 
 namespace fogmap {
 
