@@ -18,15 +18,18 @@ Builds fogmap with ThreadSanitizer into build-tsan/ and runs the threaded tests 
                  start-up and stop helpers, and integration tests: AggregatorService|
                  AggregatorProcess|TlsService|TrackerService|TrackerNode|TrackerTicker|ParentLink|
                  DetectionLink|CentroidLink|GlobalMapFeed|Broadcaster|Periodic|RunService|
-                 ServeUntilStopped|StopSignals.|StopRequest|EdgeProcess|Cluster.|HostileClient|Shutdown)
+                 ServeUntilStopped|StopSignals.|StopRequest|StreamFollow|EdgeProcess|Cluster.|
+                 HostileClient|Shutdown)
   --no-build     run what build-tsan/ holds
   --help         this text
 
-Reports go to build-tsan/tsan-logs/<process>.<pid>; the summary counts them.
+Reports go to build-tsan/tsan-logs/<process>.<pid>; the summary counts them. The instrumented
+services run 5 to 15 times slower, so the tests whose oracle needs complete epochs stretch their
+schedule by FOGMAP_TEST_TIME_SCALE (default here 6; tests/support/time_scale.hpp).
 USAGE
 }
 
-tests='AggregatorService|AggregatorProcess|TlsService|TrackerService|TrackerNode|TrackerTicker|ParentLink|DetectionLink|CentroidLink|GlobalMapFeed|Broadcaster|Periodic|RunService|ServeUntilStopped|StopSignals\.|StopRequest|EdgeProcess|Cluster\.|HostileClient|Shutdown'
+tests='AggregatorService|AggregatorProcess|TlsService|TrackerService|TrackerNode|TrackerTicker|ParentLink|DetectionLink|CentroidLink|GlobalMapFeed|Broadcaster|Periodic|RunService|ServeUntilStopped|StopSignals\.|StopRequest|StreamFollow|EdgeProcess|Cluster\.|HostileClient|Shutdown'
 build=1
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -54,6 +57,7 @@ rm -rf "$logs"
 mkdir -p "$logs"
 # Every process the tests start inherits this: one log file per process, all reports kept.
 export TSAN_OPTIONS="suppressions=$supp log_path=$logs/tsan halt_on_error=0 second_deadlock_stack=1 history_size=4"
+export FOGMAP_TEST_TIME_SCALE=${FOGMAP_TEST_TIME_SCALE:-6}
 status=0
 ctest --test-dir "$dir" -R "$tests" --output-on-failure -j 2 --timeout 900 || status=$?
 reports=$(cat "$logs"/tsan.* 2> /dev/null | grep -c '^WARNING: ThreadSanitizer' || true)

@@ -31,6 +31,7 @@
 #include "services/common/endpoint.hpp"
 #include "tests/support/scratch_dir.hpp"
 #include "tests/support/source_dir.hpp"
+#include "tests/support/time_scale.hpp"
 
 namespace fogmap {
 namespace {
@@ -68,18 +69,36 @@ Map withFrame(const Map& map, std::uint64_t frame) {
   return out;
 }
 
+// `t` on a schedule stretched by the test time scale (tests/support/time_scale.hpp): period,
+// deadline and sensor rates, for the tests whose oracle needs complete epochs.
+TopologyConfig stretched(TopologyConfig t) {
+  const double scale = test_support::testTimeScale();
+  t.period_ms *= scale;
+  t.deadline_ms *= scale;
+  for (auto& n : t.nodes) {
+    if (n.sensor) n.sensor->rate_hz /= scale;
+  }
+  return t;
+}
+
+std::chrono::milliseconds scaled(std::chrono::milliseconds timeout) {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(timeout * test_support::testTimeScale());
+}
+
 // Runs the cluster and checks every complete epoch's global map against MERGE of the local maps
 // recomputed in-process (as the parent decodes them). Returns the global maps by scan index.
 std::map<std::size_t, Map> runAndCheckAgainstInProcessMerge(const TopologyConfig& t, const std::string& name) {
   RunOptions options;
   options.frames = 1000;  // everything the edges produce
   options.timeout = 120s;
-  const auto run = harness::runCluster(keptDir(name), t, options);
+  options.timeout = scaled(options.timeout);
+  const TopologyConfig run_topology = stretched(t);
+  const auto run = harness::runCluster(keptDir(name), run_topology, options);
   EXPECT_TRUE(run.ok()) << (run.ok() ? "" : run.error().message);
   if (!run.ok()) return {};
   const auto epochs = completeEpochs(*run);
   EXPECT_GE(epochs.size(), 3U) << name << ": too few complete epochs (" << run->epochs.size() << " published)";
-  const auto views = harness::recomputeEdges(t, epochs);
+  const auto views = harness::recomputeEdges(run_topology, epochs);
   EXPECT_TRUE(views.ok()) << (views.ok() ? "" : views.error().message);
   if (!views.ok()) return {};
   std::map<std::size_t, Map> by_scan;
@@ -129,10 +148,11 @@ TEST(Cluster, MadcAgreesWithBaselineRandIndexAtLeast095) {
   RunOptions options;
   options.frames = 1000;  // everything the edges produce
   options.timeout = 120s;
-  const auto madc = harness::runCluster(keptDir("ri-madc"), topology("star", 3, Mode::kMadc, 20), options);
+  options.timeout = scaled(options.timeout);
+  const auto madc = harness::runCluster(keptDir("ri-madc"), stretched(topology("star", 3, Mode::kMadc, 20)), options);
   ASSERT_TRUE(madc.ok()) << madc.error().message;
   options.point_labels = true;
-  const auto baseline = harness::runCluster(keptDir("ri-base"), topology("star", 3, Mode::kBaseline, 20), options);
+  const auto baseline = harness::runCluster(keptDir("ri-base"), stretched(topology("star", 3, Mode::kBaseline, 20)), options);
   ASSERT_TRUE(baseline.ok()) << baseline.error().message;
   std::map<std::size_t, const GlobalMapMessage*> baseline_by_scan;
   for (const auto& [e, g] : baseline->epochs) {
@@ -143,7 +163,7 @@ TEST(Cluster, MadcAgreesWithBaselineRandIndexAtLeast095) {
     if (baseline_by_scan.count(e % kScans) > 0) epochs.push_back(e);
   }
   ASSERT_GE(epochs.size(), 3U);
-  const auto views = harness::recomputeEdges(topology("star", 3, Mode::kMadc, 10), epochs);
+  const auto views = harness::recomputeEdges(stretched(topology("star", 3, Mode::kMadc, 10)), epochs);
   ASSERT_TRUE(views.ok()) << views.error().message;
   for (const auto e : epochs) {
     const auto a = harness::accuracy(madc->epochs.at(e), *baseline_by_scan.at(e % kScans), views->at(e));
@@ -255,7 +275,8 @@ std::pair<int, std::string> run(const std::string& command) { return test_suppor
 // fogctl geofence against a running root: the intrusions it prints are exactly those of the
 // global map of the epoch it names, as the root published it, recomputed in-process.
 TEST(Cluster, FogctlGeofenceReportsTheIntrusionsOfThePublishedGlobalMap) {
-  TopologyConfig t = topology("star", 3, Mode::kMadc, 40);
+  // Stretched: the latest map a query names must be one the slowed edges (under a sanitizer) filled.
+  TopologyConfig t = stretched(topology("star", 3, Mode::kMadc, 40));
   test_support::replayUntilStopped(t);  // the subscriber collects until the queries are done
   const std::string target = endpoint(t.root()->host, t.root()->port);
   const std::string fogctl = (harness::binaryDir() / "fogctl").string() + " geofence ";
@@ -263,7 +284,7 @@ TEST(Cluster, FogctlGeofenceReportsTheIntrusionsOfThePublishedGlobalMap) {
   std::pair<int, std::string> set, query, unknown;
   RunOptions options;
   options.frames = std::numeric_limits<std::uint64_t>::max();
-  options.timeout = 120s;
+  options.timeout = scaled(120s);
   const auto result = harness::runCluster(keptDir("geofence"), t, options, [&](const harness::Cluster& cluster) {
     const test_support::EdgesStopper stop_edges(cluster, t);  // once the queries are done
     // The queries name the root's latest map: one with every edge's objects by now.
