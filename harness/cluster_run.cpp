@@ -14,8 +14,8 @@
 #include "common/base/epochs.hpp"
 #include "common/certs/certs.hpp"
 #include "common/config/topology_parse.hpp"
-#include "common/geometry/compact_view.hpp"
 #include "common/config/topology_yaml.hpp"
+#include "common/geometry/compact_view.hpp"
 #include "common/sim/sensor_frames.hpp"
 #include "common/sim/truth.hpp"
 #include "fogmap/v1/fogmap.grpc.pb.h"
@@ -326,15 +326,18 @@ void MapWireCost::add(const EdgeView& view) {
 }
 
 namespace {
-double perEllipsoid(std::size_t amount, std::size_t ellipsoids) {
-  return static_cast<double>(amount) / static_cast<double>(std::max<std::size_t>(ellipsoids, 1));
+// amount / count, 0 for no count.
+double per(std::size_t amount, std::size_t count) {
+  return static_cast<double>(amount) / static_cast<double>(std::max<std::size_t>(count, 1));
 }
 }  // namespace
 
-double MapWireCost::bytesPerEllipsoid() const { return perEllipsoid(bytes - view_bytes, ellipsoids); }
-double MapWireCost::exactBytesPerEllipsoid() const { return perEllipsoid(exact_bytes, ellipsoids); }
-double MapWireCost::viewBytesPerEllipsoid() const { return perEllipsoid(view_bytes, ellipsoids); }
-double MapWireCost::viewShare() const { return perEllipsoid(views, ellipsoids); }
+double MapWireCost::bytesPerEllipsoid() const { return per(bytes - view_bytes, ellipsoids); }
+double MapWireCost::exactBytesPerEllipsoid() const { return per(exact_bytes, ellipsoids); }
+double MapWireCost::viewBytesPerEllipsoid() const { return per(view_bytes, ellipsoids); }
+double MapWireCost::viewShare() const { return per(views, ellipsoids); }
+double MapWireCost::bytesPerFrame(std::size_t frames) const { return per(bytes, frames); }
+double MapWireCost::viewBytesPerFrame(std::size_t frames) const { return per(view_bytes, frames); }
 
 Accuracy accuracy(const GlobalMapMessage& madc, const GlobalMapMessage& baseline, const EdgeView& view) {
   std::map<EllipsoidId, std::int64_t> object_of;

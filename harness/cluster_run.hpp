@@ -71,6 +71,7 @@ struct EdgeView {
   std::size_t baseline_bytes = 0;  // the pre-processed points (what fogmap's baseline ships)
   std::size_t raw_bytes = 0;       // the scans before pre-processing, in the same wire format
 };
+
 // What the edges' map uploads cost, summed over edge views. An ellipsoid's bytes are its record and
 // its share of the upload (header, blocks); its view (box, class) is counted apart, as what the
 // ellipsoids carry beside them.
@@ -86,6 +87,8 @@ struct MapWireCost {
   double exactBytesPerEllipsoid() const;  // the same with every ellipsoid exact (float32)
   double viewBytesPerEllipsoid() const;   // what the views add, over all ellipsoids
   double viewShare() const;               // the share of the ellipsoids that carry a view
+  double bytesPerFrame(std::size_t frames) const;      // the uploads, views included
+  double viewBytesPerFrame(std::size_t frames) const;  // what the views add to them
 };
 
 Expected<std::map<std::uint64_t, EdgeView>> recomputeEdges(const TopologyConfig& topology,

@@ -29,11 +29,9 @@ std::string mapWireText(const MapWireCost& c, int width) {
   return out;
 }
 
-// What the ellipsoids' views add to the edges' bytes per frame (the wire cost is summed over the
-// frames scored against the truth, as madc_bytes_per_frame is a mean over them).
-double viewBytesPerFrame(const SceneScores& s) {
-  return static_cast<double>(s.madc_wire.view_bytes) / static_cast<double>(std::max<std::size_t>(s.frames, 1));
-}
+// What the ellipsoids' views add to the edges' bytes per frame (over the frames scored against the
+// truth, as madc_bytes_per_frame).
+double viewBytesPerFrame(const SceneScores& s) { return s.madc_wire.viewBytesPerFrame(s.frames); }
 
 void addMapWire(Json& j, const MapWireCost& c) {
   j["bytes_per_ellipsoid"] = jsonNumber(c.bytesPerEllipsoid());

@@ -184,7 +184,6 @@ Expected<SceneScores> scoreSceneRuns(const sim::Scene& scene, const SceneRun& ma
   std::vector<RandScores> ext_vs_baseline;
   std::vector<RandScores> madc_truth;
   std::vector<RandScores> baseline_truth;
-  std::vector<double> madc_bytes;
   std::vector<double> baseline_bytes;
   std::vector<double> raw_bytes;
   std::vector<double> objects;
@@ -206,7 +205,6 @@ Expected<SceneScores> scoreSceneRuns(const sim::Scene& scene, const SceneRun& ma
     addBreakdown(out.madc_breakdown, *madc_breakdown);
     true_objects.push_back(static_cast<double>(truth->objects.objects_true));
     objects.push_back(static_cast<double>(g.map.objects.size()));
-    madc_bytes.push_back(static_cast<double>(view.madc_bytes));
     out.madc_wire.add(view);
     baseline_bytes.push_back(static_cast<double>(view.baseline_bytes));
     raw_bytes.push_back(static_cast<double>(view.raw_bytes));
@@ -236,7 +234,7 @@ Expected<SceneScores> scoreSceneRuns(const sim::Scene& scene, const SceneRun& ma
   out.ext_vs_baseline = meanScores(ext_vs_baseline);
   out.madc_vs_truth = meanScores(madc_truth);
   out.baseline_vs_truth = meanScores(baseline_truth);
-  out.madc_bytes_per_frame = mean(madc_bytes);
+  out.madc_bytes_per_frame = out.madc_wire.bytesPerFrame(out.frames);
   out.baseline_bytes_per_frame = mean(baseline_bytes);
   out.raw_bytes_per_frame = mean(raw_bytes);
   out.global_objects = mean(objects);

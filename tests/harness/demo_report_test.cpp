@@ -125,6 +125,8 @@ TEST(DemoReport, TheWireCostSumsEdgeViewsAndCountsTheViewsApart) {
   EXPECT_DOUBLE_EQ(c.viewBytesPerEllipsoid(), 100.0 / 20.0);
   EXPECT_DOUBLE_EQ(c.exactBytesPerEllipsoid(), 1'100.0 / 20.0);
   EXPECT_DOUBLE_EQ(c.viewShare(), 0.25);
+  EXPECT_DOUBLE_EQ(c.bytesPerFrame(2), 520.0 / 2.0);
+  EXPECT_DOUBLE_EQ(c.viewBytesPerFrame(2), 100.0 / 2.0);
   EXPECT_DOUBLE_EQ(MapWireCost{}.bytesPerEllipsoid(), 0.0) << "no ellipsoid, no division by zero";
 }
 
